@@ -1,0 +1,105 @@
+"""Geometry of unit normals: tangent bases, azimuthal equidistant projection, angles.
+
+All normals are unit vectors in the camera frame of ``conventions.md``
+(x = image right, y = image up, z = toward the viewer), stored last-axis ``(..., 3)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_EPS = 1e-12
+
+
+def normalize(v: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Unit vectors along ``axis``; zero vectors stay zero."""
+    n = np.linalg.norm(v, axis=axis, keepdims=True)
+    return v / np.maximum(n, _EPS)
+
+
+def tangent_basis(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal tangent basis ``(e1, e2)`` at each unit reference direction ``m``.
+
+    ``(e1, e2, m)`` are the columns of the minimal rotation taking +z to ``m``, so the basis
+    is smooth everywhere except at ``m = -z`` (never a visible normal) and, for a frontal
+    normal ``m = +z``, is exactly the image axes ``(x, y)``. The paper's elevation/azimuth
+    parametrisation is singular there; this one is not.
+
+    m: (..., 3) unit vectors. Returns two (..., 3) arrays.
+    """
+    mx, my, mz = m[..., 0], m[..., 1], m[..., 2]
+    k = 1.0 / np.maximum(1.0 + mz, _EPS)
+    e1 = np.stack([1.0 - mx * mx * k, -mx * my * k, -mx], axis=-1)
+    e2 = np.stack([-mx * my * k, 1.0 - my * my * k, -my], axis=-1)
+    return e1, e2
+
+
+def aep_forward(n: np.ndarray, m: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
+    """Azimuthal equidistant projection of normals ``n`` about references ``m``.
+
+    The point lies in the tangent plane at ``m`` along the great circle to ``n``, at a
+    distance equal to the geodesic angle (radians). n, m, e1, e2: (..., 3).
+    Returns (..., 2) float coordinates in the basis ``(e1, e2)``.
+    """
+    c = np.clip(np.sum(n * m, axis=-1), -1.0, 1.0)
+    theta = np.arccos(c)
+    t = n - c[..., None] * m  # tangent component, |t| = sin(theta)
+    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    # theta / sin(theta) -> 1 as theta -> 0
+    scale = np.where(s > 1e-7, theta / np.maximum(s, 1e-7), 1.0)
+    return np.stack([np.sum(t * e1, axis=-1), np.sum(t * e2, axis=-1)], axis=-1) * scale[..., None]
+
+
+def aep_inverse(v: np.ndarray, m: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
+    """Inverse azimuthal equidistant projection: (..., 2) tangent coordinates to unit normals."""
+    theta = np.linalg.norm(v, axis=-1)
+    # sin(theta) / theta -> 1 as theta -> 0 (np.sinc is sin(pi x)/(pi x))
+    sinc = np.sinc(theta / np.pi)
+    d = v[..., 0:1] * e1 + v[..., 1:2] * e2
+    return np.cos(theta)[..., None] * m + sinc[..., None] * d
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in degrees between unit vectors ``a`` and ``b`` along the last axis."""
+    c = np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)
+    return np.degrees(np.arccos(c))
+
+
+def normals_from_depth(depth: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Unit normals of a height field.
+
+    depth: (H, W) height toward the viewer in pixel units (NaN off the surface).
+    Central differences inside, one-sided at the mask edge. Returns (H, W, 3) float32,
+    camera frame, NaN where depth is NaN or outside ``mask``.
+    """
+    z = np.asarray(depth, dtype=np.float64)
+    valid = np.isfinite(z) if mask is None else (np.asarray(mask, bool) & np.isfinite(z))
+    dzdx = _masked_derivative(z, valid, axis=1)
+    dzdrow = _masked_derivative(z, valid, axis=0)
+    # y is up: dz/dy = -dz/drow
+    n = np.stack([-dzdx, dzdrow, np.ones_like(z)], axis=-1)
+    n = normalize(n)
+    n[~valid] = np.nan
+    return n.astype(np.float32)
+
+
+def _masked_derivative(z: np.ndarray, valid: np.ndarray, axis: int) -> np.ndarray:
+    """d z / d index along ``axis``: central where both neighbours are valid, else one-sided."""
+    zf = np.where(valid, z, 0.0)
+    fwd_ok = valid & np.roll(valid, -1, axis=axis)
+    bwd_ok = valid & np.roll(valid, 1, axis=axis)
+    # np.roll wraps: forbid differences across the array border
+    edge = [slice(None)] * z.ndim
+    edge[axis] = -1
+    fwd_ok[tuple(edge)] = False
+    edge[axis] = 0
+    bwd_ok[tuple(edge)] = False
+    fwd = np.roll(zf, -1, axis=axis) - zf
+    bwd = zf - np.roll(zf, 1, axis=axis)
+    both = fwd_ok & bwd_ok
+    d = np.zeros_like(z)
+    d[both] = 0.5 * (fwd[both] + bwd[both])
+    only_f = fwd_ok & ~bwd_ok
+    d[only_f] = fwd[only_f]
+    only_b = bwd_ok & ~fwd_ok
+    d[only_b] = bwd[only_b]
+    return d

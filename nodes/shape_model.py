@@ -1,0 +1,211 @@
+"""Statistical model of facial surface normals (Smith & Hancock, section 2).
+
+At each model pixel the training normals are mapped by the azimuthal equidistant projection
+(AEP) about that pixel's mean normal into its tangent plane; PCA over the stacked 2-D points
+gives the modes. A needle-map is then ``v = vbar + P b`` with ``P`` the (2N, K) modes.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from nodes.geometry import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
+
+MODEL_FORMAT_VERSION = 1
+
+
+@dataclass
+class ShapeModel:
+    """A trained needle-map model on a canonical grid.
+
+    grid: (H, W); eyes: (2, 2) canonical eye centres ``[[x, y], [x, y]]`` (pixels, x = column);
+    mask: (H, W) bool model region; mean_normals: (N, 3) unit, camera frame, over the N mask
+    pixels in row-major order; mean_proj: (N, 2) mean AEP coordinates (radians);
+    modes: (2N, K) orthonormal columns, rows ordered (pixel, tangent axis);
+    eigenvalues: (K,) variance of each mode (radians squared); source: provenance text.
+    """
+
+    grid: tuple[int, int]
+    eyes: np.ndarray
+    mask: np.ndarray
+    mean_normals: np.ndarray
+    mean_proj: np.ndarray
+    modes: np.ndarray
+    eigenvalues: np.ndarray
+    source: str
+    e1: np.ndarray = field(init=False, repr=False)
+    e2: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.grid = (int(self.grid[0]), int(self.grid[1]))
+        self.mask = np.asarray(self.mask, bool)
+        self.e1, self.e2 = tangent_basis(self.mean_normals.astype(np.float64))
+
+    @property
+    def n_pixels(self) -> int:
+        return int(self.mean_normals.shape[0])
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.modes.shape[1])
+
+    def truncated(self, k: int) -> "ShapeModel":
+        """The same model with only its first ``k`` modes."""
+        k = max(1, min(int(k), self.n_modes))
+        return ShapeModel(self.grid, self.eyes, self.mask, self.mean_normals, self.mean_proj,
+                          self.modes[:, :k], self.eigenvalues[:k], self.source)
+
+    def project(self, normals: np.ndarray) -> np.ndarray:
+        """(N, 3) unit normals on the mask pixels -> (N, 2) AEP coordinates."""
+        return aep_forward(normals, self.mean_normals, self.e1, self.e2)
+
+    def unproject(self, coords: np.ndarray) -> np.ndarray:
+        """(N, 2) AEP coordinates -> (N, 3) unit normals."""
+        return aep_inverse(coords, self.mean_normals, self.e1, self.e2)
+
+    def synthesize(self, b: np.ndarray) -> np.ndarray:
+        """Normals (N, 3) of shape parameters ``b`` (K,)."""
+        v = self.mean_proj + (self.modes[:, : len(b)] @ b).reshape(-1, 2)
+        return self.unproject(v)
+
+    def to_image(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
+        """Scatter per-mask-pixel values (N, ...) onto the grid: (H, W, ...)."""
+        out = np.full(self.grid + values.shape[1:], fill, dtype=np.result_type(values.dtype, np.float32))
+        out[self.mask] = values
+        return out
+
+
+def train_shape_model(
+    depths: np.ndarray,
+    n_modes: int = 60,
+    eyes: np.ndarray | None = None,
+    source: str = "",
+    min_coverage: float = 1.0,
+) -> ShapeModel:
+    """Train a needle-map model from aligned height fields.
+
+    depths: (M, H, W) heights in pixel units on the canonical grid, NaN off each face.
+    The model region is the pixels covered by at least ``min_coverage`` of the faces, with
+    interior holes filled, eroded by one pixel so every normal there has a full stencil.
+    n_modes: K, at most M - 1. Returns the model.
+    """
+    depths = np.asarray(depths, np.float64)
+    m, h, w = depths.shape
+    coverage = np.isfinite(depths).mean(axis=0)
+    region = ndimage.binary_fill_holes(coverage >= min_coverage - 1e-9)
+    region = ndimage.binary_erosion(region, iterations=1)
+    region = _largest_component(region)
+    normals = np.empty((m, int(region.sum()), 3))
+    for i in range(m):
+        d = fill_holes(depths[i], region)
+        normals[i] = normals_from_depth(d)[region]
+    if not np.all(np.isfinite(normals)):
+        raise ValueError("training faces do not cover the model region")
+    return train_from_normals(normals, region, n_modes, eyes, source)
+
+
+def train_from_normals(
+    normals: np.ndarray, mask: np.ndarray, n_modes: int, eyes: np.ndarray | None, source: str
+) -> ShapeModel:
+    """Model from (M, N, 3) unit needle-maps over the N pixels of ``mask`` (H, W)."""
+    from nodes.synth.facegen import canonical_eyes
+
+    m = normals.shape[0]
+    mean_n = normalize(normals.mean(axis=0))
+    e1, e2 = tangent_basis(mean_n)
+    v = np.stack([aep_forward(normals[i], mean_n, e1, e2) for i in range(m)])  # (M, N, 2)
+    vbar = v.mean(axis=0)
+    x = (v - vbar).reshape(m, -1)
+    _, sing, vt = np.linalg.svd(x, full_matrices=False)
+    k = max(1, min(int(n_modes), m - 1))
+    grid = tuple(mask.shape)
+    return ShapeModel(
+        grid=grid,
+        eyes=canonical_eyes(grid) if eyes is None else np.asarray(eyes, float),
+        mask=mask,
+        mean_normals=mean_n.astype(np.float32),
+        mean_proj=vbar.astype(np.float32),
+        modes=vt[:k].T.astype(np.float32),
+        eigenvalues=(sing[:k] ** 2 / max(m - 1, 1)).astype(np.float32),
+        source=source,
+    )
+
+
+def fill_holes(depth: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """Heights with NaN pixels inside ``region`` filled by harmonic (Laplace) interpolation."""
+    d = np.array(depth, np.float64)
+    holes = region & ~np.isfinite(d)
+    if not holes.any():
+        return d
+    from nodes.integrate import harmonic_fill
+
+    return harmonic_fill(d, holes)
+
+
+def _largest_component(mask: np.ndarray) -> np.ndarray:
+    labels, n = ndimage.label(mask)
+    if n <= 1:
+        return mask
+    sizes = ndimage.sum(mask, labels, index=np.arange(1, n + 1))
+    return labels == (1 + int(np.argmax(sizes)))
+
+
+def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
+    """Write ``model`` as an ``.npz`` readable with ``allow_pickle=False`` (atomically)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
+    os.close(fd)
+    try:
+        np.savez_compressed(
+            tmp,
+            version=np.int64(MODEL_FORMAT_VERSION),
+            grid=np.array(model.grid, np.int64),
+            eyes=np.asarray(model.eyes, np.float64),
+            mask=model.mask,
+            mean_normals=model.mean_normals,
+            mean_proj=model.mean_proj,
+            modes=model.modes,
+            eigenvalues=model.eigenvalues,
+            source=np.array(model.source),
+        )
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def load_model(path: str | os.PathLike) -> ShapeModel:
+    """Read a model written by ``save_model``; raises ``ValueError`` naming what is wrong."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a readable model file ({exc})") from None
+    required = ("grid", "eyes", "mask", "mean_normals", "mean_proj", "modes", "eigenvalues")
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise ValueError(f"{path}: model file lacks {', '.join(missing)}")
+    version = int(data.get("version", 0))
+    if version > MODEL_FORMAT_VERSION:
+        raise ValueError(f"{path}: model format {version} is newer than this shadowflow ({MODEL_FORMAT_VERSION})")
+    mask = data["mask"].astype(bool)
+    n = int(mask.sum())
+    if data["mean_normals"].shape != (n, 3) or data["modes"].shape[0] != 2 * n:
+        raise ValueError(f"{path}: model arrays do not match its mask ({n} pixels)")
+    return ShapeModel(
+        grid=tuple(int(x) for x in data["grid"]),
+        eyes=data["eyes"].astype(float),
+        mask=mask,
+        mean_normals=data["mean_normals"].astype(np.float32),
+        mean_proj=data["mean_proj"].astype(np.float32),
+        modes=data["modes"].astype(np.float32),
+        eigenvalues=data["eigenvalues"].astype(np.float32),
+        source=str(data.get("source", "")),
+    )

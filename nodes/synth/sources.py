@@ -1,0 +1,152 @@
+"""Sources of aligned face height fields on a canonical grid, for training and evaluation.
+
+Every source returns ``(depths (M, H, W) float32 in pixel units with NaN off each face,
+albedos (M, H, W) float32)`` with the two eye centres of every face on the grid's canonical
+eye pixels, seen by an orthographic camera looking down -z.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from nodes.raster import rasterize
+from nodes.synth.facegen import canonical_eyes, render_face, sample_face
+
+
+def procedural(n: int, seed: int = 0, grid: tuple[int, int] = (128, 128)) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` faces from the procedural anthropometric generator (deterministic in ``seed``)."""
+    rng = np.random.default_rng(seed)
+    depths, albedos = [], []
+    for _ in range(n):
+        d, _, a = render_face(sample_face(rng), grid)
+        depths.append(d)
+        albedos.append(a)
+    return np.stack(depths), np.stack(albedos)
+
+
+def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndarray,
+                  grid: tuple[int, int]) -> np.ndarray:
+    """Similarity-map mesh vertices (mm, x right, y up, z toward viewer) to pixel coordinates.
+
+    The image-left and image-right eye centres (3,) land on the canonical eye pixels of
+    ``grid``; heights scale with the same factor. Returns (V, 3): column, row, height (px).
+    """
+    target = canonical_eyes(grid)
+    src = np.array([eye_left[:2], eye_right[:2]], float)
+    dst = np.array([[target[0, 0], -target[0, 1]], [target[1, 0], -target[1, 1]]])  # y up
+    vs, vd = src[1] - src[0], dst[1] - dst[0]
+    scale = np.linalg.norm(vd) / np.linalg.norm(vs)
+    ang = np.arctan2(vd[1], vd[0]) - np.arctan2(vs[1], vs[0])
+    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    xy = (vertices[:, :2] - src[0]) @ rot.T * scale + dst[0]
+    return np.column_stack([xy[:, 0], -xy[:, 1], vertices[:, 2] * scale])
+
+
+def render_mesh(vertices_px: np.ndarray, triangles: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
+    """Height field (H, W) of a mesh already in pixel coordinates; interior holes filled."""
+    from scipy import ndimage
+
+    from nodes.shape_model import fill_holes
+
+    depth, _ = rasterize(vertices_px, triangles, grid)
+    covered = np.isfinite(depth)
+    region = ndimage.binary_fill_holes(covered)
+    return fill_holes(depth, region).astype(np.float32)
+
+
+# iBUG-68 eye corner landmarks (1-based): image-left eye 37/40, image-right eye 43/46.
+_EYE_CORNERS = ((37, 40), (43, 46))
+
+
+def eos_model(path: str | os.PathLike, n: int, seed: int = 0, grid: tuple[int, int] = (128, 128),
+              landmarks: str | os.PathLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` faces drawn from an eos-format morphable model (e.g. the Surrey Face Model).
+
+    Shape coefficients are drawn from N(0, 1) per mode of the rescaled basis. Eye centres
+    are the mid-points of the eye-corner vertices given by the iBUG-to-model landmark file
+    (default: ``ibug_to_sfm.txt`` next to the model). Albedo is constant 1 (shape-only model).
+    Needs the ``eos-py`` package (``pip install shadowflow[eos]``).
+    """
+    try:
+        import eos
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise RuntimeError("reading eos models needs the eos-py package: pip install 'shadowflow[eos]'") from exc
+    path = Path(path)
+    model = eos.morphablemodel.load_model(str(path))
+    shape = model.get_shape_model()
+    tris = np.asarray(shape.get_triangle_list(), np.int64)
+    lm_file = Path(landmarks) if landmarks else path.with_name("ibug_to_sfm.txt")
+    mapping = read_landmark_mapping(lm_file)
+    k = shape.get_num_principal_components()
+    rng = np.random.default_rng(seed)
+    depths = []
+    for _ in range(n):
+        coeffs = rng.standard_normal(k).astype(np.float32)
+        verts = np.asarray(shape.draw_sample(coeffs), np.float64).reshape(-1, 3)
+        eyes = [0.5 * (verts[mapping[a]] + verts[mapping[b]]) for a, b in _EYE_CORNERS]
+        depths.append(render_mesh(align_to_eyes(verts, eyes[0], eyes[1], grid), tris, grid))
+    depths_a = np.stack(depths)
+    return depths_a, np.where(np.isfinite(depths_a), 1.0, np.nan).astype(np.float32)
+
+
+def read_landmark_mapping(path: str | os.PathLike) -> dict[int, int]:
+    """iBUG landmark number -> vertex index, from an eos ``[landmark_mappings]`` TOML file."""
+    with open(path, "rb") as f:
+        data = tomllib.load(f)
+    return {int(k): int(v) for k, v in data["landmark_mappings"].items()}
+
+
+def mesh_folder(folder: str | os.PathLike, grid: tuple[int, int] = (128, 128)) -> tuple[np.ndarray, np.ndarray]:
+    """Faces from a folder of meshes (``.obj`` / ``.ply``) and/or depth maps (``.npy``).
+
+    Meshes are in millimetres, x right, y up, z toward the viewer, frontal; each needs a
+    sidecar ``<stem>.json`` with ``{"eyes3d": [[x, y, z], [x, y, z]]}`` (image-left eye first).
+    Depth maps (H, W) float are taken as already aligned to ``grid`` (NaN off the face).
+    """
+    import json
+
+    import trimesh
+
+    depths = []
+    for f in sorted(Path(folder).iterdir()):
+        suffix = f.suffix.lower()
+        if suffix == ".npy":
+            d = np.load(f, allow_pickle=False).astype(np.float32)
+            if d.shape != tuple(grid):
+                raise ValueError(f"{f}: depth map is {d.shape}, model grid is {tuple(grid)}")
+            depths.append(d)
+        elif suffix in (".obj", ".ply"):
+            side = f.with_suffix(".json")
+            if not side.exists():
+                raise ValueError(f"{f}: mesh needs a sidecar {side.name} with eyes3d")
+            eyes = np.asarray(json.loads(side.read_text())["eyes3d"], float)
+            mesh = trimesh.load(f, force="mesh", process=False)
+            v = align_to_eyes(np.asarray(mesh.vertices, float), eyes[0], eyes[1], grid)
+            depths.append(render_mesh(v, np.asarray(mesh.faces), grid))
+    if not depths:
+        raise ValueError(f"{folder}: no .obj, .ply or .npy faces found")
+    d = np.stack(depths)
+    return d, np.where(np.isfinite(d), 1.0, np.nan).astype(np.float32)
+
+
+def parse_source(spec: str) -> tuple[str, str | None]:
+    """``procedural`` | ``eos:PATH`` | ``meshes:DIR`` -> (kind, argument)."""
+    m = re.fullmatch(r"(procedural)|(eos|meshes):(.+)", spec)
+    if not m:
+        raise ValueError(f"unknown source {spec!r}: use procedural, eos:PATH or meshes:DIR")
+    return (m.group(1), None) if m.group(1) else (m.group(2), m.group(3))
+
+
+def load_source(spec: str, n: int, seed: int, grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Faces from a source spec (see ``parse_source``)."""
+    kind, arg = parse_source(spec)
+    if kind == "procedural":
+        return procedural(n, seed, grid)
+    if kind == "eos":
+        return eos_model(arg, n, seed, grid)
+    d, a = mesh_folder(arg, grid)
+    return d[:n], a[:n]
