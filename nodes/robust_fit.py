@@ -26,9 +26,11 @@ from typing import Callable, Literal
 import numpy as np
 
 from nodes.geometry import angle_deg
+from nodes.integrate import masked_least_squares
 from nodes.reflectance import irradiance_constraint
 from nodes.shape_model import ShapeModel
 from nodes.sfs_init import gradient_init, mean_init
+from nodes.shadow import cast_shadow
 
 RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))  # median of a unit Rayleigh variable
 
@@ -43,6 +45,8 @@ class FitConfig:
     init: Literal["mean", "gradient"] = "mean"
     attached_shadow: bool = True  # I <= dark_threshold: n.s <= 0 instead of the 90-degree cone
     dark_threshold: float = 0.02
+    release_cast: bool = True  # dark pixels the current shape casts a shadow on: no constraint
+    cast_every: int = 5  # re-trace cast shadows every this many iterations
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
@@ -51,7 +55,8 @@ class FitConfig:
     @staticmethod
     def paper(**overrides) -> "FitConfig":
         """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone."""
-        base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False)
+        base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
+                         release_cast=False)
         return replace(base, **overrides)
 
 
@@ -118,14 +123,14 @@ def fit(
     intensity: np.ndarray,
     light: np.ndarray,
     config: FitConfig = FitConfig(),
-    image: np.ndarray | None = None,
+    initial: np.ndarray | None = None,
     on_iteration: Callable[[FitIteration], None] | None = None,
 ) -> FitResult:
     """Fit ``model`` to remapped brightness under a known light.
 
     intensity: (N,) remapped brightness at the model pixels, [0, 1]. light: (3,) unit,
-    camera frame. image: (H, W) remapped image on the model grid, needed only for
-    ``init="gradient"``. on_iteration: called with every ``FitIteration`` (for recording).
+    camera frame. initial: (N, 3) starting normals (default: the mean face on its cones,
+    see ``initial_normals``). on_iteration: called with every ``FitIteration``.
     """
     if config.n_modes is not None and config.n_modes < model.n_modes:
         model = model.truncated(config.n_modes)
@@ -138,20 +143,19 @@ def fit(
     P = model.modes.astype(np.float64)  # (2N, K)
     vbar = model.mean_proj.astype(np.float64)
     prior = config.prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
-    if config.init == "gradient":
-        if image is None:
-            raise ValueError("init='gradient' needs the image on the model grid")
-        n = gradient_init(image, model.mask, s).astype(np.float64)[model.mask]
-    else:
+    if initial is None:
         n = mean_init(model.mean_normals, I, s, dark)
+    else:
+        n = np.asarray(initial, np.float64)
     w = np.ones(n_pix)
+    released = np.zeros(n_pix, bool)  # dark pixels in the current shape's cast shadow
     history: list[dict[str, float]] = []
     converged = False
     it = 0
     for it in range(1, config.max_iterations + 1):
         v = model.project(n)
         r0 = (v - vbar).reshape(-1)
-        w2 = np.repeat(w, 2)
+        w2 = np.repeat(np.where(released, 0.0, w), 2)
         if config.solver == "irls":
             gram = P.T @ (P * w2[:, None])
             gram[np.diag_indices_from(gram)] += prior
@@ -167,6 +171,11 @@ def fit(
         w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
         n_model = model.unproject(v_fit)
         n_new = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
+        if config.release_cast and dark is not None and it % config.cast_every == 0:
+            released = dark & _cast_by_shape(model, n_model, s)
+        if released.any():
+            n_new[released] = n_model[released]
+            w = np.where(released, 0.0, w)
         change = float(np.mean(angle_deg(n, n_new)))
         record = FitIteration(it, n_new, n_model, w, eta, sigma, b, change)
         history.append({"iteration": it, **record.scalars()})
@@ -177,6 +186,25 @@ def fit(
             converged = True
             break
     return FitResult(n, n_model, w, eta, b, sigma, it, converged, history)
+
+
+def _cast_by_shape(model: ShapeModel, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """(N,) bool: model pixels in the cast shadow of the surface integrated from ``normals``."""
+    depth = masked_least_squares(model.to_image(normals.astype(np.float32)), model.mask)
+    return cast_shadow(depth, light)[model.mask]
+
+
+def initial_normals(model: ShapeModel, image: np.ndarray, light: np.ndarray, config: FitConfig) -> np.ndarray:
+    """Starting needle-map (N, 3) for ``config.init``: the mean face or the image gradient.
+
+    image: (H, W) remapped brightness on the model grid.
+    """
+    I = np.clip(np.asarray(image, np.float64)[model.mask], 0.0, 1.0)
+    if config.init == "gradient":
+        thr = config.dark_threshold if config.attached_shadow else 0.0
+        return gradient_init(image, model.mask, light, thr).astype(np.float64)[model.mask]
+    dark = (I <= config.dark_threshold) if config.attached_shadow else None
+    return mean_init(model.mean_normals, I, light, dark)
 
 
 def combine(cone_normals: np.ndarray, model_normals: np.ndarray, weights: np.ndarray) -> np.ndarray:

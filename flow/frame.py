@@ -1,0 +1,36 @@
+"""The unit of work that travels between nodes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+class FrameFailed(Exception):
+    """Raised by a node to fail the current frame with a one-line reason."""
+
+
+@dataclass
+class Frame:
+    """One input travelling through the pipeline.
+
+    id: position in the stream (results are emitted in this order); source: where it came
+    from (a path, or a name for generated input); data: named arrays and objects produced
+    by nodes; meta: JSON-serialisable facts for the summary; status: "ok" or the one-line
+    reason it failed; failed_in: the node that failed it.
+    """
+
+    id: int
+    source: str
+    data: dict[str, Any] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+    status: str = "ok"
+    failed_in: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def fail(self, node: str, reason: str) -> None:
+        """Mark the frame failed; ``reason`` is folded to one line."""
+        self.status = " ".join(str(reason).split()) or "failed"
+        self.failed_in = node

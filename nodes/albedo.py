@@ -1,0 +1,53 @@
+"""Albedo from the image and the recovered shape (Smith & Hancock, section 4.1 and 5.2).
+
+Where the surface is lit, ``albedo = I / (n . s)``. Under cast or attached shadow, or where
+``n . s`` is too small for the division to be trusted, the value is taken from the mirror
+pixel across the face's vertical axis (the paper's "facial symmetry" fill-in) when that one
+is trusted; what is still missing is filled smoothly (harmonic interpolation).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from nodes.integrate import harmonic_fill
+
+
+def estimate_albedo(
+    image: np.ndarray,
+    normals: np.ndarray,
+    light: np.ndarray,
+    lit: np.ndarray,
+    mask: np.ndarray,
+    axis_col: float,
+    min_shading: float = 0.15,
+    symmetric_fill: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Albedo map and how each pixel got its value.
+
+    image (H, W) brightness in [0, 1]; normals (H, W, 3) camera frame; light (3,) unit;
+    lit (H, W) bool (not in cast or attached shadow); mask (H, W) bool face;
+    axis_col: column of the face's vertical symmetry axis (model grid).
+    Returns ``(albedo (H, W) float32, NaN off the mask; source (H, W) uint8:
+    0 off-face, 1 measured, 2 mirrored, 3 smoothly filled)``.
+    """
+    m = np.asarray(mask, bool)
+    shading = np.einsum("hwc,c->hw", np.nan_to_num(normals), np.asarray(light, np.float64))
+    trusted = m & lit & (shading >= min_shading)
+    albedo = np.full(m.shape, np.nan)
+    albedo[trusted] = np.asarray(image, np.float64)[trusted] / shading[trusted]
+    source = np.where(trusted, 1, 0).astype(np.uint8)
+    todo = m & ~trusted
+    if symmetric_fill and todo.any():
+        rows, cols = np.nonzero(todo)
+        mc = np.rint(2.0 * axis_col - cols).astype(np.int64)
+        ok = (mc >= 0) & (mc < m.shape[1])
+        ok[ok] = trusted[rows[ok], mc[ok]]
+        albedo[rows[ok], cols[ok]] = albedo[rows[ok], mc[ok]]
+        source[rows[ok], cols[ok]] = 2
+        todo[rows[ok], cols[ok]] = False
+    if todo.any():
+        filled = harmonic_fill(np.where(m, albedo, np.nan), todo)
+        albedo[todo] = filled[todo]
+        source[todo] = 3
+    albedo = np.where(m, np.clip(albedo, 0.0, None), np.nan)
+    return albedo.astype(np.float32), source

@@ -1,0 +1,113 @@
+"""Alignment between an input photo's pixel grid and the model's canonical grid.
+
+An ``Alignment`` is the similarity (uniform scale, in-plane rotation, translation) taking a
+model pixel ``(col, row)`` to an input pixel. Images are resampled onto the model grid with
+it, and every output is mapped back through its inverse, with vectors (normals, light)
+rotated and heights scaled to the input's pixel units.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """``matrix``: (2, 3) float64 model pixel -> input pixel; ``how``: how it was found."""
+
+    matrix: np.ndarray
+    how: str
+
+    @property
+    def scale(self) -> float:
+        """Input pixels per model pixel."""
+        return float(np.sqrt(abs(np.linalg.det(self.matrix[:, :2]))))
+
+    def vector_to_input(self, v: np.ndarray) -> np.ndarray:
+        """Rotate camera-frame vectors (..., 3) from the model's frame to the input's."""
+        return _rotate_xy(v, self.matrix[:, :2] / self.scale)
+
+    def vector_to_model(self, v: np.ndarray) -> np.ndarray:
+        """Rotate camera-frame vectors (..., 3) from the input's frame to the model's."""
+        return _rotate_xy(v, (self.matrix[:, :2] / self.scale).T)
+
+
+def _rotate_xy(v: np.ndarray, rot_pix: np.ndarray) -> np.ndarray:
+    """Apply a 2x2 rotation given in (col, row) pixel axes to the (x, y) of camera vectors."""
+    v = np.asarray(v, np.float64)
+    flip = np.array([1.0, -1.0])  # camera y is up, rows go down
+    xy = (v[..., :2] * flip) @ rot_pix.T * flip
+    return np.concatenate([xy, v[..., 2:3]], axis=-1)
+
+
+def centred_alignment(input_shape: tuple[int, int], grid: tuple[int, int]) -> Alignment:
+    """Assume the input is a frontal face crop framed like the model grid.
+
+    The model grid is scaled uniformly to fit inside the input and centred in it.
+    """
+    hi, wi = input_shape[:2]
+    hm, wm = grid
+    s = min(wi / wm, hi / hm)
+    tx = (wi - 1) / 2 - s * (wm - 1) / 2
+    ty = (hi - 1) / 2 - s * (hm - 1) / 2
+    return Alignment(np.array([[s, 0.0, tx], [0.0, s, ty]]), "centred crop")
+
+
+def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray) -> Alignment:
+    """The similarity putting the model's canonical eyes (2, 2) on the input's eyes (2, 2).
+
+    Eyes are ``[[x, y], [x, y]]`` pixel coordinates (x = column), image-left eye first.
+    """
+    src = np.asarray(eyes_model, np.float64)
+    dst = np.asarray(eyes_input, np.float64)
+    vs, vd = src[1] - src[0], dst[1] - dst[0]
+    ns, nd = np.linalg.norm(vs), np.linalg.norm(vd)
+    if ns < 1e-9 or nd < 1e-9:
+        raise ValueError("the two eye positions coincide")
+    s = nd / ns
+    ang = np.arctan2(vd[1], vd[0]) - np.arctan2(vs[1], vs[0])
+    lin = s * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    t = dst[0] - lin @ src[0]
+    return Alignment(np.column_stack([lin, t]), "eyes")
+
+
+def to_model_grid(image: np.ndarray, al: Alignment, grid: tuple[int, int]) -> np.ndarray:
+    """Resample an input image (H, W) onto the model grid (area-averaged when shrinking)."""
+    img = np.asarray(image, np.float32)
+    if al.scale > 1.5:
+        # Pre-blur so a large photo is averaged, not aliased, when sampled at the model grid.
+        sigma = 0.5 * np.sqrt(al.scale**2 - 1.0)
+        img = cv2.GaussianBlur(img, (0, 0), sigma)
+    return cv2.warpAffine(img, al.matrix, (grid[1], grid[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+
+
+def _to_input(values: np.ndarray, al: Alignment, shape: tuple[int, int], interp: int) -> np.ndarray:
+    return cv2.warpAffine(np.asarray(values, np.float32), al.matrix, (shape[1], shape[0]), flags=interp,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+
+
+def mask_to_input(mask: np.ndarray, al: Alignment, shape: tuple[int, int]) -> np.ndarray:
+    """Model-grid mask (Hm, Wm) bool -> input-grid mask (H, W) bool."""
+    return _to_input(mask.astype(np.float32), al, shape, cv2.INTER_LINEAR) >= 0.5
+
+
+def scalar_to_input(values: np.ndarray, mask: np.ndarray, al: Alignment, shape: tuple[int, int],
+                    nearest: bool = False) -> np.ndarray:
+    """Model-grid field (Hm, Wm), NaN off ``mask`` -> input grid (H, W), NaN off the warped mask."""
+    v = np.where(mask, np.nan_to_num(values), 0.0)
+    out = _to_input(v, al, shape, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR)
+    wts = _to_input(mask.astype(np.float32), al, shape, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR)
+    inside = wts >= 0.5
+    out = np.where(inside, out / np.maximum(wts, 1e-6), np.nan)  # renormalise at the edge
+    return out.astype(np.float32)
+
+
+def normals_to_input(normals: np.ndarray, mask: np.ndarray, al: Alignment, shape: tuple[int, int]) -> np.ndarray:
+    """Model-grid normals (Hm, Wm, 3) -> input grid (H, W, 3), rotated with the similarity."""
+    comps = [scalar_to_input(normals[..., i], mask, al, shape) for i in range(3)]
+    n = al.vector_to_input(np.stack(comps, axis=-1))
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n.astype(np.float32)

@@ -1,0 +1,215 @@
+"""The method as a chain of small nodes. Each node reads named entries of ``frame.data``,
+calls one pure function of arrays, and stores its products.
+
+Frame entries, in order of appearance (``Hm, Wm`` = model grid, ``N`` = model pixels):
+
+=================  ======================================================  ===========
+entry              what                                                    node
+=================  ======================================================  ===========
+image              (H, W) float32 input brightness in [0, 1]               load
+light              (3,) light, input camera frame                          load
+alignment          ``Alignment`` model pixel -> input pixel                load
+grid_image         (Hm, Wm) input resampled to the model grid              load
+grid_light         (3,) light in the model's camera frame                  load
+remapped           (Hm, Wm) Lambertian-remapped brightness                 remap
+initial            (N, 3) starting normals                                 sfs_init
+fit                ``FitResult`` (on-cone / model normals, weights, ...)   robust_fit
+normals            (Hm, Wm, 3) combined normals, NaN off the face          combine
+depth              (Hm, Wm) heights, model pixels, NaN off the face        integrate
+shadow             ``ShadowMaps`` (cast, attached) for the input light     shadow
+albedo             (Hm, Wm) albedo, NaN off the face                       albedo
+relit              (Hm, Wm) face under ``relight_light``                   relight
+novel_view         (Hm, Wm) surface turned about the vertical axis         relight
+=================  ======================================================  ===========
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from flow.frame import Frame
+from nodes.albedo import estimate_albedo
+from nodes.align import Alignment, centred_alignment, eyes_alignment, to_model_grid
+from nodes.integrate import frankot_chellappa, masked_least_squares
+from nodes.light import estimate_light
+from nodes.loader import InputError, load_image, read_sidecar, yaleb_light
+from nodes.relight import FRONTAL, novel_view, relight
+from nodes.remap import lambertian_remap
+from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
+from nodes.shadow import shadow_maps
+from nodes.shape_model import ShapeModel
+
+INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
+
+
+@dataclass(frozen=True)
+class MethodOptions:
+    """Everything that changes what the method computes.
+
+    light: "auto" | "yaleb" | a (3,) vector (input camera frame); a sidecar light wins.
+    eyes: (2, 2) input eye centres for every input, or None (sidecar, else centred crop).
+    """
+
+    fit: FitConfig = field(default_factory=FitConfig)
+    integrator: str = "lsq"
+    light: str | np.ndarray = "auto"
+    eyes: np.ndarray | None = None
+    relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
+    novel_yaw_deg: float = 45.0
+
+
+class LoadNode:
+    """Reads the input file, finds its light and alignment, resamples it to the model grid."""
+
+    name = "load"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+
+    def __call__(self, frame: Frame) -> Frame:
+        if "image" not in frame.data:
+            frame.data["image"] = load_image(frame.source)
+        image = frame.data["image"]
+        if min(image.shape) < 16:
+            raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
+        side = read_sidecar(frame.source) if "light" not in frame.data else None
+        eyes = side.eyes if side is not None and side.eyes is not None else self.options.eyes
+        al = eyes_alignment(eyes, self.model.eyes) if eyes is not None else centred_alignment(image.shape, self.model.grid)
+        grid_image = to_model_grid(image, al, self.model.grid)
+        if "light" not in frame.data:
+            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, grid_image, al)
+        frame.data.update(alignment=al, grid_image=grid_image,
+                          grid_light=al.vector_to_model(frame.data["light"]))
+        frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
+        return frame
+
+    def _light(self, source: str, side, grid_image: np.ndarray, al: Alignment) -> tuple[np.ndarray, str]:
+        opt = self.options.light
+        if side is not None and side.light is not None:
+            return side.light, "sidecar"
+        if isinstance(opt, np.ndarray):
+            return opt, "given"
+        if opt == "yaleb":
+            return yaleb_light(source), "yaleb name"
+        grid_light = estimate_light(grid_image[self.model.mask], self.model.mean_normals)
+        return al.vector_to_input(grid_light), "estimated"
+
+
+class RemapNode:
+    name = "remap"
+
+    def __init__(self, model: ShapeModel):
+        self.model = model
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(frame.data["grid_image"], self.model.mask)
+        return frame
+
+
+class SfsInitNode:
+    name = "sfs_init"
+
+    def __init__(self, model: ShapeModel, config: FitConfig):
+        self.model, self.config = model, config
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["initial"] = initial_normals(self.model, frame.data["remapped"], frame.data["grid_light"], self.config)
+        return frame
+
+
+class RobustFitNode:
+    """The fit loop; ``observer(frame, iteration)`` (if set) sees every iteration."""
+
+    name = "robust_fit"
+
+    def __init__(self, model: ShapeModel, config: FitConfig,
+                 observer: Callable[[Frame, FitIteration], None] | None = None):
+        self.model, self.config, self.observer = model, config, observer
+
+    def __call__(self, frame: Frame) -> Frame:
+        hook = None if self.observer is None else (lambda it: self.observer(frame, it))
+        intensity = frame.data["remapped"][self.model.mask]
+        result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook)
+        frame.data["fit"] = result
+        frame.meta.update(iterations=result.iterations, converged=result.converged, final_sigma=result.sigma)
+        return frame
+
+
+class CombineNode:
+    name = "combine"
+
+    def __init__(self, model: ShapeModel):
+        self.model = model
+
+    def __call__(self, frame: Frame) -> Frame:
+        r = frame.data["fit"]
+        frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
+        return frame
+
+
+class IntegrateNode:
+    name = "integrate"
+
+    def __init__(self, model: ShapeModel, integrator: str):
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}: choose from {', '.join(INTEGRATORS)}")
+        self.model, self.integrate = model, INTEGRATORS[integrator]
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["depth"] = self.integrate(frame.data["normals"], self.model.mask)
+        return frame
+
+
+class ShadowNode:
+    name = "shadow"
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["shadow"] = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"])
+        return frame
+
+
+class AlbedoNode:
+    name = "albedo"
+
+    def __init__(self, model: ShapeModel):
+        self.model = model
+        self.axis_col = float(np.mean(model.eyes[:, 0]))
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["albedo"], frame.data["albedo_source"] = estimate_albedo(
+            frame.data["grid_image"], frame.data["normals"], frame.data["grid_light"],
+            frame.data["shadow"].lit, self.model.mask, self.axis_col)
+        return frame
+
+
+class RelightNode:
+    name = "relight"
+
+    def __init__(self, options: MethodOptions):
+        self.options = options
+
+    def __call__(self, frame: Frame) -> Frame:
+        al: Alignment = frame.data["alignment"]
+        light = al.vector_to_model(self.options.relight_light)
+        frame.data["relit"] = relight(frame.data["albedo"], np.nan_to_num(frame.data["normals"]), light,
+                                      frame.data["depth"])
+        frame.data["novel_view"] = novel_view(frame.data["depth"], frame.data["albedo"], self.options.novel_yaw_deg)
+        return frame
+
+
+def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_views: bool = True) -> list:
+    """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo)."""
+    nodes = [
+        RemapNode(model),
+        SfsInitNode(model, options.fit),
+        RobustFitNode(model, options.fit, observer),
+        CombineNode(model),
+        IntegrateNode(model, options.integrator),
+        ShadowNode(),
+        AlbedoNode(model),
+    ]
+    if with_views:
+        nodes.append(RelightNode(options))
+    return nodes

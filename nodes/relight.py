@@ -1,0 +1,70 @@
+"""Relighting, novel views and the textured mesh of a recovered face."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from nodes.geometry import normals_from_depth
+from nodes.raster import grid_mesh, rasterize
+from nodes.shadow import cast_shadow
+
+FRONTAL = np.array([0.0, 0.0, 1.0])
+
+
+def relight(albedo: np.ndarray, normals: np.ndarray, light: np.ndarray = FRONTAL,
+            depth: np.ndarray | None = None) -> np.ndarray:
+    """The face under a new distant light: ``albedo * max(n . s, 0)``, with cast shadows.
+
+    albedo (H, W); normals (H, W, 3) camera frame; light (3,) unit (default frontal);
+    depth (H, W) pixel units, if given, casts shadows (none for a frontal light).
+    Returns (H, W) float32, NaN off the face.
+    """
+    s = np.asarray(light, np.float64)
+    s = s / np.linalg.norm(s)
+    shade = np.clip(np.einsum("hwc,c->hw", normals, s), 0.0, None)
+    out = albedo * shade
+    if depth is not None:
+        out = np.where(cast_shadow(depth, s), 0.0, out)
+    return out.astype(np.float32)
+
+
+def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
+               light: np.ndarray = FRONTAL) -> np.ndarray:
+    """Render the recovered surface turned ``yaw_deg`` about the vertical axis (z-buffered).
+
+    The surface (pixel-unit heights, NaN off the face) is turned about the vertical line
+    through its centroid; the light stays fixed in the camera frame, so the face is lit as
+    a real head turned under the same lamp. Returns (H, W) float32 in [0, 1], 0 background.
+    """
+    mask = np.isfinite(depth)
+    h, w = depth.shape
+    pix, tris = grid_mesh(mask)
+    rows, cols = np.divmod(pix, w)
+    x, y, z = cols.astype(float), rows.astype(float), depth.flat[pix].astype(float)
+    cx, cz = x.mean(), z.mean()
+    a = np.radians(yaw_deg)
+    xr = cx + np.cos(a) * (x - cx) + np.sin(a) * (z - cz)
+    zr = cz - np.sin(a) * (x - cx) + np.cos(a) * (z - cz)
+    height, attrs = rasterize(np.column_stack([xr, y, zr]), tris, (h, w), attributes=albedo.flat[pix, None])
+    n = normals_from_depth(height)
+    img = relight(attrs[..., 0], np.nan_to_num(n), light)
+    return np.nan_to_num(np.clip(img, 0.0, 1.0)).astype(np.float32)
+
+
+def write_mesh_ply(path: str | os.PathLike, depth: np.ndarray, albedo: np.ndarray) -> Path:
+    """Write the surface as a binary PLY: vertices (x = column, y = -row, z = height, pixels)
+    with grey vertex colours from ``albedo`` (clipped to [0, 1]); triangles from the grid."""
+    import trimesh
+
+    mask = np.isfinite(depth)
+    pix, tris = grid_mesh(mask)
+    rows, cols = np.divmod(pix, depth.shape[1])
+    verts = np.column_stack([cols, -rows, depth.flat[pix]]).astype(np.float32)
+    grey = (np.clip(np.nan_to_num(albedo.flat[pix]), 0, 1) * 255).astype(np.uint8)
+    colours = np.column_stack([grey, grey, grey, np.full_like(grey, 255)])
+    mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_colors=colours, process=False)
+    path = Path(path)
+    path.write_bytes(mesh.export(file_type="ply"))
+    return path
