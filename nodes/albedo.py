@@ -8,6 +8,7 @@ is trusted; what is still missing is filled smoothly (harmonic interpolation).
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 from nodes.integrate import harmonic_fill
 
@@ -21,18 +22,22 @@ def estimate_albedo(
     axis_col: float,
     min_shading: float = 0.15,
     symmetric_fill: bool = True,
+    boundary_px: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Albedo map and how each pixel got its value.
 
     image (H, W) brightness in [0, 1]; normals (H, W, 3) camera frame; light (3,) unit;
     lit (H, W) bool (not in cast or attached shadow); mask (H, W) bool face;
-    axis_col: column of the face's vertical symmetry axis (model grid).
+    axis_col: column of the face's vertical symmetry axis (model grid). boundary_px: pixels
+    this close to a predicted shadow are not trusted either (a shadow edge a pixel off
+    would otherwise leave a black seam of albedo near 0).
     Returns ``(albedo (H, W) float32, NaN off the mask; source (H, W) uint8:
     0 off-face, 1 measured, 2 mirrored, 3 smoothly filled)``.
     """
     m = np.asarray(mask, bool)
     shading = np.einsum("hwc,c->hw", np.nan_to_num(normals), np.asarray(light, np.float64))
-    trusted = m & lit & (shading >= min_shading)
+    lit_core = ndimage.binary_erosion(lit, iterations=boundary_px, border_value=1) if boundary_px > 0 else lit
+    trusted = m & lit_core & (shading >= min_shading)
     albedo = np.full(m.shape, np.nan)
     albedo[trusted] = np.asarray(image, np.float64)[trusted] / shading[trusted]
     source = np.where(trusted, 1, 0).astype(np.uint8)

@@ -1,0 +1,242 @@
+"""``shadowflow`` command line: run, train, eval (see ``shadowflow COMMAND --help``)."""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from flow.chain import Chain
+from flow.frame import Frame
+from nodes.loader import IMAGE_SUFFIXES, parse_light
+from nodes.pipeline import LoadNode, MethodOptions, method_nodes
+from nodes.robust_fit import FitConfig
+
+
+def _fit_config(name: str, modes: int | None) -> FitConfig:
+    cfg = FitConfig.paper() if name == "paper" else FitConfig()
+    return cfg if modes is None else FitConfig(**{**cfg.__dict__, "n_modes": modes})
+
+
+def _load_model(path: str | None):
+    from nodes.default_model import default_model
+    from nodes.shape_model import load_model
+
+    return default_model() if path is None else load_model(path)
+
+
+def expand_inputs(items: list[str], note=print) -> list[str]:
+    """Files, folders (sorted, non-images skipped with a note) and glob patterns -> paths."""
+    out: list[str] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            for f in sorted(p.iterdir()):
+                if f.suffix.lower() in IMAGE_SUFFIXES and f.is_file():
+                    out.append(str(f))
+                elif f.suffix.lower() != ".json":
+                    note(f"{f}: skipped (not an image)")
+        elif not p.exists() and any(ch in item for ch in "*?["):
+            matches = sorted(glob.glob(item))
+            if not matches:
+                note(f"{item}: no file matches")
+            out.extend(m for m in matches if Path(m).suffix.lower() in IMAGE_SUFFIXES)
+        else:
+            out.append(item)  # missing or unreadable files fail as frames, with their reason
+    return out
+
+
+def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
+    """Synthetic shadowed faces (held-out procedural faces) with sidecar lights, as PNGs."""
+    import cv2
+
+    from nodes.evaluate import render_scene
+    from nodes.reflectance import light_from_angles
+    from nodes.synth.facegen import render_face, sample_face
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(2024)
+    lights = [(45, 0), (-60, 0), (30, 25), (-75, 0), (60, -10)]
+    paths = []
+    for i in range(count):
+        depth, mask, albedo = render_face(sample_face(rng))
+        az, el = lights[i % len(lights)]
+        s = light_from_angles(az, el)
+        scene = render_scene(depth, albedo, s, mask)
+        path = folder / f"demo-{i + 1}_A{az:+04d}E{el:+03d}.png"
+        cv2.imwrite(str(path), (np.clip(scene.image, 0, 1) * 255 + 0.5).astype(np.uint8))
+        path.with_suffix(".json").write_text(json.dumps({"light": [round(float(x), 6) for x in s]}) + "\n")
+        paths.append(str(path))
+    return paths
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from nodes.outputs import WriteNode, safe_stem, summary_record, write_summary
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    inputs = list(args.inputs)
+    if args.demo:
+        inputs = write_demo_inputs(out / "demo-inputs") + inputs
+    if not inputs:
+        print("shadowflow run: no input given (name images or folders, or use --demo)", file=sys.stderr)
+        return 2
+    note = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    paths = expand_inputs(inputs, note)
+    if args.record not in ("none", ""):
+        note("recordings (--record) are not written yet by this version; running without them")
+    light: str | np.ndarray = args.light
+    if args.light not in ("auto", "yaleb"):
+        light = parse_light(args.light)
+    eyes = None
+    if args.eyes:
+        eyes = np.array([float(t) for t in args.eyes.split(",")]).reshape(2, 2)
+    model = _load_model(args.model)
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes), integrator=args.integrator, light=light,
+                            eyes=eyes)
+    protected = {Path(p).resolve() for p in paths}
+    chain = Chain([LoadNode(model, options), *method_nodes(model, options), WriteNode(model, out, protected)])
+    taken: set[str] = set()
+    records = []
+    t0 = time.perf_counter()
+    failures = 0
+    for i, path in enumerate(paths):
+        frame = Frame(i, path)
+        frame.meta["stem"] = safe_stem(path, taken)
+        frame = chain.process(frame)
+        records.append(summary_record(frame))
+        write_summary(out, records)
+        if frame.ok:
+            note(f"[{i + 1}/{len(paths)}] {path} -> {frame.meta['outputs']} "
+                 f"({frame.meta['iterations']} iterations, {records[-1]['seconds']:.2f} s)")
+        else:
+            failures += 1
+            print(f"error: {frame.status}", file=sys.stderr)
+    note(f"{len(paths) - failures} of {len(paths)} done in {time.perf_counter() - t0:.1f} s; "
+         f"summary: {out / 'summary.json'}")
+    return 0 if failures == 0 else 1
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from nodes.default_model import train_from_recipe
+    from nodes.shape_model import save_model
+
+    size = [int(t) for t in args.size.split(",")]
+    recipe = {"source": args.source, "n": args.n, "seed": args.seed, "modes": args.modes, "size": size}
+    t0 = time.perf_counter()
+    model = train_from_recipe(recipe)
+    save_model(model, args.out)
+    print(f"trained {model.n_modes} modes over {model.n_pixels} pixels from {args.n} faces of {args.source} "
+          f"in {time.perf_counter() - t0:.1f} s -> {args.out}")
+    return 0
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    from nodes.evaluate import evaluate, model_floor
+    from nodes.shape_model import load_model, train_shape_model
+    from nodes.synth.sources import load_source
+
+    size = tuple(int(t) for t in args.size.split(","))
+    t0 = time.perf_counter()
+    if args.model:
+        model = load_model(args.model)
+        trained_on = f"model file {args.model}"
+    else:
+        train_src = args.train_source or args.source
+        tr, _ = load_source(train_src, args.n_train, args.train_seed, size)
+        model = train_shape_model(tr, args.modes, source=train_src)
+        trained_on = f"{args.n_train} faces of {train_src} (seed {args.train_seed})"
+    test, albedo = load_source(args.source, args.n_test, args.test_seed, model.grid)
+    if args.albedo == "constant":
+        albedo = None
+    angles = [float(a) for a in args.angles.split(",")]
+    fits = ["irls", "paper"] if args.fit == "both" else [args.fit]
+    report = {"source": args.source, "test_faces": args.n_test, "test_seed": args.test_seed,
+              "model": trained_on, "modes": model.n_modes, "grid": list(model.grid), "albedo": args.albedo,
+              "model_floor_deg": model_floor(model, test), "results": {}}
+    print(f"model: {trained_on}, K={model.n_modes}, grid {model.grid[0]}x{model.grid[1]}; "
+          f"test: {args.n_test} faces of {args.source} (seed {args.test_seed}), {args.albedo} albedo")
+    print(f"model floor (true normals projected on the modes): {report['model_floor_deg']:.2f} deg")
+    cols = ["err_all", "err_lit", "err_cast", "err_attached", "cast_iou", "shadow_iou", "depth_rmse",
+            "iterations", "seconds_per_face"]
+    print(f"{'fit':6} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
+    for name in fits:
+        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator)
+        res = evaluate(model, test, albedo, angles, opts)
+        report["results"][name] = res["per_angle"]
+        for angle, row in res["per_angle"].items():
+            print(f"{name:6} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
+    report["seconds"] = time.perf_counter() - t0
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        print(f"written: {args.json}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="shadowflow", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="recover shape, albedo and shadows of face images")
+    r.add_argument("inputs", nargs="*", metavar="INPUT", help="image files, folders or glob patterns")
+    r.add_argument("--out", required=True, help="output folder (OUT/<stem>/..., OUT/summary.json)")
+    r.add_argument("--demo", action="store_true", help="also run on built-in synthetic shadowed faces")
+    r.add_argument("--model", help="model .npz (default: the built-in procedural model)")
+    r.add_argument("--light", default="auto", help="auto | yaleb | X,Y,Z (camera frame); a sidecar light wins")
+    r.add_argument("--fit", choices=["irls", "paper"], default="irls")
+    r.add_argument("--modes", type=int, help="use only the model's first K modes")
+    r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
+                   help="masked least squares (default) or Frankot-Chellappa (the paper's)")
+    r.add_argument("--eyes", help="X1,Y1,X2,Y2 input eye centres (image-left eye first)")
+    r.add_argument("--record", default="none", help="rerun,mcap | none")
+    r.add_argument("--quiet", action="store_true")
+    r.set_defaults(func=cmd_run)
+
+    t = sub.add_parser("train", help="train a needle-map model")
+    t.add_argument("--source", default="procedural", help="procedural | eos:PATH | meshes:DIR")
+    t.add_argument("--n", type=int, default=100)
+    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--modes", type=int, default=60)
+    t.add_argument("--size", default="128,128", help="H,W of the model grid")
+    t.add_argument("--out", required=True)
+    t.set_defaults(func=cmd_train)
+
+    e = sub.add_parser("eval", help="accuracy on rendered held-out faces")
+    e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
+    e.add_argument("--model", help="model .npz (default: train one, see --train-source)")
+    e.add_argument("--train-source", help="training faces (default: --source)")
+    e.add_argument("--n-train", type=int, default=100)
+    e.add_argument("--n-test", type=int, default=20)
+    e.add_argument("--train-seed", type=int, default=0)
+    e.add_argument("--test-seed", type=int, default=1)
+    e.add_argument("--modes", type=int, default=60)
+    e.add_argument("--size", default="128,128")
+    e.add_argument("--angles", default="45,60,75", help="light angles from the view axis, degrees")
+    e.add_argument("--albedo", choices=["constant", "varied"], default="constant")
+    e.add_argument("--fit", choices=["irls", "paper", "both"], default="irls")
+    e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
+    e.add_argument("--json", help="write the report here")
+    e.set_defaults(func=cmd_eval)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, OSError, RuntimeError) as exc:
+        print(f"shadowflow {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

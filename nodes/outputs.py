@@ -1,0 +1,171 @@
+"""Writer: map a frame's model-grid products back to the input grid and write the layout of
+``conventions.md`` (``OUT/<stem>/...`` and ``OUT/summary.json``), every file atomically."""
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import tempfile
+import unicodedata
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from flow.frame import Frame
+from nodes.align import mask_to_input, normals_to_input, scalar_to_input
+from nodes.relight import write_mesh_ply
+from nodes.shape_model import ShapeModel
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
+                "relit.png", "novel_view.png", "mesh.ply")
+
+
+def safe_stem(path: str, taken: set[str]) -> str:
+    """A file-system-safe, unique output folder name for an input path.
+
+    Keeps letters, digits, ``.``, ``_`` and ``-`` (after Unicode NFKD folding), never starts
+    with ``.`` or ``-``, and appends ``-2``, ``-3``... when the name is already in ``taken``
+    (which it then joins).
+    """
+    stem = Path(path).stem
+    stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", stem).lstrip(".-_") or "input"
+    stem = stem[:120]
+    name, k = stem, 2
+    while name.lower() in taken:
+        name, k = f"{stem}-{k}", k + 1
+    taken.add(name.lower())
+    return name
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; outputs are ordinary files
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _npy_bytes(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr, allow_pickle=False)
+    return buf.getvalue()
+
+
+def _png_bytes(img8: np.ndarray) -> bytes:
+    ok, enc = cv2.imencode(".png", img8)
+    if not ok:
+        raise OSError("PNG encoding failed")
+    return enc.tobytes()
+
+
+def to_8bit(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """[0, 1] floats -> uint8, 0 off the mask."""
+    return np.where(mask, np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255), 0).astype(np.uint8)
+
+
+def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
+    """The frame's results on the INPUT image's pixel grid (see ``conventions.md``)."""
+    d = frame.data
+    al = d["alignment"]
+    shape = d["image"].shape[:2]
+    m = model.mask
+    mask = mask_to_input(m, al, shape)
+    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, shape)
+    depth = scalar_to_input(d["depth"], m, al, shape) * al.scale
+    lit = scalar_to_input(d["shadow"].lit.astype(np.float32), m, al, shape, nearest=True)
+    out = {
+        "mask": mask,
+        "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
+        "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
+        "depth": np.where(mask, depth, np.nan).astype(np.float32),
+        "albedo": np.where(mask, scalar_to_input(d["albedo"], m, al, shape), np.nan),
+        "lit": mask & (np.nan_to_num(lit) >= 0.5),
+        "relit": np.where(mask, scalar_to_input(d["relit"], m, al, shape), np.nan),
+    }
+    return out
+
+
+def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
+    """Write every output file of one frame into ``folder``; returns name -> path."""
+    p = input_grid_products(frame, model)
+    mask = p["mask"]
+    files = {
+        "normals.npy": _npy_bytes(p["normals"]),
+        "mask.png": _png_bytes(np.where(mask, 255, 0).astype(np.uint8)),
+        "weights.npy": _npy_bytes(p["weights"]),
+        "depth.npy": _npy_bytes(p["depth"]),
+        "albedo.png": _png_bytes(to_8bit(p["albedo"], mask)),
+        "shadow.png": _png_bytes(np.where(p["lit"], 255, 0).astype(np.uint8)),
+        "relit.png": _png_bytes(to_8bit(p["relit"], mask)),
+        "novel_view.png": _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
+    }
+    written = {}
+    for name, data in files.items():
+        atomic_write_bytes(folder / name, data)
+        written[name] = str(folder / name)
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".mesh.", suffix=".ply")
+    os.close(fd)
+    try:
+        write_mesh_ply(tmp, p["depth"], p["albedo"])
+        os.chmod(tmp, 0o666 & ~_UMASK)
+        os.replace(tmp, folder / "mesh.ply")
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    written["mesh.ply"] = str(folder / "mesh.ply")
+    return written
+
+
+class WriteNode:
+    """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file."""
+
+    name = "write"
+
+    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path]):
+        self.model, self.out_dir, self.protected = model, out_dir, protected
+
+    def __call__(self, frame: Frame) -> Frame:
+        folder = self.out_dir / frame.meta["stem"]
+        clash = [n for n in OUTPUT_FILES if (folder / n).resolve() in self.protected]
+        if clash:
+            raise ValueError(f"{frame.source}: writing {folder / clash[0]} would overwrite an input")
+        write_outputs(frame, self.model, folder)
+        frame.meta["outputs"] = str(folder)
+        return frame
+
+
+def summary_record(frame: Frame) -> dict:
+    """One ``summary.json`` record (conventions.md) for a finished or failed frame."""
+    m = frame.meta
+    rec = {
+        "source": frame.source,
+        "stem": m.get("stem"),
+        "status": frame.status,
+        "light": m.get("light"),
+        "light_source": m.get("light_source"),
+        "alignment": m.get("alignment"),
+        "iterations": m.get("iterations"),
+        "converged": m.get("converged"),
+        "final_sigma": m.get("final_sigma"),
+        "seconds": round(float(sum(m.get("timings", {}).values())), 4),
+    }
+    if frame.failed_in:
+        rec["failed_in"] = frame.failed_in
+    return rec
+
+
+def write_summary(out_dir: Path, records: list[dict]) -> None:
+    atomic_write_bytes(out_dir / "summary.json", (json.dumps(records, indent=2) + "\n").encode())
