@@ -98,7 +98,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         eyes = np.array([float(t) for t in args.eyes.split(",")]).reshape(2, 2)
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes), integrator=args.integrator, light=light,
-                            eyes=eyes)
+                            eyes=eyes, shadows=args.shadows)
     protected = {Path(p).resolve() for p in paths}
     chain = Chain([LoadNode(model, options), *method_nodes(model, options), WriteNode(model, out, protected)])
     taken: set[str] = set()
@@ -166,7 +166,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "iterations", "seconds_per_face"]
     print(f"{'fit':6} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
     for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator)
+        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator, shadows=args.shadows)
         res = evaluate(model, test, albedo, angles, opts)
         report["results"][name] = res["per_angle"]
         for angle, row in res["per_angle"].items():
@@ -193,6 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--modes", type=int, help="use only the model's first K modes")
     r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
+    r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
+                   help="cast shadows traced and checked against the image (default) or traced only (paper)")
     r.add_argument("--eyes", help="X1,Y1,X2,Y2 input eye centres (image-left eye first)")
     r.add_argument("--record", default="none", help="rerun,mcap | none")
     r.add_argument("--quiet", action="store_true")
@@ -221,6 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--albedo", choices=["constant", "varied"], default="constant")
     e.add_argument("--fit", choices=["irls", "paper", "both"], default="irls")
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
+    e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")
     e.set_defaults(func=cmd_eval)
     return p

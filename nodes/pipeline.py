@@ -38,7 +38,7 @@ from nodes.loader import InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
 from nodes.remap import lambertian_remap
 from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
-from nodes.shadow import shadow_maps
+from nodes.shadow import confirm_with_image, shadow_maps
 from nodes.shape_model import ShapeModel
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
@@ -54,6 +54,7 @@ class MethodOptions:
 
     fit: FitConfig = field(default_factory=FitConfig)
     integrator: str = "lsq"
+    shadows: str = "confirmed"  # "geometric": traced only (the paper); "confirmed": checked against the image
     light: str | np.ndarray = "auto"
     eyes: np.ndarray | None = None
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
@@ -165,8 +166,16 @@ class IntegrateNode:
 class ShadowNode:
     name = "shadow"
 
+    def __init__(self, mode: str, dark_threshold: float):
+        if mode not in ("confirmed", "geometric"):
+            raise ValueError(f"unknown shadow mode {mode!r}: confirmed or geometric")
+        self.mode, self.dark_threshold = mode, dark_threshold
+
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["shadow"] = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"])
+        maps = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"])
+        if self.mode == "confirmed":
+            maps = confirm_with_image(maps, frame.data["remapped"], self.dark_threshold)
+        frame.data["shadow"] = maps
         return frame
 
 
@@ -207,7 +216,7 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_
         RobustFitNode(model, options.fit, observer),
         CombineNode(model),
         IntegrateNode(model, options.integrator),
-        ShadowNode(),
+        ShadowNode(options.shadows, options.fit.dark_threshold),
         AlbedoNode(model),
     ]
     if with_views:

@@ -75,3 +75,21 @@ def shadow_maps(depth: np.ndarray, normals: np.ndarray, light: np.ndarray, bias:
     attached = valid & (facing <= 0)
     cast = cast_shadow(depth, light, bias=bias) & valid & ~attached
     return ShadowMaps(cast=cast, attached=attached)
+
+
+def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: float) -> ShadowMaps:
+    """Reconcile traced cast shadows with the image they must explain.
+
+    A pixel clearly lit in the image (``intensity > dark_threshold``) cannot be in cast
+    shadow, so it is removed; a dark pixel facing the light that is connected (8-neighbours,
+    through dark pixels) to a traced cast shadow joins it. Dark pixels NOT connected to any
+    traced shadow stay lit: they are dark albedo (brows, beard), the distinction the
+    paper draws with the recovered shape. intensity (H, W) remapped brightness.
+    """
+    dark = np.asarray(intensity) <= dark_threshold
+    cast = maps.cast & dark
+    candidates = dark & ~maps.attached
+    labels, _ = ndimage.label(candidates, structure=np.ones((3, 3), bool))
+    seeds = np.unique(labels[cast])
+    grown = np.isin(labels, seeds[seeds > 0])
+    return ShadowMaps(cast=grown & candidates, attached=maps.attached)
