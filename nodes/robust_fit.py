@@ -16,7 +16,7 @@ Residuals are 2-D (per pixel, in the tangent plane), so their norms are Rayleigh
 normal: ``scale="rayleigh"`` (default) estimates the per-axis spread as
 ``median(eta) / sqrt(2 ln 2)`` and thresholds Huber at ``huber_k`` times it;
 ``scale="mad"`` is the paper's ``1.4826 MAD(eta)`` with threshold ``sigma`` itself, which
-down-weights most clean pixels (see docs/method.md).
+down-weights most clean pixels (README, "Where we depart from the paper").
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 ``gradient_init`` is the paper's: every normal on its reflectance cone, pointing opposite
 the local image gradient. ``mean_init`` starts from the model's mean face instead, put on
-the cones; on faces it starts far closer to the answer (see docs/method.md).
+the cones; on faces it starts far closer to the answer (README, "Where we depart from the paper").
 """
 from __future__ import annotations
 

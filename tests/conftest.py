@@ -1,0 +1,48 @@
+"""Shared fixtures. Evaluation data from ../shared is used only when present."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("SHADOWFLOW_SHARED", REPO.parent / "shared"))
+SFM_MODEL = SHARED / "data" / "sfm" / "sfm_shape_3448.bin"
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_cache(tmp_path_factory):
+    """Keep the default-model cache of the test run away from the user's."""
+    old = os.environ.get("SHADOWFLOW_CACHE")
+    os.environ["SHADOWFLOW_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    yield
+    if old is None:
+        os.environ.pop("SHADOWFLOW_CACHE", None)
+    else:
+        os.environ["SHADOWFLOW_CACHE"] = old
+
+
+@pytest.fixture(scope="session")
+def sfm_path() -> Path:
+    if not SFM_MODEL.exists():
+        pytest.skip(f"evaluation data absent: {SFM_MODEL} (needs ../shared beside the repo)")
+    pytest.importorskip("eos", reason="eos-py not installed (pip install 'shadowflow[eos]')")
+    return SFM_MODEL
+
+
+@pytest.fixture(scope="session")
+def procedural_model():
+    """A model trained on 100 procedural faces (seed 0), as in the accuracy criteria."""
+    from nodes.shape_model import train_shape_model
+    from nodes.synth.sources import procedural
+
+    depths, _ = procedural(100, seed=0)
+    return train_shape_model(depths, 60, source="procedural")
+
+
+def random_unit(n: int, rng: np.random.Generator, min_z: float = 0.05) -> np.ndarray:
+    v = rng.standard_normal((n, 3))
+    v[:, 2] = np.abs(v[:, 2]) + min_z
+    return v / np.linalg.norm(v, axis=1, keepdims=True)

@@ -1,0 +1,55 @@
+"""The method's accuracy criteria (issue 2) on a CI-sized subset: 100 training faces, 8 held-out
+test faces (the full 20-face tables come from ``shadowflow eval``, see README)."""
+import numpy as np
+import pytest
+
+from nodes.evaluate import evaluate
+from nodes.shape_model import train_shape_model
+from nodes.synth.sources import eos_model, procedural
+
+N_TEST = 8
+# issue 2: mean angular error of the final normals, degrees, by light angle
+MAX_ERR = {"45": 3.5, "60": 5.0, "75": 7.0}
+MIN_CAST_IOU = {"45": 0.75, "60": 0.75}
+
+
+def _check(report):
+    for angle, limit in MAX_ERR.items():
+        assert report["per_angle"][angle]["err_all"] <= limit, (angle, report["per_angle"][angle])
+    for angle, limit in MIN_CAST_IOU.items():
+        assert report["per_angle"][angle]["cast_iou"] >= limit, (angle, report["per_angle"][angle])
+
+
+@pytest.mark.slow
+def test_procedural_source(procedural_model):
+    test, _ = procedural(N_TEST, seed=1)
+    report = evaluate(procedural_model, test, None, [45, 60, 75])
+    _check(report)
+    # light from the other side is no different
+    mirrored = evaluate(procedural_model, test[:4], None, [-60])
+    assert mirrored["per_angle"]["-60"]["err_all"] <= MAX_ERR["60"]
+
+
+@pytest.fixture(scope="module")
+def sfm_faces(sfm_path):
+    train, _ = eos_model(sfm_path, 100, seed=0)
+    test, _ = eos_model(sfm_path, N_TEST, seed=1)
+    return train, test
+
+
+@pytest.mark.slow
+def test_sfm_source(sfm_faces):
+    train, test = sfm_faces
+    model = train_shape_model(train, 60, source="sfm")
+    _check(evaluate(model, test, None, [45, 60, 75]))
+
+
+@pytest.mark.slow
+def test_default_procedural_model_on_sfm_faces(sfm_faces):
+    """Cross-source: the shipped model (procedural faces only) on real-scan faces. The issue
+    asks to report it and aim for 6 degrees at 45; this guards the measured level."""
+    from nodes.default_model import default_model
+
+    _, test = sfm_faces
+    report = evaluate(default_model(), test, None, [45])
+    assert report["per_angle"]["45"]["err_all"] <= 8.0

@@ -1,0 +1,108 @@
+"""End-to-end runs of the ``shadowflow`` command on generated inputs."""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from nodes.cli import main
+
+LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png",
+          "novel_view.png", "mesh.ply"}
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    assert main(["run", "--demo", "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_run_writes_the_conventions_layout(demo_run):
+    summary = json.loads((demo_run / "summary.json").read_text())
+    assert len(summary) == 3 and all(r["status"] == "ok" for r in summary)
+    for rec in summary:
+        folder = demo_run / rec["stem"]
+        assert {p.name for p in folder.iterdir()} == LAYOUT
+        src = cv2.imread(rec["source"], cv2.IMREAD_GRAYSCALE)
+        h, w = src.shape
+        n = np.load(folder / "normals.npy", allow_pickle=False)
+        mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) == 255
+        assert n.shape == (h, w, 3) and n.dtype == np.float32
+        assert np.all(np.isnan(n[~mask])) and np.all(np.isfinite(n[mask]))
+        np.testing.assert_allclose(np.linalg.norm(n[mask], axis=1), 1, atol=1e-5)
+        assert np.all(n[mask][:, 2] > 0)
+        for name in ("weights.npy", "depth.npy"):
+            a = np.load(folder / name, allow_pickle=False)
+            assert a.shape == (h, w) and np.all(np.isnan(a[~mask])) and np.all(np.isfinite(a[mask]))
+        for name in ("albedo.png", "shadow.png", "relit.png"):
+            img = cv2.imread(str(folder / name), cv2.IMREAD_UNCHANGED)
+            assert img.shape == (h, w) and img.dtype == np.uint8 and not img[~mask].any()
+        assert rec["light_source"] == "sidecar" and rec["converged"] in (True, False)
+        assert rec["iterations"] >= 1 and rec["final_sigma"] > 0
+
+
+def test_run_recovers_the_demo_faces(demo_run):
+    """The demo inputs are rendered from known faces; the outputs must match them."""
+    from nodes.evaluate import render_scene
+    from nodes.geometry import angle_deg
+    from nodes.reflectance import light_from_angles
+    from nodes.synth.facegen import render_face, sample_face
+
+    rng = np.random.default_rng(2024)  # the demo's generator
+    summary = json.loads((demo_run / "summary.json").read_text())
+    for rec, (az, el) in zip(summary, [(45, 0), (-60, 0), (30, 25)]):
+        depth, mask, albedo = render_face(sample_face(rng))
+        s = light_from_angles(az, el)
+        scene = render_scene(depth, albedo, s, mask)
+        folder = demo_run / rec["stem"]
+        n = np.load(folder / "normals.npy")
+        ok = np.isfinite(n[..., 0]) & scene.valid
+        assert np.mean(angle_deg(n[ok], scene.normals[ok])) < 6.0  # varied albedo, default model
+        relit = cv2.imread(str(folder / "relit.png"), 0) / 255.0
+        truth = albedo * np.clip(scene.normals[..., 2], 0, 1)
+        assert np.mean(np.abs(relit[ok] - truth[ok])) < 0.06
+        shadow = cv2.imread(str(folder / "shadow.png"), 0) == 255
+        assert np.mean(shadow[ok] == scene.shadows.lit[ok]) > 0.95
+
+
+def test_bad_inputs_fail_alone_and_inputs_are_never_overwritten(tmp_path, demo_run):
+    good = sorted((demo_run / "demo-inputs").glob("*.png"))[0]
+    folder = tmp_path / "in"
+    folder.mkdir()
+    shutil.copy(good, folder / "a face.png")
+    shutil.copy(good.with_suffix(".json"), folder / "a face.json")
+    (folder / "broken.png").write_bytes(b"\x89PNG garbage")
+    (folder / "notes.txt").write_text("not an image")
+    sub = folder / "sub"
+    sub.mkdir()
+    shutil.copy(good, sub / "a face.png")  # same stem as the other one
+    shutil.copy(good.with_suffix(".json"), sub / "a face.json")
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "nodes.cli", "run", str(folder), str(sub / "a face.png"),
+                           "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 1  # one frame failed
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "broken.png" in errors[0]
+    assert "notes.txt: skipped" in proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert [r["status"] == "ok" for r in summary] == [True, False, True]
+    assert [r["stem"] for r in summary] == ["a_face", "broken", "a_face-2"]
+    assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+
+
+def test_train_and_eval_commands(tmp_path, capsys):
+    model = tmp_path / "small.npz"
+    assert main(["train", "--n", "30", "--modes", "20", "--size", "64,64", "--out", str(model)]) == 0
+    report = tmp_path / "r.json"
+    assert main(["eval", "--model", str(model), "--n-test", "2", "--angles", "30", "--fit", "both",
+                 "--json", str(report)]) == 0
+    r = json.loads(report.read_text())
+    assert set(r["results"]) == {"irls", "paper"} and r["grid"] == [64, 64]
+    assert 0 < r["results"]["irls"]["30"]["err_all"] < 10
+    assert "model floor" in capsys.readouterr().out

@@ -1,0 +1,78 @@
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from nodes.loader import InputError, load_image, parse_light, read_sidecar, yaleb_light
+
+
+@pytest.fixture
+def gradient():
+    return np.tile(np.linspace(0, 1, 40), (30, 1))
+
+
+@pytest.mark.parametrize("ext", [".png", ".pgm", ".tif", ".jpg"])
+def test_8_and_16_bit_grey(tmp_path, gradient, ext):
+    for dtype, top in ((np.uint8, 255), (np.uint16, 65535)):
+        if ext == ".jpg" and dtype == np.uint16:
+            continue
+        p = tmp_path / f"img{np.dtype(dtype).itemsize}{ext}"
+        cv2.imwrite(str(p), np.round(gradient * top).astype(dtype))
+        img = load_image(p)
+        assert img.dtype == np.float32 and img.shape == (30, 40)
+        np.testing.assert_allclose(img, gradient, atol=0.02 if ext == ".jpg" else 1.0 / top)
+
+
+def test_colour_and_alpha_to_luminance(tmp_path, gradient):
+    bgr = np.zeros((30, 40, 3), np.uint8)
+    bgr[..., 1] = np.round(gradient * 255)  # pure green
+    p = tmp_path / "c.png"
+    cv2.imwrite(str(p), bgr)
+    np.testing.assert_allclose(load_image(p), 0.587 * gradient, atol=0.01)
+    bgra = np.dstack([bgr, np.full((30, 40), 7, np.uint8)])
+    cv2.imwrite(str(tmp_path / "a.png"), bgra)
+    np.testing.assert_allclose(load_image(tmp_path / "a.png"), 0.587 * gradient, atol=0.01)
+
+
+def test_npy_input_and_its_errors(tmp_path, gradient):
+    np.save(tmp_path / "ok.npy", gradient)
+    np.testing.assert_allclose(load_image(tmp_path / "ok.npy"), gradient)
+    bad = gradient.copy()
+    bad[3, 3] = np.nan
+    np.save(tmp_path / "nan.npy", bad)
+    with pytest.raises(InputError, match="nan.npy.*NaN"):
+        load_image(tmp_path / "nan.npy")
+    np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(InputError, match="obj.npy"):
+        load_image(tmp_path / "obj.npy")  # never unpickled
+
+
+def test_unreadable_files_name_the_file(tmp_path):
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "text.jpg").write_text("hello")
+    for name in ("empty.png", "text.jpg", "missing.png"):
+        with pytest.raises(InputError, match=name) as e:
+            load_image(tmp_path / name)
+        assert "\n" not in str(e.value)
+
+
+def test_light_sources(tmp_path):
+    np.testing.assert_allclose(parse_light("-1,0,1"), np.array([-1, 0, 1]) / np.sqrt(2))
+    for bad, why in (("0,0,0", "zero"), ("1,0,-1", "away"), ("1,2", "three"), ("a,b,c", "three"), ("nan,0,1", "finite")):
+        with pytest.raises(ValueError, match=why):
+            parse_light(bad)
+    with pytest.raises(InputError, match="impossible"):
+        yaleb_light("yaleB01_P00A+200E+00.pgm")
+    with pytest.raises(InputError, match="no Yale B light"):
+        yaleb_light("portrait.png")
+    img = tmp_path / "face.png"
+    img.write_bytes(b"")
+    assert read_sidecar(img).light is None
+    (tmp_path / "face.json").write_text(json.dumps({"light": [0, 1, 1], "eyes": [[10, 20], [30, 20]]}))
+    side = read_sidecar(img)
+    np.testing.assert_allclose(side.light, [0, 1 / np.sqrt(2), 1 / np.sqrt(2)])
+    np.testing.assert_allclose(side.eyes, [[10, 20], [30, 20]])
+    (tmp_path / "face.json").write_text("{not json")
+    with pytest.raises(InputError, match="face.json: malformed"):
+        read_sidecar(img)
