@@ -13,7 +13,7 @@ from pathlib import Path
 
 from nodes.shape_model import ShapeModel, load_model, save_model, train_shape_model
 
-GENERATOR_VERSION = 1  # bump when nodes/synth/facegen.py changes the faces it makes
+GENERATOR_VERSION = 2  # bump when nodes/synth/facegen.py changes the faces it makes
 DEFAULT_RECIPE = {"source": "procedural", "n": 100, "seed": 0, "modes": 60, "size": [128, 128],
                   "generator": GENERATOR_VERSION}
 

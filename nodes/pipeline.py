@@ -36,7 +36,7 @@ from nodes.integrate import frankot_chellappa, masked_least_squares
 from nodes.light import estimate_light
 from nodes.loader import InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
-from nodes.remap import lambertian_remap
+from nodes.remap import expected_peak_shading, lambertian_remap
 from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from nodes.shadow import confirm_with_image, shadow_maps
 from nodes.shape_model import ShapeModel
@@ -99,13 +99,17 @@ class LoadNode:
 
 
 class RemapNode:
+    """``model_peak``: the brightest point's shading is the mean face's peak, not 1 (paper)."""
+
     name = "remap"
 
-    def __init__(self, model: ShapeModel):
-        self.model = model
+    def __init__(self, model: ShapeModel, model_peak: bool = True):
+        self.model, self.model_peak = model, model_peak
 
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(frame.data["grid_image"], self.model.mask)
+        peak = expected_peak_shading(self.model.mean_normals, frame.data["grid_light"]) if self.model_peak else 1.0
+        frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(
+            frame.data["grid_image"], self.model.mask, peak_shading=peak)
         return frame
 
 
@@ -211,7 +215,7 @@ class RelightNode:
 def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_views: bool = True) -> list:
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo)."""
     nodes = [
-        RemapNode(model),
+        RemapNode(model, options.fit.solver != "paper"),
         SfsInitNode(model, options.fit),
         RobustFitNode(model, options.fit, observer),
         CombineNode(model),

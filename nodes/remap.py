@@ -5,12 +5,14 @@ import numpy as np
 from scipy import ndimage
 
 
-def lambertian_remap(image: np.ndarray, mask: np.ndarray, window: int = 3) -> tuple[np.ndarray, float]:
-    """Divide ``image`` by the brightness of its brightest face point, then clip to [0, 1].
+def lambertian_remap(image: np.ndarray, mask: np.ndarray, window: int = 3,
+                     peak_shading: float = 1.0) -> tuple[np.ndarray, float]:
+    """Scale ``image`` so its brightest face point has shading ``peak_shading``; clip to [0, 1].
 
-    Under unit albedo the brightest point of a face whose normals include the light
-    direction has ``n . s = 1``. The brightest point is taken after a ``window`` x ``window``
-    median filter, so a few isolated hot pixels (specks, sensor defects) do not set the scale.
+    The paper's remap takes ``peak_shading = 1``: some face normal points at the light. At
+    steep light none may (``expected_peak_shading`` gives the model's estimate instead).
+    The brightest point is taken after a ``window`` x ``window`` median filter, so a few
+    isolated hot pixels (specks, sensor defects) do not set the scale.
     image (H, W) float in [0, 1]; mask (H, W) bool. Returns ``(remapped (H, W) float32,
     scale)`` with ``remapped = clip(image / scale, 0, 1)``.
     """
@@ -22,14 +24,11 @@ def lambertian_remap(image: np.ndarray, mask: np.ndarray, window: int = 3) -> tu
     scale = float(np.max(smooth[m]))
     if not np.isfinite(scale) or scale <= 0:
         raise ValueError("the face region is black: nothing to remap")
+    scale /= float(np.clip(peak_shading, 0.05, 1.0))
     return np.clip(img / scale, 0.0, 1.0).astype(np.float32), scale
 
 
-class RemapNode:
-    """Node wrapper: ``frame['image']`` on the model grid -> ``frame['remapped']``."""
-
-    name = "remap"
-
-    def __call__(self, frame: dict) -> dict:
-        frame["remapped"], frame["remap_scale"] = lambertian_remap(frame["grid_image"], frame["model"].mask)
-        return frame
+def expected_peak_shading(mean_normals: np.ndarray, light: np.ndarray) -> float:
+    """The largest ``n . s`` of the model's mean face under ``light``: where the brightest
+    point of a typical face sits on the shading scale. mean_normals (N, 3); light (3,)."""
+    return float(np.max(np.asarray(mean_normals, np.float64) @ np.asarray(light, np.float64)))

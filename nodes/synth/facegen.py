@@ -112,24 +112,27 @@ def face_height_mm(p: FaceParams, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndar
     y_sub = y_nasion - p.nose_height  # subnasale
     y_tip = y_sub + 0.18 * p.nose_height  # pronasale sits a little above subnasale
     y_sto = y_sub - p.upper_lip_height  # stomion (mouth line)
-    y_top = y_nasion + 0.6 * p.forehead_height
+    y_top = y_nasion + 0.85 * p.forehead_height
 
-    # Outline: half-width tapers from cheekbones to jaw to chin.
+    # Outline: half-width tapers from the cheekbones to the jaw, then rounds off to the chin.
     half_w = 0.5 * p.face_width
     jaw = 0.5 * p.jaw_width
     t = _smoothstep(y_sub + 10.0, y_sto - 20.0, Y)
     a = half_w * (1 - t) + jaw * t
+    y_jaw = y_sto - 20.0
+    below = np.clip((y_jaw - Y) / max(y_jaw - y_chin, 1e-6), 0.0, 1.0)
+    a = a * np.sqrt(np.clip(1.0 - below**2, 0.0, None)) + 0.25 * jaw * below
     a = a * (1 - 0.12 * _smoothstep(y_nasion + 10, y_top, Y))  # temples narrow a little
-    yc = 0.5 * (y_top + y_chin)
-    b = 0.5 * (y_top - y_chin) + 3.0
-    r2 = (X / a) ** 2 + ((Y - yc) / b) ** 2
-    mask = (r2 < 0.95) & (Y < y_top)
-    dome = p.face_depth * np.sqrt(np.clip(1.0 - np.minimum(r2, 1.0), 0.0, None)) ** 0.7
-
-    z = dome.copy()
-    # Chin and jaw recede toward the bottom; forehead slopes back at the top.
-    z -= 10.0 * _smoothstep(y_sto, y_chin, Y) ** 2
-    z -= 8.0 * _smoothstep(y_nasion + 20, y_top + 10, Y) ** 2
+    rx = X / np.maximum(a, 1e-6)
+    mask = (np.abs(rx) < 0.95) & (Y < y_top) & (Y > y_chin)
+    # Base surface: a face curves strongly across (cheeks wrap back toward the ears) and only
+    # gently from forehead to chin, which recede a little from the cheekbone plane.
+    y_mid = 0.5 * (y_top + y_chin)
+    half_h = 0.5 * (y_top - y_chin)
+    cross = np.sqrt(np.clip(1.0 - np.minimum(rx**2, 1.0), 0.0, None)) ** 0.8
+    z = 0.5 * p.face_depth * cross - 10.0 * ((Y - y_mid) / half_h) ** 2
+    z -= 6.0 * _smoothstep(y_sto, y_chin, Y) ** 2  # the chin sets back under the lips
+    z -= 6.0 * _smoothstep(y_nasion + 25, y_top + 10, Y) ** 2  # the upper forehead slopes back
     # Eye sockets and eyeballs.
     for sx in (-e, e):
         z -= p.socket_depth * _g(X, Y, sx, 0.5, 13.0, 9.0)
