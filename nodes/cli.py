@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import glob
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -20,7 +20,7 @@ from nodes.robust_fit import FitConfig
 
 def _fit_config(name: str, modes: int | None) -> FitConfig:
     cfg = FitConfig.paper() if name == "paper" else FitConfig()
-    return cfg if modes is None else FitConfig(**{**cfg.__dict__, "n_modes": modes})
+    return cfg if modes is None else dataclasses.replace(cfg, n_modes=modes)
 
 
 def _load_model(path: str | None):

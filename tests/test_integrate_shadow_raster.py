@@ -119,3 +119,23 @@ def test_grid_mesh_covers_the_mask():
     a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
     cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
     assert np.all(cross > 0)
+
+
+def test_remap_ignores_hot_pixels_and_uses_the_peak_shading():
+    from nodes.remap import expected_peak_shading, lambertian_remap
+
+    rng = np.random.default_rng(0)
+    img = rng.uniform(0.1, 0.6, (50, 50))
+    img[20:23, 20:23] = 0.8  # the real brightest spot (3x3)
+    img[5, 5] = img[40, 7] = 1.0  # isolated hot pixels
+    mask = np.ones_like(img, bool)
+    out, scale = lambertian_remap(img, mask)
+    assert scale == pytest.approx(0.8) and out[21, 21] == pytest.approx(1.0)
+    assert out[5, 5] == 1.0  # clipped, not trusted as the scale
+    out2, scale2 = lambertian_remap(img, mask, peak_shading=0.9)
+    assert scale2 == pytest.approx(0.8 / 0.9) and out2[21, 21] == pytest.approx(0.9)
+    normals = np.array([[0, 0, 1.0], [np.sin(0.3), 0, np.cos(0.3)]])
+    s = light_from_angles(-60)  # toward the image's right: +x
+    assert expected_peak_shading(normals, s) == pytest.approx(np.cos(np.radians(60) - 0.3))
+    with pytest.raises(ValueError, match="black"):
+        lambertian_remap(np.zeros((8, 8)), np.ones((8, 8), bool))
