@@ -9,9 +9,7 @@ import argparse
 import json
 import platform
 import statistics
-import time
 
-import numpy as np
 
 from flow import Chain, Frame
 from nodes.default_model import default_model

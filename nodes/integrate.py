@@ -85,7 +85,7 @@ def harmonic_fill(values: np.ndarray, holes: np.ndarray) -> np.ndarray:
     pos = np.full(h * w, -1, np.int64)
     pos[idx] = np.arange(idx.size)
     r, c = np.divmod(idx, w)
-    rows, cols, vals = [], [], []
+    rows, cols = [], []
     diag = np.zeros(idx.size)
     rhs = np.zeros(idx.size)
     for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):

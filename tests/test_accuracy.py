@@ -1,6 +1,5 @@
 """The method's accuracy criteria (issue 2) on a CI-sized subset: 100 training faces, 8 held-out
 test faces (the full 20-face tables come from ``shadowflow eval``, see README)."""
-import numpy as np
 import pytest
 
 from nodes.evaluate import evaluate

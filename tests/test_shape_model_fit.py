@@ -4,7 +4,7 @@ import pytest
 from nodes.geometry import angle_deg
 from nodes.reflectance import lambertian, light_from_angles
 from nodes.robust_fit import FitConfig, combine, fit, huber_weights, residual_scale
-from nodes.shape_model import load_model, save_model, train_shape_model
+from nodes.shape_model import load_model, save_model
 from nodes.synth.sources import procedural
 
 
