@@ -207,8 +207,20 @@ def initial_normals(model: ShapeModel, image: np.ndarray, light: np.ndarray, con
     return mean_init(model.mean_normals, I, light, dark)
 
 
-def combine(cone_normals: np.ndarray, model_normals: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """The paper's section 4.1 blend: ``normalize(w n'' + (1 - w) n')``. (N, 3), (N, 3), (N,)."""
+def combine(cone_normals: np.ndarray, model_normals: np.ndarray, weights: np.ndarray,
+            min_z: float = 1e-3) -> np.ndarray:
+    """The paper's section 4.1 blend ``normalize(w n'' + (1 - w) n')``, kept visible.
+
+    cone_normals, model_normals (N, 3); weights (N,). The closest on-cone direction to a
+    normal near the silhouette can point away from the camera; a visible surface has
+    ``z > 0``, so such a blend is moved onto ``z = min_z`` keeping its azimuth. Returns (N, 3).
+    """
     w = np.asarray(weights, np.float64)[:, None]
     n = w * cone_normals + (1.0 - w) * model_normals
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    hidden = n[:, 2] < min_z
+    if np.any(hidden):
+        xy = n[hidden, :2]
+        xy = xy / np.maximum(np.linalg.norm(xy, axis=1, keepdims=True), 1e-12) * np.sqrt(1.0 - min_z**2)
+        n[hidden] = np.column_stack([xy, np.full(len(xy), min_z)])
+    return n

@@ -109,3 +109,13 @@ def test_iteration_records_are_complete(procedural_model):
         assert r.residuals.shape == (m.n_pixels,) and r.b.shape == (m.n_modes,)
         assert np.all((r.weights >= 0) & (r.weights <= 1))
     assert len(res.history) == 7 and res.history[-1]["change_deg"] == pytest.approx(seen[-1].change_deg)
+
+
+def test_combine_blends_by_weight_and_keeps_normals_visible():
+    a = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.6, 0.0, -0.8]])
+    b = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.6, 0.0, -0.8]])
+    out = combine(a, b, np.array([1.0, 0.5, 1.0]))
+    np.testing.assert_allclose(out[0], [0, 0, 1])
+    np.testing.assert_allclose(out[1], [np.sqrt(0.5), 0, np.sqrt(0.5)])
+    assert out[2, 2] > 0 and out[2, 0] > 0.99  # faced away: moved to the silhouette, same azimuth
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1)
