@@ -4,5 +4,6 @@ Knows nothing about faces: a node is any callable ``Frame -> Frame`` with a ``na
 """
 from flow.frame import Frame, FrameFailed
 from flow.chain import Chain
+from flow.pipeline import Pipeline, Stage, run_node
 
-__all__ = ["Frame", "FrameFailed", "Chain"]
+__all__ = ["Frame", "FrameFailed", "Chain", "Pipeline", "Stage", "run_node"]

@@ -1,10 +1,10 @@
 """A sequential chain of nodes with per-frame fault isolation."""
 from __future__ import annotations
 
-import time
 from typing import Callable, Iterable, Iterator, Protocol
 
 from flow.frame import Frame
+from flow.pipeline import run_node
 
 
 class Node(Protocol):
@@ -28,21 +28,8 @@ class Chain:
         self.on_done = on_done
 
     def process(self, frame: Frame) -> Frame:
-        timings = frame.meta.setdefault("timings", {})
         for node in self.nodes:
-            if not frame.ok:
-                break
-            t0 = time.perf_counter()
-            try:
-                frame = node(frame)
-            except KeyboardInterrupt:
-                raise
-            except Exception as exc:  # noqa: BLE001 - a node's failure is the frame's, not the stream's
-                text = str(exc)
-                if not text.startswith(frame.source):
-                    text = f"{frame.source}: {type(exc).__name__}: {text}"
-                frame.fail(node.name, text)
-            timings[node.name] = time.perf_counter() - t0
+            frame = run_node(node, frame)
         if self.on_done is not None:
             self.on_done(frame)
         return frame

@@ -25,6 +25,7 @@ class Frame:
     meta: dict[str, Any] = field(default_factory=dict)
     status: str = "ok"
     failed_in: str | None = None
+    skipped: bool = False  # passes through every node untouched (e.g. already done: resume)
 
     @property
     def ok(self) -> bool:

@@ -11,10 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flow.chain import Chain
-from flow.frame import Frame
 from nodes.loader import IMAGE_SUFFIXES, parse_light
-from nodes.pipeline import LoadNode, MethodOptions, method_nodes
+from nodes.pipeline import MethodOptions
 from nodes.robust_fit import FitConfig
 
 
@@ -76,20 +74,22 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from nodes.outputs import WriteNode, safe_stem, summary_record, write_summary
+    from flow.recording import RecordOptions
+    from nodes.runner import RunOptions, run_stream, watch_folder
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     inputs = list(args.inputs)
     if args.demo:
         inputs = write_demo_inputs(out / "demo-inputs") + inputs
-    if not inputs:
-        print("shadowflow run: no input given (name images or folders, or use --demo)", file=sys.stderr)
+    if not inputs and not args.watch:
+        print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
         return 2
     note = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    paths = expand_inputs(inputs, note)
-    if args.record not in ("none", ""):
-        note("recordings (--record) are not written yet by this version; running without them")
+    record = tuple(x for x in args.record.split(",") if x and x != "none")
+    unknown = set(record) - {"rerun", "mcap"}
+    if unknown:
+        raise ValueError(f"--record takes rerun, mcap or none, not {', '.join(sorted(unknown))}")
     light: str | np.ndarray = args.light
     if args.light not in ("auto", "yaleb"):
         light = parse_light(args.light)
@@ -99,26 +99,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes), integrator=args.integrator, light=light,
                             eyes=eyes, shadows=args.shadows)
-    protected = {Path(p).resolve() for p in paths}
-    chain = Chain([LoadNode(model, options), *method_nodes(model, options), WriteNode(model, out, protected)])
-    taken: set[str] = set()
-    records = []
+    run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
+                     fit_workers=args.workers, resume=args.resume, quiet=args.quiet)
+    if args.watch:
+        paths = expand_inputs(inputs, note) if inputs else []
+        stream = (p for src in (paths, watch_folder(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit, note=note))
+                  for p in src)
+        total = None
+    else:
+        stream = expand_inputs(inputs, note)
+        total = len(stream)
     t0 = time.perf_counter()
-    failures = 0
-    for i, path in enumerate(paths):
-        frame = Frame(i, path)
-        frame.meta["stem"] = safe_stem(path, taken)
-        frame = chain.process(frame)
-        records.append(summary_record(frame))
-        write_summary(out, records)
-        if frame.ok:
-            note(f"[{i + 1}/{len(paths)}] {path} -> {frame.meta['outputs']} "
-                 f"({frame.meta['iterations']} iterations, {records[-1]['seconds']:.2f} s)")
-        else:
-            failures += 1
-            print(f"error: {frame.status}", file=sys.stderr)
-    note(f"{len(paths) - failures} of {len(paths)} done in {time.perf_counter() - t0:.1f} s; "
-         f"summary: {out / 'summary.json'}")
+    records = run_stream(stream, out, model, options, run, total)
+    failures = sum(r["status"] != "ok" for r in records)
+    note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
+         f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
     return 0 if failures == 0 else 1
 
 
@@ -196,7 +191,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
                    help="cast shadows traced and checked against the image (default) or traced only (paper)")
     r.add_argument("--eyes", help="X1,Y1,X2,Y2 input eye centres (image-left eye first)")
-    r.add_argument("--record", default="none", help="rerun,mcap | none")
+    r.add_argument("--record", default="rerun,mcap", help="rerun,mcap | rerun | mcap | none (files run.rrd, run.mcap in --out)")
+    r.add_argument("--record-every", type=int, default=1, metavar="N",
+                   help="record fit iterations 1, 1+N, ... and the last (default: every one)")
+    r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
+    r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
+    r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")
+    r.add_argument("--watch", metavar="DIR", help="keep processing new images that appear in DIR")
+    r.add_argument("--idle-exit", type=float, metavar="SECONDS", help="with --watch: stop after this long with nothing new")
     r.add_argument("--quiet", action="store_true")
     r.set_defaults(func=cmd_run)
 

@@ -1,0 +1,176 @@
+"""A streaming pipeline: nodes in worker threads joined by bounded queues.
+
+Frames enter from any iterable; each stage runs one node in ``workers`` threads; stages are
+joined by ``queue.Queue(maxsize=queue_size)``, so a slow stage blocks the ones before it
+(backpressure) and at most ``sum(workers) + (stages + 1) * queue_size`` frames are in flight
+however long the stream. Results leave in input order. A node that raises fails only that
+frame (see ``run_node``); ``stop()`` (or SIGINT / SIGTERM under ``handle_signals``) stops
+taking new frames and lets the frames already in flight finish.
+"""
+from __future__ import annotations
+
+import queue
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterable, Iterator
+
+from flow.frame import Frame
+
+_DONE = object()  # end-of-stream marker, one per worker of the next stage
+
+
+def run_node(node, frame: Frame) -> Frame:
+    """Run one node on one frame with fault isolation and timing.
+
+    A failed or skipped frame passes through untouched. An exception fails the frame with a one-line
+    reason that names the frame's source; the node's wall time (s) goes to
+    ``frame.meta["timings"][node.name]``.
+    """
+    if not frame.ok or frame.skipped:
+        return frame
+    t0 = time.perf_counter()
+    try:
+        frame = node(frame)
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a node's failure is the frame's, not the stream's
+        text = str(exc)
+        if not text.startswith(frame.source):
+            text = f"{frame.source}: {type(exc).__name__}: {text}"
+        frame.fail(node.name, text)
+    frame.meta.setdefault("timings", {})[node.name] = time.perf_counter() - t0
+    return frame
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A node and how many worker threads run it."""
+
+    node: object
+    workers: int = 1
+
+
+class Pipeline:
+    """Run frames through stages of nodes concurrently; iterate over ``run`` for results.
+
+    stages: nodes or ``Stage``s in order. queue_size: capacity of each queue between stages.
+    on_done: called in input order with each finished (or failed) frame, on the caller's
+    thread, before it is yielded.
+    """
+
+    def __init__(self, stages: Iterable, queue_size: int = 2,
+                 on_done: Callable[[Frame], None] | None = None):
+        self.stages = [s if isinstance(s, Stage) else Stage(s) for s in stages]
+        if not self.stages:
+            raise ValueError("a pipeline needs at least one node")
+        self.queue_size = max(1, int(queue_size))
+        self.on_done = on_done
+        self._stop = threading.Event()  # stop() was asked for: take no new frames
+        self._closing = threading.Event()  # the consumer is gone: the source must end too
+        self.max_in_flight = 0  # observed, for tests and benchmarks
+
+    def stop(self) -> None:
+        """Take no new frames; frames already in flight are finished and emitted."""
+        self._stop.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+    def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
+        queues = [queue.Queue(maxsize=self.queue_size) for _ in range(len(self.stages) + 1)]
+        errors: list[BaseException] = []
+        in_flight = [0]
+        lock = threading.Lock()
+
+        def feed() -> None:
+            try:
+                for seq, frame in enumerate(frames):
+                    if self._stop.is_set() or self._closing.is_set():
+                        break
+                    with lock:
+                        in_flight[0] += 1
+                        self.max_in_flight = max(self.max_in_flight, in_flight[0])
+                    queues[0].put((seq, frame))
+            except BaseException as exc:  # noqa: BLE001 - a broken source ends the stream, reported below
+                errors.append(exc)
+            finally:
+                for _ in range(self.stages[0].workers):
+                    queues[0].put(_DONE)
+
+        def work(i: int, stage: Stage, remaining: list[int]) -> None:
+            q_in, q_out = queues[i], queues[i + 1]
+            while True:
+                item = q_in.get()
+                if item is _DONE:
+                    with lock:
+                        remaining[0] -= 1
+                        last = remaining[0] == 0
+                    if last:  # the stage's last worker tells every worker of the next one
+                        nxt = self.stages[i + 1].workers if i + 1 < len(self.stages) else 1
+                        for _ in range(nxt):
+                            q_out.put(_DONE)
+                    return
+                seq, frame = item
+                try:
+                    frame = run_node(stage.node, frame)
+                except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
+                    frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
+                    self._stop.set()
+                q_out.put((seq, frame))
+
+        threads = [threading.Thread(target=feed, name="flow-source", daemon=True)]
+        for i, stage in enumerate(self.stages):
+            remaining = [stage.workers]
+            for k in range(stage.workers):
+                name = f"flow-{getattr(stage.node, 'name', i)}-{k}"
+                threads.append(threading.Thread(target=work, args=(i, stage, remaining), name=name, daemon=True))
+        previous = _install_signal_handlers(self.stop) if handle_signals else None
+        for t in threads:
+            t.start()
+        try:
+            pending: dict[int, Frame] = {}
+            next_seq = 0
+            out = queues[-1]
+            while True:
+                item = out.get()
+                if item is _DONE:
+                    break
+                seq, frame = item
+                pending[seq] = frame
+                while next_seq in pending:  # emit in input order as soon as possible
+                    frame = pending.pop(next_seq)
+                    next_seq += 1
+                    with lock:
+                        in_flight[0] -= 1
+                    if self.on_done is not None:
+                        self.on_done(frame)
+                    yield frame
+        finally:
+            self._closing.set()
+            if previous is not None:
+                _restore_signal_handlers(previous)
+        if errors:
+            raise errors[0]
+
+
+def _install_signal_handlers(stop: Callable[[], None]):
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = {}
+
+    def handler(signum, _frame):
+        if stop.__self__.stopped:  # second signal: stop now
+            raise KeyboardInterrupt
+        stop()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, handler)
+    return previous
+
+
+def _restore_signal_handlers(previous) -> None:
+    for sig, h in previous.items():
+        signal.signal(sig, h)

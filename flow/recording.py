@@ -1,0 +1,403 @@
+"""Recordings of a run: every iteration's arrays and scalars, to MCAP and Rerun files.
+
+Nodes hand ``Event``s to a ``Recorder``; one writer thread takes them from a bounded queue and
+passes them to each ``Sink`` (``McapSink``, ``RerunSink``), so encoding and compression stay
+off the compute threads and Rerun's per-thread time cursor lives on a single thread. Times
+are explicit on every event: timeline ``frame`` (the frame's position in the stream) and
+timeline ``iteration`` (absent for once-per-frame products). The on-disk formats are
+documented in ``recordings/README.md``. Knows nothing about faces.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import queue
+import struct
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ARRAY_MAGIC = b"SFA1"
+ARRAY_ENCODING = "shadowflow.ndarray"
+ARRAY_SCHEMA = "shadowflow.NDArray"
+ALLOWED_DTYPES = {"<f2", "<f4", "<f8", "|u1", "<u2", "<u4", "<i4", "<i8", "|b1"}
+MAX_ARRAY_BYTES = 1 << 30  # a message claiming more than 1 GiB is refused when reading
+KINDS = ("array", "image", "depth", "normals", "mesh")
+
+
+@dataclass(frozen=True)
+class Event:
+    """One recorded item.
+
+    frame: stream position; path: ``node/name``; iteration: None for per-frame products;
+    kind: "array" | "image" ([0, 1] grey) | "depth" | "normals" ((H, W, 3) unit) | "mesh"
+    (dict of vertices (V, 3), triangles (T, 3), colours (V, 3) uint8) | "scalars" (dict
+    name -> float) | "frame" (dict: source, status, meta; closes the frame).
+    """
+
+    frame: int
+    path: str
+    kind: str
+    value: Any
+    iteration: int | None = None
+
+
+def log_time_ns(frame: int, iteration: int | None) -> int:
+    """Deterministic MCAP time: 1 s per frame, 1 ms per iteration (no wall clock)."""
+    return int(frame) * 1_000_000_000 + (0 if iteration is None else int(iteration) + 1) * 1_000_000
+
+
+def encode_array(frame: int, iteration: int | None, arr: np.ndarray) -> bytes:
+    """``SFA1`` + uint32 LE header length + JSON header + raw C-order little-endian bytes."""
+    a = np.ascontiguousarray(arr)
+    if a.dtype.byteorder == ">":
+        a = a.astype(a.dtype.newbyteorder("<"))
+    header = json.dumps({"frame": int(frame), "iteration": iteration, "dtype": a.dtype.str,
+                         "shape": list(a.shape)}, separators=(",", ":")).encode()
+    return ARRAY_MAGIC + struct.pack("<I", len(header)) + header + a.tobytes()
+
+
+def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
+    """Inverse of ``encode_array``; raises ``ValueError`` on anything malformed."""
+    if len(data) < 8 or data[:4] != ARRAY_MAGIC:
+        raise ValueError("not a shadowflow array message")
+    (hlen,) = struct.unpack("<I", data[4:8])
+    if hlen > 4096 or 8 + hlen > len(data):
+        raise ValueError("array header length out of range")
+    header = json.loads(data[8:8 + hlen])
+    dtype, shape = header.get("dtype"), header.get("shape")
+    if dtype not in ALLOWED_DTYPES or not isinstance(shape, list) or len(shape) > 8 \
+            or not all(isinstance(d, int) and 0 <= d for d in shape):
+        raise ValueError(f"bad array header {header!r}")
+    n = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+    payload = data[8 + hlen:]
+    if n > MAX_ARRAY_BYTES or n != len(payload):
+        raise ValueError(f"array payload is {len(payload)} bytes, header says {n}")
+    return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+
+
+class Sink:
+    """Writes events somewhere. ``write`` runs on the recorder's thread only."""
+
+    def write(self, event: Event) -> None: ...
+
+    def frame_done(self, frame: int) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class McapSink(Sink):
+    """MCAP file: exact arrays (``shadowflow.ndarray``), scalars and frame records as JSON,
+    images also as ``foxglove.RawImage`` (mono8, JSON) so Foxglove shows them.
+
+    Compressed (zstd) chunks; the chunk is closed and flushed after every frame, so a
+    killed run leaves every finished frame readable.
+    """
+
+    def __init__(self, path: str | Path, compression: str = "zstd"):
+        from mcap.writer import CompressionType, Writer
+
+        self.path = Path(path)
+        self._file = open(self.path, "wb")
+        comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
+        self._w = Writer(self._file, compression=comp, chunk_size=4 << 20)
+        self._w.start(profile="", library="shadowflow")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._seq: dict[str, int] = {}
+
+    def _schema(self, name: str) -> int:
+        if name not in self._schemas:
+            if name == ARRAY_SCHEMA:
+                sid = self._w.register_schema(name, ARRAY_ENCODING, b"see recordings/README.md")
+            else:
+                sid = self._w.register_schema(name, "jsonschema", json.dumps(_JSON_SCHEMAS[name]).encode())
+            self._schemas[name] = sid
+        return self._schemas[name]
+
+    def _channel(self, topic: str, schema: str, encoding: str) -> int:
+        if topic not in self._channels:
+            self._channels[topic] = self._w.register_channel(topic, encoding, self._schema(schema))
+        return self._channels[topic]
+
+    def _add(self, topic: str, schema: str, encoding: str, event: Event, data: bytes) -> None:
+        ch = self._channel(topic, schema, encoding)
+        seq = self._seq.get(topic, 0)
+        self._seq[topic] = seq + 1
+        t = log_time_ns(event.frame, event.iteration)
+        self._w.add_message(ch, log_time=t, data=data, publish_time=t, sequence=seq)
+
+    def write(self, event: Event) -> None:
+        topic = "/" + event.path
+        if event.kind in ("scalars", "frame"):
+            body = {"frame": event.frame, "iteration": event.iteration, "values": event.value}
+            schema = "shadowflow.Scalars" if event.kind == "scalars" else "shadowflow.Frame"
+            self._add(topic, schema, "json", event, json.dumps(body, default=_jsonable).encode())
+            return
+        if event.kind == "mesh":
+            for key, arr in event.value.items():
+                self._add(f"{topic}/{key}", ARRAY_SCHEMA, ARRAY_ENCODING, event,
+                          encode_array(event.frame, event.iteration, arr))
+            return
+        arr = np.asarray(event.value)
+        self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, encode_array(event.frame, event.iteration, arr))
+        if event.kind == "image":
+            img8 = (np.clip(np.nan_to_num(arr.astype(np.float32)), 0, 1) * 255 + 0.5).astype(np.uint8)
+            t = log_time_ns(event.frame, event.iteration)
+            msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
+                   "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",
+                   "step": int(img8.shape[1]), "data": base64.b64encode(img8.tobytes()).decode()}
+            self._add(topic + "/foxglove", "foxglove.RawImage", "json", event, json.dumps(msg).encode())
+
+    def frame_done(self, frame: int) -> None:
+        self._w.flush()
+
+    def close(self) -> None:
+        self._w.finish()
+        self._file.close()
+
+
+class RerunSink(Sink):
+    """Rerun ``.rrd`` file with timelines ``frame`` and ``iteration``, entities
+    ``frames/<frame>/<node>/<name>``, and a default blueprint (images side by side and the
+    convergence plots), streamed to disk as it goes."""
+
+    def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow"):
+        import rerun as rr
+
+        self.rr = rr
+        self.path = Path(path)
+        self.rec = rr.RecordingStream(application_id)
+        self.rec.save(str(self.path), default_blueprint=blueprint)
+
+    def write(self, event: Event) -> None:
+        rr, rec = self.rr, self.rec
+        rec.set_time("frame", sequence=event.frame)
+        if event.iteration is None:
+            rec.disable_timeline("iteration")
+        else:
+            rec.set_time("iteration", sequence=event.iteration)
+        entity = f"frames/{event.frame:05d}/{event.path}"
+        v = event.value
+        if event.kind == "scalars":
+            for name, x in v.items():
+                if isinstance(x, (int, float, np.floating, np.integer)) and not isinstance(x, bool):
+                    rec.log(f"{entity}/{name}", rr.Scalars(float(x)))
+        elif event.kind == "frame":
+            rec.log(f"frames/{event.frame:05d}/status", rr.TextLog(json.dumps(v, default=_jsonable)))
+        elif event.kind == "image":
+            rec.log(entity, rr.Image(np.nan_to_num(np.asarray(v, np.float32))))
+        elif event.kind == "depth":
+            rec.log(entity, rr.DepthImage(np.nan_to_num(np.asarray(v, np.float32))))
+        elif event.kind == "normals":
+            rgb = ((np.nan_to_num(np.asarray(v, np.float32)) + 1) * 127.5).clip(0, 255).astype(np.uint8)
+            rec.log(entity, rr.Image(rgb))
+        elif event.kind == "mesh":
+            rec.log(entity, rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"],
+                                      vertex_colors=v["colours"]))
+        else:
+            a = np.asarray(v)
+            if a.ndim == 2:
+                rec.log(entity, rr.Image(np.nan_to_num(a.astype(np.float32))))
+            else:
+                rec.log(entity, rr.Tensor(np.nan_to_num(a.astype(np.float32))))
+
+    def frame_done(self, frame: int) -> None:
+        self.rec.flush()
+
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()
+
+
+@dataclass
+class RecordOptions:
+    """every: keep iterations 1, 1 + every, ... and the last; float16: store float arrays as
+    float16 (half the bytes, about 3 significant digits)."""
+
+    every: int = 1
+    float16: bool = False
+
+
+class Recorder:
+    """Collects events from any thread and writes them on its own thread.
+
+    ``emit`` blocks when ``max_pending`` events are waiting (backpressure instead of
+    unbounded memory). Errors in a sink are kept and raised by ``close``.
+    """
+
+    def __init__(self, sinks: list[Sink], options: RecordOptions | None = None, max_pending: int = 256):
+        self.sinks = sinks
+        self.options = options or RecordOptions()
+        self._q: queue.Queue = queue.Queue(maxsize=max_pending)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._loop, name="flow-recorder", daemon=True)
+        self._thread.start()
+
+    def keep_iteration(self, iteration: int, last: bool = False) -> bool:
+        return last or self.options.every <= 1 or (iteration - 1) % self.options.every == 0
+
+    def emit(self, event: Event) -> None:
+        if self.options.float16 and event.kind in ("array", "image", "depth", "normals"):
+            a = np.asarray(event.value)
+            if a.dtype.kind == "f":
+                event = Event(event.frame, event.path, event.kind, a.astype(np.float16), event.iteration)
+        self._q.put(("event", event))
+
+    def frame_done(self, frame: int, record: dict) -> None:
+        """Close a frame: its status record, then every sink flushes it to disk."""
+        self._q.put(("event", Event(frame, "frames", "frame", record)))
+        self._q.put(("done", frame))
+
+    def _loop(self) -> None:
+        while True:
+            kind, item = self._q.get()
+            if kind == "stop":
+                return
+            if self._error is not None:
+                continue
+            try:
+                for s in self.sinks:
+                    s.write(item) if kind == "event" else s.frame_done(item)
+            except BaseException as exc:  # noqa: BLE001 - reported by close()
+                self._error = exc
+
+    def close(self) -> None:
+        self._q.put(("stop", None))
+        self._thread.join()
+        for s in self.sinks:
+            try:
+                s.close()
+            except BaseException as exc:  # noqa: BLE001
+                self._error = self._error or exc
+        if self._error is not None:
+            raise RuntimeError(f"recording failed: {self._error}") from self._error
+
+
+def _jsonable(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+_JSON_SCHEMAS: dict[str, dict] = {
+    "shadowflow.Scalars": {"type": "object", "properties": {
+        "frame": {"type": "integer"}, "iteration": {"type": ["integer", "null"]},
+        "values": {"type": "object", "additionalProperties": {"type": "number"}}}},
+    "shadowflow.Frame": {"type": "object", "properties": {
+        "frame": {"type": "integer"}, "values": {"type": "object"}}},
+    "foxglove.RawImage": {"type": "object", "properties": {
+        "timestamp": {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}},
+        "frame_id": {"type": "string"}, "width": {"type": "integer"}, "height": {"type": "integer"},
+        "encoding": {"type": "string"}, "step": {"type": "integer"},
+        "data": {"type": "string", "contentEncoding": "base64"}}},
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+
+
+@dataclass
+class FrameRecording:
+    """Everything recorded for one frame.
+
+    arrays: path -> {iteration (None for per-frame) -> array}; scalars: path -> {iteration ->
+    {name: value}}; record: the frame's closing record (source, status, ...), if it finished.
+    """
+
+    frame: int
+    arrays: dict[str, dict[int | None, np.ndarray]] = field(default_factory=dict)
+    scalars: dict[str, dict[int | None, dict]] = field(default_factory=dict)
+    record: dict | None = None
+
+    @property
+    def finished(self) -> bool:
+        return self.record is not None
+
+    def iterations(self, path: str) -> list[int]:
+        src = self.arrays.get(path) or self.scalars.get(path) or {}
+        return sorted(i for i in src if i is not None)
+
+
+@dataclass
+class Recording:
+    """A recording read back: ``frames`` by stream position, and ``truncated`` when the file
+    ended early (a killed run); everything before the cut is kept."""
+
+    path: Path
+    frames: dict[int, FrameRecording]
+    truncated: bool = False
+
+    def finished_frames(self) -> list[FrameRecording]:
+        return [f for _, f in sorted(self.frames.items()) if f.finished]
+
+
+class RecordingError(ValueError):
+    """The file is not a readable shadowflow recording (the message says why, on one line)."""
+
+
+def read_mcap(path: str | Path) -> Recording:
+    """Read a shadowflow MCAP recording without trusting it.
+
+    No pickle, no code: arrays are decoded only from the documented binary layout with a
+    whitelist of dtypes and a size check; a record claiming more than 1 GiB is refused. A
+    file cut short (killed run) yields what came before the cut, ``truncated=True``.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import NonSeekingReader
+
+    path = Path(path)
+    frames: dict[int, FrameRecording] = {}
+    truncated = False
+    try:
+        fh = open(path, "rb")
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot open ({exc.strerror or exc})") from None
+    with fh:
+        head = fh.read(8)
+        if head != b"\x89MCAP0\r\n":
+            raise RecordingError(f"{path}: not an MCAP file")
+        fh.seek(0)
+        reader = NonSeekingReader(fh, record_size_limit=MAX_ARRAY_BYTES + (1 << 20))
+        it = reader.iter_messages()
+        while True:
+            try:
+                schema, channel, message = next(it)
+            except StopIteration:
+                break
+            except (McapError, EOFError, struct.error, ValueError, RuntimeError, MemoryError) as exc:
+                if not frames:
+                    raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
+                truncated = True
+                break
+            try:
+                _take(frames, channel.topic, channel.message_encoding, message.data)
+            except (ValueError, KeyError, TypeError) as exc:
+                raise RecordingError(f"{path}: bad message on {channel.topic} ({exc})") from None
+    return Recording(path, frames, truncated)
+
+
+def _take(frames: dict[int, FrameRecording], topic: str, encoding: str, data: bytes) -> None:
+    if topic.endswith("/foxglove"):
+        return  # a display copy of an array recorded exactly beside it
+    path = topic.lstrip("/")
+    if encoding == ARRAY_ENCODING:
+        header, arr = decode_array(data)
+        fr = frames.setdefault(int(header["frame"]), FrameRecording(int(header["frame"])))
+        fr.arrays.setdefault(path, {})[header["iteration"]] = arr
+    elif encoding == "json":
+        body = json.loads(data)
+        frame = int(body["frame"])
+        fr = frames.setdefault(frame, FrameRecording(frame))
+        if path == "frames":
+            fr.record = dict(body["values"])
+        else:
+            fr.scalars.setdefault(path, {})[body.get("iteration")] = dict(body["values"])
+    else:
+        raise ValueError(f"unknown message encoding {encoding!r}")

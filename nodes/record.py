@@ -1,0 +1,109 @@
+"""What the method records: every fit iteration, and each node's products once per frame.
+
+Entity / topic paths are ``<node>/<name>``; arrays are on the model grid (``(Hm, Wm)`` or
+``(Hm, Wm, 3)``, NaN off the face); see ``recordings/README.md``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from flow.frame import Frame
+from flow.recording import Event, Recorder
+from nodes.raster import grid_mesh
+from nodes.robust_fit import FitIteration
+from nodes.shape_model import ShapeModel
+
+
+class FitObserver:
+    """``RobustFitNode.observer``: sends each kept iteration to the recorder.
+
+    With ``--record-every N`` it keeps iterations 1, 1 + N, ... and always the last one
+    (held back until the fit ends, see ``finish``).
+    """
+
+    def __init__(self, model: ShapeModel, recorder: Recorder):
+        self.model, self.recorder = model, recorder
+        self._held: dict[int, FitIteration] = {}
+
+    def __call__(self, frame: Frame, it: FitIteration) -> None:
+        if self.recorder.keep_iteration(it.iteration):
+            self._emit(frame.id, it)
+            self._held.pop(frame.id, None)
+        else:
+            self._held[frame.id] = it
+
+    def finish(self, frame: Frame) -> None:
+        """Emit the last iteration if thinning held it back."""
+        it = self._held.pop(frame.id, None)
+        if it is not None:
+            self._emit(frame.id, it)
+
+    def _emit(self, fid: int, it: FitIteration) -> None:
+        m, r, k = self.model, self.recorder, it.iteration
+        r.emit(Event(fid, "robust_fit/normals", "normals", m.to_image(it.normals.astype(np.float32)), k))
+        r.emit(Event(fid, "robust_fit/model_normals", "normals", m.to_image(it.model_normals.astype(np.float32)), k))
+        r.emit(Event(fid, "robust_fit/weights", "image", m.to_image(it.weights.astype(np.float32)), k))
+        r.emit(Event(fid, "robust_fit/residuals", "array", m.to_image(it.residuals.astype(np.float32)), k))
+        r.emit(Event(fid, "robust_fit/b", "array", it.b.astype(np.float32), k))
+        r.emit(Event(fid, "robust_fit/convergence", "scalars", it.scalars(), k))
+
+
+class RecordNode:
+    """Records a frame's products once (input, remap, init, final normals, depth, shadows,
+    albedo, relit, novel view, mesh); the last node before writing."""
+
+    name = "record"
+
+    def __init__(self, model: ShapeModel, recorder: Recorder, observer: FitObserver | None = None):
+        self.model, self.recorder, self.observer = model, recorder, observer
+
+    def __call__(self, frame: Frame) -> Frame:
+        if self.observer is not None:
+            self.observer.finish(frame)
+        d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
+        emit(Event(fid, "load/grid_image", "image", d["grid_image"].astype(np.float32)))
+        emit(Event(fid, "remap/remapped", "image", d["remapped"]))
+        emit(Event(fid, "sfs_init/normals", "normals", m.to_image(d["initial"].astype(np.float32))))
+        emit(Event(fid, "combine/normals", "normals", d["normals"]))
+        emit(Event(fid, "integrate/depth", "depth", d["depth"]))
+        emit(Event(fid, "shadow/cast", "image", d["shadow"].cast.astype(np.float32)))
+        emit(Event(fid, "shadow/attached", "image", d["shadow"].attached.astype(np.float32)))
+        emit(Event(fid, "albedo/albedo", "image", d["albedo"]))
+        if "relit" in d:
+            emit(Event(fid, "relight/relit", "image", d["relit"]))
+            emit(Event(fid, "relight/novel_view", "image", d["novel_view"]))
+        emit(Event(fid, "integrate/mesh", "mesh", grid_surface(d["depth"], d["albedo"])))
+        return frame
+
+
+def grid_surface(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:
+    """Mesh of a height field: vertices (V, 3) float32 (x = column, y = -row, z = height),
+    triangles (T, 3) uint32, grey colours (V, 3) uint8 from ``albedo``."""
+    pix, tris = grid_mesh(np.isfinite(depth))
+    rows, cols = np.divmod(pix, depth.shape[1])
+    grey = (np.clip(np.nan_to_num(albedo.ravel()[pix]), 0, 1) * 255).astype(np.uint8)
+    return {"vertices": np.column_stack([cols, -rows, depth.ravel()[pix]]).astype(np.float32),
+            "triangles": tris.astype(np.uint32), "colours": np.column_stack([grey, grey, grey])}
+
+
+def default_blueprint():
+    """Rerun layout: the frame's images side by side above the convergence plots."""
+    import rerun.blueprint as rrb
+
+    images = [("input", "load/grid_image"), ("weights", "robust_fit/weights"),
+              ("normals", "robust_fit/normals"), ("shadow", "shadow/cast"), ("relit", "relight/relit"),
+              ("albedo", "albedo/albedo")]
+    return rrb.Blueprint(
+        rrb.Vertical(
+            rrb.Grid(*[rrb.Spatial2DView(name=n, origin="/frames", contents=f"/frames/**/{p}") for n, p in images]),
+            rrb.Horizontal(
+                rrb.TimeSeriesView(name="sigma", origin="/frames", contents="/frames/**/robust_fit/convergence/sigma"),
+                rrb.TimeSeriesView(name="mean change (deg)", origin="/frames",
+                                   contents="/frames/**/robust_fit/convergence/change_deg"),
+                rrb.TimeSeriesView(name="down-weighted fraction", origin="/frames",
+                                   contents="/frames/**/robust_fit/convergence/downweighted_fraction"),
+            ),
+            row_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )

@@ -1,0 +1,171 @@
+"""``shadowflow run``: stream inputs through the method's nodes on the ``flow`` pipeline,
+write outputs and recordings, keep ``summary.json`` current after every frame."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from flow.frame import Frame
+from flow.pipeline import Pipeline, Stage
+from flow.recording import McapSink, RecordOptions, Recorder, RerunSink
+from nodes.outputs import OUTPUT_FILES, WriteNode, safe_stem, summary_record, write_summary
+from nodes.pipeline import LoadNode, MethodOptions, RobustFitNode, method_nodes
+from nodes.record import FitObserver, RecordNode, default_blueprint
+from nodes.shape_model import ShapeModel
+
+
+@dataclass
+class RunOptions:
+    """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node;
+    resume: skip inputs whose outputs are complete; quiet: no progress or notes."""
+
+    record: tuple[str, ...] = ("rerun", "mcap")
+    record_options: RecordOptions = field(default_factory=RecordOptions)
+    fit_workers: int = 1
+    queue_size: int = 2
+    resume: bool = False
+    quiet: bool = False
+
+
+def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
+    """``run.<suffix>``; a resumed run adds ``run.partN.<suffix>`` and keeps the earlier ones."""
+    path = out / f"run.{suffix}"
+    if resume:
+        k = 2
+        while path.exists():
+            path = out / f"run.part{k}.{suffix}"
+            k += 1
+    return path
+
+
+def complete(folder: Path) -> bool:
+    """All output files of a frame exist (each was written by an atomic rename)."""
+    return all((folder / name).is_file() for name in OUTPUT_FILES)
+
+
+class Progress:
+    """One status line on a terminal: done / total, frames per second, failures."""
+
+    def __init__(self, total: int | None, enabled: bool):
+        self.total, self.enabled = total, enabled and sys.stderr.isatty()
+        self.done = self.failed = 0
+        self.t0 = time.perf_counter()
+
+    def update(self, ok: bool) -> None:
+        self.done += 1
+        self.failed += 0 if ok else 1
+        if self.enabled:
+            rate = self.done / max(time.perf_counter() - self.t0, 1e-9)
+            of = f"/{self.total}" if self.total else ""
+            sys.stderr.write(f"\r{self.done}{of} frames  {rate:.2f} frames/s  {self.failed} failed ")
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
+               run: RunOptions, total: int | None = None) -> list[dict]:
+    """Process ``paths`` (any iterable, e.g. a folder watcher) and return the summary records."""
+    out.mkdir(parents=True, exist_ok=True)
+    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+    previous = _previous_summary(out) if run.resume else {}
+    sinks = []
+    if "mcap" in run.record:
+        sinks.append(McapSink(_recording_path(out, "mcap", run.resume)))
+    if "rerun" in run.record:
+        sinks.append(RerunSink(_recording_path(out, "rrd", run.resume), blueprint=default_blueprint()))
+    recorder = Recorder(sinks, run.record_options) if sinks else None
+    observer = FitObserver(model, recorder) if recorder else None
+
+    nodes = [LoadNode(model, options), *method_nodes(model, options)]
+    if observer is not None:
+        for n in nodes:
+            if isinstance(n, RobustFitNode):
+                n.observer = observer
+        nodes.append(RecordNode(model, recorder, observer))
+    protected: set[Path] = set()
+    nodes.append(WriteNode(model, out, protected))
+    stages = [Stage(n, run.fit_workers if isinstance(n, RobustFitNode) else 1) for n in nodes]
+
+    records: list[dict] = []
+    progress = Progress(total, not run.quiet)
+
+    def frames() -> Iterator[Frame]:
+        taken: set[str] = set()
+        for i, path in enumerate(paths):
+            stem = safe_stem(path, taken)
+            protected.add(Path(path).resolve())
+            frame = Frame(i, path)
+            frame.meta["stem"] = stem
+            if run.resume and stem in previous and previous[stem].get("status") == "ok" and complete(out / stem):
+                frame.skipped = True
+                frame.meta["previous"] = previous[stem]
+            yield frame
+
+    def done(frame: Frame) -> None:
+        if frame.skipped:
+            records.append(frame.meta["previous"])
+            write_summary(out, records)
+            progress.update(True)
+            return
+        rec = summary_record(frame)
+        records.append(rec)
+        if recorder is not None:
+            recorder.frame_done(frame.id, rec)
+        write_summary(out, records)
+        progress.update(frame.ok)
+        if not frame.ok:
+            print(f"error: {frame.status}", file=sys.stderr)
+        frame.data.clear()  # the frame's arrays are on disk now: free them
+
+    pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done)
+    try:
+        for _ in pipeline.run(frames(), handle_signals=True):
+            pass
+    finally:
+        progress.close()
+        if recorder is not None:
+            recorder.close()
+        if pipeline.stopped and not run.quiet:
+            note("stopped: finished frames are written; run again with --resume to complete the job")
+    return records
+
+
+def _previous_summary(out: Path) -> dict[str, dict]:
+    try:
+        recs = json.loads((out / "summary.json").read_text())
+        return {r["stem"]: r for r in recs if isinstance(r, dict) and r.get("stem")}
+    except (OSError, ValueError):
+        return {}
+
+
+def watch_folder(folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
+                 note=print) -> Iterator[str]:
+    """Yield image files in ``folder`` (sorted) and then each new one as it appears, once its
+    size has stopped changing; end after ``idle_exit`` seconds with nothing new (None: never,
+    until Ctrl-C)."""
+    seen: set[Path] = set()
+    sizes: dict[Path, int] = {}
+    last_new = time.monotonic()
+    while True:
+        fresh = []
+        for f in sorted(folder.iterdir()):
+            if f in seen or not f.is_file() or f.suffix.lower() not in suffixes:
+                continue
+            size = f.stat().st_size
+            if sizes.get(f) == size and size > 0:
+                fresh.append(f)
+            sizes[f] = size
+        for f in fresh:
+            seen.add(f)
+            last_new = time.monotonic()
+            yield str(f)
+        if idle_exit is not None and time.monotonic() - last_new > idle_exit:
+            return
+        time.sleep(poll)
