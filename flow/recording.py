@@ -365,7 +365,7 @@ def read_mcap(path: str | Path) -> Recording:
             raise RecordingError(f"{path}: not an MCAP file")
         fh.seek(0)
         reader = NonSeekingReader(fh, record_size_limit=MAX_ARRAY_BYTES + (1 << 20))
-        it = reader.iter_messages()
+        it = reader.iter_messages(log_time_order=False)  # file order: stream, never buffer the file
         while True:
             try:
                 schema, channel, message = next(it)

@@ -16,9 +16,13 @@ from nodes.pipeline import MethodOptions
 from nodes.robust_fit import FitConfig
 
 
-def _fit_config(name: str, modes: int | None) -> FitConfig:
+def _fit_config(name: str, modes: int | None, max_iterations: int | None = None) -> FitConfig:
     cfg = FitConfig.paper() if name == "paper" else FitConfig()
-    return cfg if modes is None else dataclasses.replace(cfg, n_modes=modes)
+    if modes is not None:
+        cfg = dataclasses.replace(cfg, n_modes=modes)
+    if max_iterations is not None:
+        cfg = dataclasses.replace(cfg, max_iterations=max_iterations)
+    return cfg
 
 
 def _load_model(path: str | None):
@@ -97,8 +101,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.eyes:
         eyes = np.array([float(t) for t in args.eyes.split(",")]).reshape(2, 2)
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes), integrator=args.integrator, light=light,
-                            eyes=eyes, shadows=args.shadows)
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations), integrator=args.integrator,
+                            light=light, eyes=eyes, shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet)
     if args.watch:
@@ -174,6 +178,40 @@ def cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    from flow.replay import convergence_table, format_table, open_recording, plot_convergence, relog_to_rerun
+    from nodes.record import default_blueprint
+
+    rec = open_recording(args.recording)
+    print(format_table(convergence_table(rec)))
+    if rec.truncated:
+        print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
+    if args.plot:
+        print(f"plot: {plot_convergence(rec, args.plot)}")
+    if args.rrd:
+        print(f"rerun: {relog_to_rerun(rec, args.rrd, default_blueprint())}")
+    return 0
+
+
+def cmd_diff(args: argparse.Namespace) -> int:
+    from flow.replay import diff_recordings, open_recording
+
+    a, b = open_recording(args.a), open_recording(args.b)
+    diffs = diff_recordings(a, b, args.atol, args.rtol)
+    if not diffs:
+        n = sum(len(f.iterations("robust_fit/convergence")) for f in a.frames.values())
+        print(f"same: {len(a.frames)} frames, {n} iterations within atol={args.atol:g} rtol={args.rtol:g}")
+        return 0
+    first = diffs[0]
+    it = "-" if first.iteration is None else first.iteration
+    print(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
+          f"{first.what}, max |difference| {first.max_abs:.6g}")
+    frames = sorted({d.frame for d in diffs})
+    channels = sorted({d.channel for d in diffs})
+    print(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}")
+    return 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="shadowflow", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
@@ -186,6 +224,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--light", default="auto", help="auto | yaleb | X,Y,Z (camera frame); a sidecar light wins")
     r.add_argument("--fit", choices=["irls", "paper"], default="irls")
     r.add_argument("--modes", type=int, help="use only the model's first K modes")
+    r.add_argument("--max-iterations", type=int, help="cap on fit iterations (default 100)")
     r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
     r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
@@ -228,6 +267,19 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")
     e.set_defaults(func=cmd_eval)
+
+    rp = sub.add_parser("replay", help="convergence table / plot / re-log to Rerun of a recording")
+    rp.add_argument("recording", help="run.mcap")
+    rp.add_argument("--plot", metavar="PNG", help="write a convergence plot")
+    rp.add_argument("--rrd", metavar="RRD", help="re-log the recording into a Rerun file")
+    rp.set_defaults(func=cmd_replay)
+
+    d = sub.add_parser("diff", help="compare two recordings; exit 0 same, 1 different, 2 unreadable")
+    d.add_argument("a")
+    d.add_argument("b")
+    d.add_argument("--atol", type=float, default=0.0)
+    d.add_argument("--rtol", type=float, default=0.0)
+    d.set_defaults(func=cmd_diff)
     return p
 
 

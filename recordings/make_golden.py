@@ -1,0 +1,71 @@
+"""Make the golden recordings the tests diff against (run from the repository root):
+
+    python recordings/make_golden.py            # rewrites recordings/golden-64.mcap
+
+Everything comes from the project's own code: a 64x64 model trained on 30 procedural faces
+(seed 0, 12 modes), two held-out procedural faces (seed 77) lit from 45 degrees left and 60
+degrees right, 6 fit iterations, MCAP only. ``golden_inputs`` and ``golden_run`` are shared
+with ``tests/test_recordings.py`` so the test re-runs exactly this.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+GOLDEN = HERE / "golden-64.mcap"
+GRID = (64, 64)
+
+
+def golden_model():
+    from nodes.shape_model import train_shape_model
+    from nodes.synth.sources import procedural
+
+    depths, _ = procedural(30, seed=0, grid=GRID)
+    return train_shape_model(depths, 12, source="golden")
+
+
+def golden_inputs(folder: Path) -> list[str]:
+    from nodes.evaluate import render_scene
+    from nodes.reflectance import light_from_angles
+    from nodes.synth.facegen import render_face, sample_face
+
+    rng = np.random.default_rng(77)
+    paths = []
+    for i, az in enumerate((45, -60)):
+        depth, mask, albedo = render_face(sample_face(rng), GRID)
+        s = light_from_angles(az)
+        img = render_scene(depth, albedo, s, mask).image
+        p = folder / f"golden-{i}.png"
+        cv2.imwrite(str(p), (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
+        p.with_suffix(".json").write_text(json.dumps({"light": [float(x) for x in s]}))
+        paths.append(str(p))
+    return paths
+
+
+def golden_run(out: Path, fit_workers: int = 1) -> Path:
+    """Run the golden inputs into ``out``; returns the MCAP recording's path."""
+    from nodes.pipeline import MethodOptions
+    from nodes.robust_fit import FitConfig
+    from nodes.runner import RunOptions, run_stream
+
+    inputs = out / "inputs"
+    inputs.mkdir(parents=True, exist_ok=True)
+    paths = golden_inputs(inputs)
+    options = MethodOptions(fit=FitConfig(max_iterations=6))
+    run_stream(paths, out / "result", golden_model(), options,
+               RunOptions(record=("mcap",), fit_workers=fit_workers, quiet=True))
+    return out / "result" / "run.mcap"
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(HERE.parent))
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = golden_run(Path(tmp))
+        GOLDEN.write_bytes(rec.read_bytes())
+    print(f"wrote {GOLDEN} ({GOLDEN.stat().st_size} bytes)")

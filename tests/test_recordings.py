@@ -1,0 +1,225 @@
+"""Recordings: completeness, thinning, Rerun can open them, replay, diff, golden runs, kill -9."""
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flow.recording import (Event, McapSink, RecordOptions, Recorder, RecordingError, encode_array, read_mcap)
+from flow.replay import diff_recordings, open_recording
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "recordings"))
+from make_golden import GOLDEN, golden_inputs, golden_model, golden_run  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """A recorded run of the built-in demo (3 faces), both formats."""
+    out = tmp_path_factory.mktemp("rec")
+    proc = subprocess.run([sys.executable, "-m", "nodes.cli", "run", "--demo", "--out", str(out), "--quiet"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_every_iteration_of_every_frame_is_recorded(demo):
+    rec = read_mcap(demo / "run.mcap")
+    summary = json.loads((demo / "summary.json").read_text())
+    assert not rec.truncated and len(rec.finished_frames()) == len(summary) == 3
+    for fr, s in zip(rec.finished_frames(), summary):
+        n = s["iterations"]
+        for ch in ("robust_fit/normals", "robust_fit/weights", "robust_fit/residuals", "robust_fit/b",
+                   "robust_fit/convergence"):
+            assert fr.iterations(ch) == list(range(1, n + 1)), ch
+        w = fr.arrays["robust_fit/weights"][n]
+        assert w.dtype == np.float32 and w.shape == (128, 128)
+        assert np.array_equal(np.isnan(w), ~np.isfinite(fr.arrays["integrate/depth"][None]))
+        assert fr.record["status"] == "ok" and fr.record["source"] == s["source"]
+        for per_frame in ("load/grid_image", "combine/normals", "integrate/depth", "albedo/albedo",
+                          "relight/relit", "integrate/mesh/vertices"):
+            assert None in fr.arrays[per_frame], per_frame
+
+
+def test_the_final_weights_recorded_are_the_ones_written(demo):
+    rec = read_mcap(demo / "run.mcap")
+    fr = rec.finished_frames()[0]
+    last = fr.iterations("robust_fit/weights")[-1]
+    grid_w = fr.arrays["robust_fit/weights"][last]
+    out_w = np.load(demo / fr.record["stem"] / "weights.npy")
+    # the output is on the input grid (same size for the demo): same values where both exist
+    both = np.isfinite(grid_w) & np.isfinite(out_w)
+    assert both.sum() > 3000 and np.max(np.abs(grid_w[both] - out_w[both])) < 0.05
+
+
+def test_rerun_opens_both_recordings(demo):
+    rc = pytest.importorskip("rerun.chunk")
+    summary = str(rc.RrdReader(demo / "run.rrd").store().summary())
+    assert "/frames/00002/robust_fit/weights" in summary and "iteration" in summary
+    assert "/frames/00000/integrate/mesh" in summary and "Mesh3D" in summary
+    info = rc.McapReader(demo / "run.mcap").info()
+    topics = {c.topic for c in info.channels}
+    assert "/robust_fit/weights" in topics and "/load/grid_image/foxglove" in topics
+    assert info.message_count > 3 * 40 * 6
+
+
+def test_replay_and_diff_commands(demo, tmp_path):
+    cli = [sys.executable, "-m", "nodes.cli"]
+    out = subprocess.run(cli + ["replay", str(demo / "run.mcap"), "--plot", str(tmp_path / "c.png"),
+                                "--rrd", str(tmp_path / "re.rrd")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0].split()[:3] == ["frame", "iters", "sigma"] and len([ln for ln in lines if "demo-" in ln]) == 3
+    assert (tmp_path / "c.png").stat().st_size > 1000 and (tmp_path / "re.rrd").stat().st_size > 1000
+    same = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(demo / "run.mcap")], capture_output=True, text=True)
+    assert same.returncode == 0 and same.stdout.startswith("same: 3 frames")
+    (tmp_path / "junk.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\xff" * 64)
+    bad = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(tmp_path / "junk.mcap")], capture_output=True, text=True)
+    assert bad.returncode == 2 and "junk.mcap" in bad.stderr
+
+
+def _rewrite(src: Path, dst: Path, change) -> None:
+    """Copy a recording, applying ``change(topic, header, array) -> array | None`` to arrays."""
+    from mcap.reader import make_reader
+
+    from flow.recording import decode_array
+
+    sink = McapSink(dst)
+    with open(src, "rb") as f:
+        for schema, channel, msg in make_reader(f).iter_messages():
+            data = msg.data
+            if channel.message_encoding == "shadowflow.ndarray":
+                header, arr = decode_array(data)
+                new = change(channel.topic, header, arr)
+                if new is not None:
+                    data = encode_array(header["frame"], header["iteration"], new)
+            sink._add(channel.topic, schema.name, channel.message_encoding,
+                      Event(0, "", "array", None), data)
+    sink.close()
+
+
+def test_diff_finds_a_one_ulp_change_and_says_where(demo, tmp_path):
+    target = ("/robust_fit/residuals", 1, 7)  # topic, frame, iteration
+
+    def nudge(topic, header, arr):
+        if (topic, header["frame"], header["iteration"]) == target:
+            arr = arr.copy()
+            i = np.flatnonzero(np.isfinite(arr))[100]
+            arr.flat[i] = np.nextafter(arr.flat[i], np.float32(np.inf))
+            return arr
+        return None
+
+    _rewrite(demo / "run.mcap", tmp_path / "nudged.mcap", nudge)
+    diffs = diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "nudged.mcap"))
+    assert len(diffs) == 1
+    d = diffs[0]
+    assert (d.frame, d.iteration, d.channel) == (1, 7, "robust_fit/residuals") and 0 < d.max_abs < 1e-6
+    # within a tolerance of one part in a million it is the same
+    assert diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "nudged.mcap"), rtol=1e-6) == []
+
+
+def test_golden_recording_is_reproduced_whatever_the_thread_count(tmp_path):
+    for workers in (1, 2):
+        rec = golden_run(tmp_path / f"w{workers}", fit_workers=workers)
+        diffs = diff_recordings(read_mcap(rec), read_mcap(GOLDEN), atol=1e-6, rtol=1e-5)
+        assert diffs == [], diffs[:3]
+    exact = diff_recordings(read_mcap(tmp_path / "w1/result/run.mcap"), read_mcap(tmp_path / "w2/result/run.mcap"))
+    assert exact == []
+    golden = read_mcap(GOLDEN)
+    assert len(golden.finished_frames()) == 2
+    assert all(f.iterations("robust_fit/normals") == list(range(1, 7)) for f in golden.finished_frames())
+
+
+def test_record_every_and_float16(tmp_path):
+    model = golden_model()
+    from nodes.pipeline import MethodOptions
+    from nodes.robust_fit import FitConfig
+    from nodes.runner import RunOptions, run_stream
+
+    paths = golden_inputs(tmp_path)
+    opts = MethodOptions(fit=FitConfig(max_iterations=11, tolerance_deg=0.0))
+    run_stream(paths, tmp_path / "thin", model, opts,
+               RunOptions(record=("mcap",), record_options=RecordOptions(every=4, float16=True), quiet=True))
+    rec = read_mcap(tmp_path / "thin" / "run.mcap")
+    for fr in rec.finished_frames():
+        assert fr.iterations("robust_fit/weights") == [1, 5, 9, 11]  # and always the last
+        assert fr.arrays["robust_fit/weights"][11].dtype == np.float16
+        assert fr.scalars["robust_fit/convergence"][11]["sigma"] > 0
+
+
+def test_truncated_and_hostile_files(demo, tmp_path):
+    data = (demo / "run.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.7)])
+    rec = read_mcap(cut)
+    assert rec.truncated and 1 <= len(rec.finished_frames()) <= 2
+    for name, blob in (("garbage.mcap", b"hello world" * 100), ("empty.mcap", b""),
+                       ("header-only.mcap", data[:8] + b"\x00" * 5)):
+        (tmp_path / name).write_bytes(blob)
+        with pytest.raises(RecordingError, match=name):
+            read_mcap(tmp_path / name)
+    # a message whose header claims a huge array is refused, not allocated
+    huge = tmp_path / "huge.mcap"
+    _rewrite(demo / "run.mcap", huge, lambda *_: None)
+    import struct
+
+    from flow.recording import decode_array
+    header = json.dumps({"frame": 0, "iteration": 1, "dtype": "<f8", "shape": [1 << 20, 1 << 20]}).encode()
+    with pytest.raises(ValueError, match="payload"):
+        decode_array(b"SFA1" + struct.pack("<I", len(header)) + header + b"\x00" * 16)
+    with pytest.raises(ValueError):
+        decode_array(b"SFA1" + struct.pack("<I", 20) + b'{"dtype": "|O"}' + b" " * 5)
+
+
+def test_kill_9_then_resume_completes_without_redoing(tmp_path):
+    """A run killed hard mid-stream leaves readable recordings of its finished frames, and
+    --resume finishes the job without redoing them; the outputs equal an uninterrupted run's."""
+    src = tmp_path / "in"
+    src.mkdir()
+    demo_paths = golden_inputs(src)
+    for k in range(2, 6):  # six inputs: copies of the two golden faces under new names
+        for p in demo_paths[:1] if k % 2 else demo_paths[1:]:
+            shutil.copy(p, src / f"face-{k}.png")
+            shutil.copy(Path(p).with_suffix(".json"), src / f"face-{k}.json")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        try:
+            if len(json.loads((out / "summary.json").read_text())) >= 2:
+                break
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done_before = json.loads((out / "summary.json").read_text())
+    assert 2 <= len(done_before) < 6
+    rec = read_mcap(out / "run.mcap")
+    assert len(rec.finished_frames()) >= len(done_before) - 1  # the last flush may be cut by the kill
+    for fr in rec.finished_frames():
+        assert fr.iterations("robust_fit/normals") == list(range(1, fr.record["iterations"] + 1))
+    rc = pytest.importorskip("rerun.chunk")
+    with pytest.warns(Warning, match="no footer"):  # killed: Rerun reads it by a whole-file scan
+        store = rc.RrdReader(out / "run.rrd").stream().collect()
+    killed_rrd = str(store.summary())
+    for k in range(len(done_before) - 1):
+        assert f"/frames/{k:05d}/robust_fit/weights" in killed_rrd
+    mtimes = {r["stem"]: (out / r["stem"] / "normals.npy").stat().st_mtime_ns for r in done_before}
+    resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary) == 6 and all(r["status"] == "ok" for r in summary)
+    assert {s: (out / s / "normals.npy").stat().st_mtime_ns for s in mtimes} == mtimes  # not redone
+    part2 = read_mcap(out / "run.part2.mcap")
+    assert len(part2.finished_frames()) == 6 - len(done_before)
+    fresh = tmp_path / "fresh"
+    assert subprocess.run(cmd[:-3] + ["--out", str(fresh), "--quiet", "--record", "none"]).returncode == 0
+    for r in summary:
+        np.testing.assert_array_equal(np.load(out / r["stem"] / "normals.npy"), np.load(fresh / r["stem"] / "normals.npy"))
