@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flow.recording import (Event, McapSink, RecordOptions, Recorder, RecordingError, encode_array, read_mcap)
-from flow.replay import diff_recordings, open_recording
+from flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
+from flow.replay import diff_recordings
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "recordings"))

@@ -1,0 +1,82 @@
+"""Streaming throughput and peak memory for N frames (default 100 and 1000).
+
+    python benchmarks/bench_stream.py --frames 100 1000 [--record mcap] [--workers 1]
+
+Each count runs ``shadowflow run`` in a fresh process over a folder of N synthetic 128x128
+shadowed faces (copies of 10 distinct ones) and reports frames/s and the child's peak RSS.
+Fits are capped at 10 iterations so 1,000 frames take minutes, not an hour; the point is
+whether memory grows with the stream. Not part of the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+
+def make_inputs(folder: Path, n: int) -> None:
+    from nodes.evaluate import render_scene
+    from nodes.reflectance import light_from_angles
+    from nodes.synth.facegen import render_face, sample_face
+
+    rng = np.random.default_rng(5)
+    base = []
+    for i in range(10):
+        d, m, a = render_face(sample_face(rng))
+        s = light_from_angles(30 + 4 * i)
+        base.append((render_scene(d, a, s, m).image, s))
+    for k in range(n):
+        img, s = base[k % 10]
+        p = folder / f"f{k:05d}.png"
+        cv2.imwrite(str(p), (np.clip(img, 0, 1) * 255).astype(np.uint8))
+        p.with_suffix(".json").write_text(json.dumps({"light": [float(x) for x in s]}))
+
+
+def run(n: int, record: str, workers: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "in"
+        src.mkdir()
+        make_inputs(src, n)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(Path(tmp) / "out"),
+                               "--quiet", "--record", record, "--max-iterations", "10", "--workers", str(workers)])
+        secs = time.perf_counter() - t0
+        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        rec_bytes = sum(f.stat().st_size for f in (Path(tmp) / "out").glob("run.*"))
+        shutil.rmtree(src)
+    return {"frames": n, "record": record, "workers": workers, "exit": proc.returncode, "seconds": round(secs, 1),
+            "frames_per_s": round(n / secs, 2), "peak_rss_mib": round(max(peak, before) / 1024, 1),
+            "recording_mib": round(rec_bytes / 2**20, 1)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, nargs="+", default=[100, 1000])
+    ap.add_argument("--record", default="mcap")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1])
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    rows = []
+    print("| frames | record | fit workers | s | frames/s | peak RSS (MiB) | recordings (MiB) |\n|---|---|---|---|---|---|---|")
+    for w in args.workers:
+        for n in args.frames:
+            r = run(n, args.record, w)
+            rows.append(r)
+            print(f"| {r['frames']} | {r['record']} | {w} | {r['seconds']} | {r['frames_per_s']} | "
+                  f"{r['peak_rss_mib']} | {r['recording_mib']} |", flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=2))
+
+
+if __name__ == "__main__":
+    main()
