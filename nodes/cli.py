@@ -107,7 +107,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet)
     if args.watch:
         paths = expand_inputs(inputs, note) if inputs else []
-        stream = (p for src in (paths, watch_folder(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit, note=note))
+        stream = (p for src in (paths, watch_folder(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit))
                   for p in src)
         total = None
     else:

@@ -89,7 +89,8 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             if isinstance(n, RobustFitNode):
                 n.observer = observer
         nodes.append(RecordNode(model, recorder, observer))
-    protected: set[Path] = set()
+    # outputs must never land on an input: all of them when the list is known, else as they come
+    protected: set[Path] = {Path(p).resolve() for p in paths} if isinstance(paths, (list, tuple)) else set()
     nodes.append(WriteNode(model, out, protected))
     stages = [Stage(n, run.fit_workers if isinstance(n, RobustFitNode) else 1) for n in nodes]
 
@@ -145,8 +146,7 @@ def _previous_summary(out: Path) -> dict[str, dict]:
         return {}
 
 
-def watch_folder(folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
-                 note=print) -> Iterator[str]:
+def watch_folder(folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5) -> Iterator[str]:
     """Yield image files in ``folder`` (sorted) and then each new one as it appears, once its
     size has stopped changing; end after ``idle_exit`` seconds with nothing new (None: never,
     until Ctrl-C)."""

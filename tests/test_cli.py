@@ -105,3 +105,26 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert set(r["results"]) == {"irls", "paper"} and r["grid"] == [64, 64]
     assert 0 < r["results"]["irls"]["30"]["err_all"] < 10
     assert "model floor" in capsys.readouterr().out
+
+
+def test_watch_processes_files_that_arrive_then_exits_when_idle(tmp_path, demo_run):
+    import threading
+    import time
+
+    good = sorted((demo_run / "demo-inputs").glob("*.png"))
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    shutil.copy(good[0], inbox / "first.png")
+    shutil.copy(good[0].with_suffix(".json"), inbox / "first.json")
+
+    def later():
+        time.sleep(1.5)
+        shutil.copy(good[1].with_suffix(".json"), inbox / "second.json")
+        shutil.copy(good[1], inbox / "second.png")
+
+    threading.Thread(target=later).start()
+    out = tmp_path / "out"
+    code = main(["run", "--watch", str(inbox), "--idle-exit", "3", "--out", str(out), "--quiet", "--record", "none"])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert [r["stem"] for r in summary] == ["first", "second"] and all(r["status"] == "ok" for r in summary)
