@@ -25,7 +25,6 @@ ARRAY_ENCODING = "shadowflow.ndarray"
 ARRAY_SCHEMA = "shadowflow.NDArray"
 ALLOWED_DTYPES = {"<f2", "<f4", "<f8", "|u1", "<u2", "<u4", "<i4", "<i8", "|b1"}
 MAX_ARRAY_BYTES = 1 << 30  # a message claiming more than 1 GiB is refused when reading
-KINDS = ("array", "image", "depth", "normals", "mesh")
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import numpy as np
 
 from flow.frame import Frame
 from flow.recording import Event, Recorder
-from nodes.raster import grid_mesh
+from nodes.relight import surface_mesh
 from nodes.robust_fit import FitIteration
 from nodes.shape_model import ShapeModel
 
@@ -72,18 +72,8 @@ class RecordNode:
         if "relit" in d:
             emit(Event(fid, "relight/relit", "image", d["relit"]))
             emit(Event(fid, "relight/novel_view", "image", d["novel_view"]))
-        emit(Event(fid, "integrate/mesh", "mesh", grid_surface(d["depth"], d["albedo"])))
+        emit(Event(fid, "integrate/mesh", "mesh", surface_mesh(d["depth"], d["albedo"])))
         return frame
-
-
-def grid_surface(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:
-    """Mesh of a height field: vertices (V, 3) float32 (x = column, y = -row, z = height),
-    triangles (T, 3) uint32, grey colours (V, 3) uint8 from ``albedo``."""
-    pix, tris = grid_mesh(np.isfinite(depth))
-    rows, cols = np.divmod(pix, depth.shape[1])
-    grey = (np.clip(np.nan_to_num(albedo.ravel()[pix]), 0, 1) * 255).astype(np.uint8)
-    return {"vertices": np.column_stack([cols, -rows, depth.ravel()[pix]]).astype(np.float32),
-            "triangles": tris.astype(np.uint32), "colours": np.column_stack([grey, grey, grey])}
 
 
 def default_blueprint():

@@ -53,18 +53,24 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
     return np.nan_to_num(np.clip(img, 0.0, 1.0)).astype(np.float32)
 
 
+def surface_mesh(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:
+    """Mesh of a height field (NaN off the surface): vertices (V, 3) float32 (x = column,
+    y = -row, z = height, pixels), triangles (T, 3) uint32 wound counter-clockwise seen from +z,
+    grey colours (V, 3) uint8 from ``albedo`` clipped to [0, 1]."""
+    pix, tris = grid_mesh(np.isfinite(depth))
+    rows, cols = np.divmod(pix, depth.shape[1])
+    grey = (np.clip(np.nan_to_num(albedo.ravel()[pix]), 0, 1) * 255).astype(np.uint8)
+    return {"vertices": np.column_stack([cols, -rows, depth.ravel()[pix]]).astype(np.float32),
+            "triangles": tris.astype(np.uint32), "colours": np.column_stack([grey, grey, grey])}
+
+
 def write_mesh_ply(path: str | os.PathLike, depth: np.ndarray, albedo: np.ndarray) -> Path:
-    """Write the surface as a binary PLY: vertices (x = column, y = -row, z = height, pixels)
-    with grey vertex colours from ``albedo`` (clipped to [0, 1]); triangles from the grid."""
+    """Write ``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
     import trimesh
 
-    mask = np.isfinite(depth)
-    pix, tris = grid_mesh(mask)
-    rows, cols = np.divmod(pix, depth.shape[1])
-    verts = np.column_stack([cols, -rows, depth.flat[pix]]).astype(np.float32)
-    grey = (np.clip(np.nan_to_num(albedo.flat[pix]), 0, 1) * 255).astype(np.uint8)
-    colours = np.column_stack([grey, grey, grey, np.full_like(grey, 255)])
-    mesh = trimesh.Trimesh(vertices=verts, faces=tris, vertex_colors=colours, process=False)
+    m = surface_mesh(depth, albedo)
+    colours = np.column_stack([m["colours"], np.full(len(m["colours"]), 255, np.uint8)])
+    mesh = trimesh.Trimesh(vertices=m["vertices"], faces=m["triangles"], vertex_colors=colours, process=False)
     path = Path(path)
     path.write_bytes(mesh.export(file_type="ply"))
     return path

@@ -15,6 +15,8 @@ import numpy as np
 from scipy import ndimage
 
 from nodes.geometry import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
+from nodes.integrate import harmonic_fill
+from nodes.synth.facegen import canonical_eyes
 
 MODEL_FORMAT_VERSION = 1
 
@@ -113,8 +115,6 @@ def train_from_normals(
     normals: np.ndarray, mask: np.ndarray, n_modes: int, eyes: np.ndarray | None, source: str
 ) -> ShapeModel:
     """Model from (M, N, 3) unit needle-maps over the N pixels of ``mask`` (H, W)."""
-    from nodes.synth.facegen import canonical_eyes
-
     m = normals.shape[0]
     mean_n = normalize(normals.mean(axis=0))
     e1, e2 = tangent_basis(mean_n)
@@ -142,8 +142,6 @@ def fill_holes(depth: np.ndarray, region: np.ndarray) -> np.ndarray:
     holes = region & ~np.isfinite(d)
     if not holes.any():
         return d
-    from nodes.integrate import harmonic_fill
-
     return harmonic_fill(d, holes)
 
 
