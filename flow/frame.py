@@ -26,6 +26,7 @@ class Frame:
     status: str = "ok"
     failed_in: str | None = None
     skipped: bool = False  # passes through every node untouched (e.g. already done: resume)
+    cancelled: bool = False  # the stream was stopped before this frame finished: not a result
 
     @property
     def ok(self) -> bool:

@@ -5,7 +5,8 @@ joined by ``queue.Queue(maxsize=queue_size)``, so a slow stage blocks the ones b
 (backpressure) and at most ``sum(workers) + (stages + 1) * queue_size`` frames are in flight
 however long the stream. Results leave in input order. A node that raises fails only that
 frame (see ``run_node``); ``stop()`` (or SIGINT / SIGTERM under ``handle_signals``) stops
-taking new frames and lets the frames already in flight finish.
+taking new frames and lets the frames in flight leave at once, marked ``cancelled`` (a node already running on one
+finishes first); frames finished before the stop are emitted as usual.
 """
 from __future__ import annotations
 
@@ -24,11 +25,11 @@ _DONE = object()  # end-of-stream marker, one per worker of the next stage
 def run_node(node, frame: Frame) -> Frame:
     """Run one node on one frame with fault isolation and timing.
 
-    A failed or skipped frame passes through untouched. An exception fails the frame with a one-line
+    A failed, skipped or cancelled frame passes through untouched. An exception fails the frame with a one-line
     reason that names the frame's source; the node's wall time (s) goes to
     ``frame.meta["timings"][node.name]``.
     """
-    if not frame.ok or frame.skipped:
+    if not frame.ok or frame.skipped or frame.cancelled:
         return frame
     t0 = time.perf_counter()
     try:
@@ -72,7 +73,7 @@ class Pipeline:
         self.max_in_flight = 0  # observed, for tests and benchmarks
 
     def stop(self) -> None:
-        """Take no new frames; frames already in flight are finished and emitted."""
+        """Take no new frames; unfinished frames in flight are emitted ``cancelled``."""
         self._stop.set()
 
     @property
@@ -114,6 +115,8 @@ class Pipeline:
                             q_out.put(_DONE)
                     return
                 seq, frame = item
+                if self._stop.is_set():
+                    frame.cancelled = True  # stopped: unfinished frames leave without more work
                 try:
                     frame = run_node(stage.node, frame)
                 except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker

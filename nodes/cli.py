@@ -114,10 +114,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         stream = expand_inputs(inputs, note)
         total = len(stream)
     t0 = time.perf_counter()
-    records = run_stream(stream, out, model, options, run, total)
+    result = run_stream(stream, out, model, options, run, total)
+    records = result.records
     failures = sum(r["status"] != "ok" for r in records)
     note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
          f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
+    if result.stopped:
+        return 130
     return 0 if failures == 0 else 1
 
 

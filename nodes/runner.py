@@ -69,11 +69,18 @@ class Progress:
             sys.stderr.write("\n")
 
 
+@dataclass
+class RunResult:
+    """records: the summary records, in input order; stopped: a stop (signal) cut the run short."""
+
+    records: list[dict]
+    stopped: bool
+
+
 def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
-               run: RunOptions, total: int | None = None) -> list[dict]:
-    """Process ``paths`` (any iterable, e.g. a folder watcher) and return the summary records."""
+               run: RunOptions, total: int | None = None) -> RunResult:
+    """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``."""
     out.mkdir(parents=True, exist_ok=True)
-    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
     previous = _previous_summary(out) if run.resume else {}
     sinks = []
     if "mcap" in run.record:
@@ -110,6 +117,9 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             yield frame
 
     def done(frame: Frame) -> None:
+        if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
+            frame.data.clear()
+            return
         if frame.skipped:
             records.append(frame.meta["previous"])
             write_summary(out, records)
@@ -133,9 +143,10 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
         progress.close()
         if recorder is not None:
             recorder.close()
-        if pipeline.stopped and not run.quiet:
-            note("stopped: finished frames are written; run again with --resume to complete the job")
-    return records
+        if pipeline.stopped:  # shown even under --quiet: the job is not complete
+            print("stopped: finished frames are written; run again with --resume to complete the job",
+                  file=sys.stderr)
+    return RunResult(records, pipeline.stopped)
 
 
 def _previous_summary(out: Path) -> dict[str, dict]:

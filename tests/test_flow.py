@@ -50,14 +50,17 @@ def test_backpressure_bounds_frames_in_flight():
     assert p.max_in_flight <= 3 + 4 * 2
 
 
-def test_stop_finishes_frames_in_flight_and_takes_no_more():
-    p = Pipeline([Sleepy("a", delay=0.001)], queue_size=1)
+def test_stop_takes_no_more_frames_and_cancels_unfinished_ones():
+    a, b = Sleepy("a", delay=0.001), Sleepy("b", delay=0.001)
+    p = Pipeline([a, b], queue_size=1)
     got = []
     for f in p.run(frames(1000)):
-        got.append(f.id)
+        got.append(f)
         if f.id == 10:
             p.stop()
-    assert got == list(range(len(got))) and 11 <= len(got) < 20
+    assert [f.id for f in got] == list(range(len(got))) and 11 <= len(got) < 20
+    assert all(not f.cancelled for f in got[:11]) and all(f.cancelled for f in got[12:])
+    assert all("b" not in f.data.get("trail", []) for f in got[12:])
 
 
 def test_skipped_frames_pass_through_in_order():

@@ -223,3 +223,33 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     assert subprocess.run(cmd[:-3] + ["--out", str(fresh), "--quiet", "--record", "none"]).returncode == 0
     for r in summary:
         np.testing.assert_array_equal(np.load(out / r["stem"] / "normals.npy"), np.load(fresh / r["stem"] / "normals.npy"))
+
+
+def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    base = golden_inputs(src)
+    for k in range(12):
+        p = Path(base[k % 2])
+        shutil.copy(p, src / f"face-{k:02d}.png")
+        shutil.copy(p.with_suffix(".json"), src / f"face-{k:02d}.json")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(out), "--quiet"],
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        try:
+            if len(json.loads((out / "summary.json").read_text())) >= 2:
+                break
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "--resume" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert 2 <= len(summary) < 14 and all(r["status"] == "ok" for r in summary)
+    rec = read_mcap(out / "run.mcap")
+    assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
+    rc = pytest.importorskip("rerun.chunk")
+    assert f"/frames/{len(summary) - 1:05d}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())
