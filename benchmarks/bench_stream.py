@@ -19,26 +19,23 @@ import tempfile
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 
 def make_inputs(folder: Path, n: int) -> None:
-    from nodes.evaluate import render_scene
+    """``n`` inputs: copies of 10 distinct shadowed faces (lights 30..66 degrees)."""
     from nodes.reflectance import light_from_angles
-    from nodes.synth.facegen import render_face, sample_face
+    from nodes.synth.inputs import write_shadowed_face
 
     rng = np.random.default_rng(5)
-    base = []
-    for i in range(10):
-        d, m, a = render_face(sample_face(rng))
-        s = light_from_angles(30 + 4 * i)
-        base.append((render_scene(d, a, s, m).image, s))
+    base = [write_shadowed_face(folder / f"base-{i}.png", rng, light_from_angles(30 + 4 * i)) for i in range(10)]
     for k in range(n):
-        img, s = base[k % 10]
-        p = folder / f"f{k:05d}.png"
-        cv2.imwrite(str(p), (np.clip(img, 0, 1) * 255).astype(np.uint8))
-        p.with_suffix(".json").write_text(json.dumps({"light": [float(x) for x in s]}))
+        src = base[k % 10]
+        shutil.copy(src, folder / f"f{k:05d}.png")
+        shutil.copy(src.with_suffix(".json"), folder / f"f{k:05d}.json")
+    for src in base:
+        src.unlink()
+        src.with_suffix(".json").unlink()
 
 
 def run(n: int, record: str, workers: int) -> dict:

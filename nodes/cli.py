@@ -55,25 +55,17 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
 
 def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
     """Synthetic shadowed faces (held-out procedural faces) with sidecar lights, as PNGs."""
-    import cv2
-
-    from nodes.evaluate import render_scene
     from nodes.reflectance import light_from_angles
-    from nodes.synth.facegen import render_face, sample_face
+    from nodes.synth.inputs import write_shadowed_face
 
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(2024)
     lights = [(45, 0), (-60, 0), (30, 25), (-75, 0), (60, -10)]
     paths = []
     for i in range(count):
-        depth, mask, albedo = render_face(sample_face(rng))
         az, el = lights[i % len(lights)]
-        s = light_from_angles(az, el)
-        scene = render_scene(depth, albedo, s, mask)
         path = folder / f"demo-{i + 1}_A{az:+04d}E{el:+03d}.png"
-        cv2.imwrite(str(path), (np.clip(scene.image, 0, 1) * 255 + 0.5).astype(np.uint8))
-        path.with_suffix(".json").write_text(json.dumps({"light": [round(float(x), 6) for x in s]}) + "\n")
-        paths.append(str(path))
+        paths.append(str(write_shadowed_face(path, rng, light_from_angles(az, el))))
     return paths
 
 

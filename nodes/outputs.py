@@ -4,22 +4,18 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import re
-import tempfile
 import unicodedata
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from flow.files import atomic_write_bytes
 from flow.frame import Frame
 from nodes.align import mask_to_input, normals_to_input, scalar_to_input
-from nodes.relight import write_mesh_ply
+from nodes.relight import mesh_ply_bytes
 from nodes.shape_model import ShapeModel
-
-_UMASK = os.umask(0)
-os.umask(_UMASK)
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
                 "relit.png", "novel_view.png", "mesh.ply")
@@ -41,21 +37,6 @@ def safe_stem(path: str, taken: set[str]) -> str:
         name, k = f"{stem}-{k}", k + 1
     taken.add(name.lower())
     return name
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; outputs are ordinary files
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _npy_bytes(arr: np.ndarray) -> bytes:
@@ -112,20 +93,11 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
         "relit.png": _png_bytes(to_8bit(p["relit"], mask)),
         "novel_view.png": _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
     }
+    files["mesh.ply"] = mesh_ply_bytes(p["depth"], p["albedo"])
     written = {}
     for name, data in files.items():
         atomic_write_bytes(folder / name, data)
         written[name] = str(folder / name)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".mesh.", suffix=".ply")
-    os.close(fd)
-    try:
-        write_mesh_ply(tmp, p["depth"], p["albedo"])
-        os.chmod(tmp, 0o666 & ~_UMASK)
-        os.replace(tmp, folder / "mesh.ply")
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    written["mesh.ply"] = str(folder / "mesh.ply")
     return written
 
 

@@ -1,9 +1,6 @@
 """Relighting, novel views and the textured mesh of a recovered face."""
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 
 from nodes.geometry import normals_from_depth
@@ -64,13 +61,11 @@ def surface_mesh(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]
             "triangles": tris.astype(np.uint32), "colours": np.column_stack([grey, grey, grey])}
 
 
-def write_mesh_ply(path: str | os.PathLike, depth: np.ndarray, albedo: np.ndarray) -> Path:
-    """Write ``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
+def mesh_ply_bytes(depth: np.ndarray, albedo: np.ndarray) -> bytes:
+    """``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
     import trimesh
 
     m = surface_mesh(depth, albedo)
     colours = np.column_stack([m["colours"], np.full(len(m["colours"]), 255, np.uint8)])
     mesh = trimesh.Trimesh(vertices=m["vertices"], faces=m["triangles"], vertex_colors=colours, process=False)
-    path = Path(path)
-    path.write_bytes(mesh.export(file_type="ply"))
-    return path
+    return mesh.export(file_type="ply")

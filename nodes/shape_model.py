@@ -6,14 +6,15 @@ gives the modes. A needle-map is then ``v = vbar + P b`` with ``P`` the (2N, K) 
 """
 from __future__ import annotations
 
+import io
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
+from flow.files import atomic_write_bytes
 from nodes.geometry import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
 from nodes.integrate import harmonic_fill
 from nodes.synth.facegen import canonical_eyes
@@ -155,28 +156,20 @@ def _largest_component(mask: np.ndarray) -> np.ndarray:
 
 def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
     """Write ``model`` as an ``.npz`` readable with ``allow_pickle=False`` (atomically)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
-    os.close(fd)
-    try:
-        np.savez_compressed(
-            tmp,
-            version=np.int64(MODEL_FORMAT_VERSION),
-            grid=np.array(model.grid, np.int64),
-            eyes=np.asarray(model.eyes, np.float64),
-            mask=model.mask,
-            mean_normals=model.mean_normals,
-            mean_proj=model.mean_proj,
-            modes=model.modes,
-            eigenvalues=model.eigenvalues,
-            source=np.array(model.source),
-        )
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf,
+        version=np.int64(MODEL_FORMAT_VERSION),
+        grid=np.array(model.grid, np.int64),
+        eyes=np.asarray(model.eyes, np.float64),
+        mask=model.mask,
+        mean_normals=model.mean_normals,
+        mean_proj=model.mean_proj,
+        modes=model.modes,
+        eigenvalues=model.eigenvalues,
+        source=np.array(model.source),
+    )
+    return atomic_write_bytes(path, buf.getvalue())
 
 
 def load_model(path: str | os.PathLike) -> ShapeModel:

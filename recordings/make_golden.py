@@ -9,12 +9,10 @@ with ``tests/test_recordings.py`` so the test re-runs exactly this.
 """
 from __future__ import annotations
 
-import json
 import sys
 import tempfile
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
@@ -31,21 +29,12 @@ def golden_model():
 
 
 def golden_inputs(folder: Path) -> list[str]:
-    from nodes.evaluate import render_scene
     from nodes.reflectance import light_from_angles
-    from nodes.synth.facegen import render_face, sample_face
+    from nodes.synth.inputs import write_shadowed_face
 
     rng = np.random.default_rng(77)
-    paths = []
-    for i, az in enumerate((45, -60)):
-        depth, mask, albedo = render_face(sample_face(rng), GRID)
-        s = light_from_angles(az)
-        img = render_scene(depth, albedo, s, mask).image
-        p = folder / f"golden-{i}.png"
-        cv2.imwrite(str(p), (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
-        p.with_suffix(".json").write_text(json.dumps({"light": [float(x) for x in s]}))
-        paths.append(str(p))
-    return paths
+    return [str(write_shadowed_face(folder / f"golden-{i}.png", rng, light_from_angles(az), GRID))
+            for i, az in enumerate((45, -60))]
 
 
 def golden_run(out: Path, fit_workers: int = 1) -> Path:
