@@ -1,14 +1,19 @@
 """Loader: images to float brightness in [0, 1], and where the light and eyes come from."""
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
 import re
+import stat
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from nodes.reflectance import light_from_angles
 
@@ -28,43 +33,110 @@ class Sidecar:
     eyes: np.ndarray | None = None
 
 
+MIN_SIDE = 32  # pixels: the smallest image side that can hold a face to align
+MAX_PIXELS = 40_000_000  # larger images are refused before decoding (about 0.5 GB to decode)
+MAX_FILE_BYTES = 512 << 20
+
+
+def _read_file(p: Path) -> bytes:
+    """The bytes of a regular file, or ``InputError`` saying why not (one line)."""
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise InputError(f"{p}: no such file" + (" (a dangling symlink)" if p.is_symlink() else "")) from None
+    except OSError as exc:
+        why = "a symlink loop" if exc.errno == errno.ELOOP else (exc.strerror or str(exc))
+        raise InputError(f"{p}: cannot be read ({why})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{p}: is a directory, not an image")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{p}: not a regular file (a pipe, socket or device)")
+    if st.st_size == 0:
+        raise InputError(f"{p}: is empty (0 bytes)")
+    if st.st_size > MAX_FILE_BYTES:
+        raise InputError(f"{p}: file of {st.st_size >> 20} MiB exceeds the {MAX_FILE_BYTES >> 20} MiB input limit")
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{p}: cannot be read ({exc.strerror or exc})") from None
+
+
+def _check_size(p: Path, width: int, height: int) -> None:
+    if width * height > MAX_PIXELS:
+        raise InputError(f"{p}: {width}x{height} pixels exceeds the {MAX_PIXELS // 1_000_000}-megapixel limit; "
+                         "downscale it first")
+    if min(width, height) < MIN_SIDE:
+        raise InputError(f"{p}: {width}x{height} pixels is too small for a face (each side needs >= {MIN_SIDE})")
+
+
+def _load_npy(p: Path, data: bytes) -> np.ndarray:
+    fh = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(fh)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(fh)
+        if len(shape) != 2 or dtype.hasobject or not np.issubdtype(dtype, np.number):
+            raise InputError(f"{p}: .npy input must be a 2-D numeric array, got {dtype} {shape}")
+        _check_size(p, shape[1], shape[0])
+        fh.seek(0)
+        arr = np.load(fh, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{p}: not a readable .npy array ({exc})") from None
+    arr = arr.astype(np.float32)
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{p}: .npy input holds NaN or infinite values")
+    return np.clip(arr, 0.0, 1.0)
+
+
 def load_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image as (H, W) float32 brightness in [0, 1].
 
-    PNG / JPEG / PGM / TIFF / BMP, 8 or 16 bit or float, grey or colour (to luminance, ITU-R
-    BT.601 weights as OpenCV's ``BGR2GRAY``), an alpha channel ignored; or a ``.npy``
-    (H, W) array of finite floats in [0, 1] (read without pickles). Raises ``InputError``.
+    PNG / JPEG / PGM / TIFF / BMP, 8 or 16 bit or float, grey, colour or palette (to luminance,
+    ITU-R BT.601 weights as OpenCV's ``BGR2GRAY``), an alpha channel ignored, EXIF orientation
+    applied; or a ``.npy`` (H, W) array of finite floats in [0, 1] (read without pickles).
+    The header is checked before decoding: each side >= ``MIN_SIDE`` and at most ``MAX_PIXELS``
+    pixels, so a hostile file cannot exhaust memory. Images without contrast are refused.
+    Raises ``InputError`` (one line naming the file and the problem).
     """
     p = Path(path)
+    data = _read_file(p)
     if p.suffix.lower() == ".npy":
-        try:
-            arr = np.load(p, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{p}: not a readable .npy array ({exc})") from None
-        if arr.ndim != 2 or not np.issubdtype(arr.dtype, np.number):
-            raise InputError(f"{p}: .npy input must be a 2-D numeric array, got {arr.dtype} {arr.shape}")
-        arr = arr.astype(np.float32)
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"{p}: .npy input holds NaN or infinite values")
-        return np.clip(arr, 0.0, 1.0)
-    raw = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise InputError(f"{p}: cannot be read as an image")
-    if raw.ndim == 3:
-        if raw.shape[2] == 4:
-            raw = raw[..., :3]
-        raw = cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY) if raw.shape[2] == 3 else raw[..., 0]
-    if raw.dtype == np.uint8:
-        img = raw.astype(np.float32) / 255.0
-    elif raw.dtype == np.uint16:
-        img = raw.astype(np.float32) / 65535.0
-    elif np.issubdtype(raw.dtype, np.floating):
-        img = raw.astype(np.float32)
-        if not np.all(np.isfinite(img)):
-            raise InputError(f"{p}: image holds NaN or infinite values")
+        img = _load_npy(p, data)
     else:
-        raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
-    return np.clip(img, 0.0, 1.0)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit is lower
+                with Image.open(io.BytesIO(data)) as probe:  # reads the header only
+                    width, height = probe.size
+                    kind = probe.format or "image"
+        except Image.DecompressionBombError:
+            raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
+                             "downscale it first") from None
+        except (OSError, ValueError, SyntaxError):
+            raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
+        _check_size(p, width, height)
+        raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
+        if raw is None:
+            raise InputError(f"{p}: corrupt or truncated {kind} data")
+        if raw.ndim == 3:
+            raw = cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY)
+        if raw.dtype == np.uint8:
+            img = raw.astype(np.float32) / 255.0
+        elif raw.dtype == np.uint16:
+            img = raw.astype(np.float32) / 65535.0
+        elif np.issubdtype(raw.dtype, np.floating):
+            img = raw.astype(np.float32)
+            if not np.all(np.isfinite(img)):
+                raise InputError(f"{p}: image holds NaN or infinite values")
+        else:
+            raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
+        img = np.clip(img, 0.0, 1.0)
+    lo, hi = float(img.min()), float(img.max())
+    if hi - lo < 1.0 / 255.0:
+        raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
+    return img
 
 
 def yaleb_light(path: str | os.PathLike) -> np.ndarray:
@@ -75,7 +147,10 @@ def yaleb_light(path: str | os.PathLike) -> np.ndarray:
     a, e = int(m.group(1)), int(m.group(2))
     if abs(a) > 180 or abs(e) > 90:
         raise InputError(f"{path}: impossible Yale B angles A={a} E={e}")
-    return light_from_angles(a, e)
+    try:
+        return checked_light(light_from_angles(a, e), f"Yale B light A={a} E={e}")
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
 
 
 def parse_light(text: str) -> np.ndarray:
@@ -118,5 +193,5 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             if eyes.shape != (2, 2) or not np.all(np.isfinite(eyes)):
                 raise ValueError("eyes must be [[x1, y1], [x2, y2]]")
     except (ValueError, TypeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{side}: malformed sidecar ({exc})") from None
+        raise InputError(f"{p}: malformed sidecar {side.name} ({exc})") from None
     return Sidecar(light=light, eyes=eyes)

@@ -29,12 +29,12 @@ from typing import Callable
 
 import numpy as np
 
-from flow.frame import Frame
+from flow.frame import Frame, FrameFailed
 from nodes.albedo import estimate_albedo
 from nodes.align import Alignment, centred_alignment, eyes_alignment, to_model_grid
 from nodes.integrate import frankot_chellappa, masked_least_squares
 from nodes.light import estimate_light
-from nodes.loader import InputError, load_image, read_sidecar, yaleb_light
+from nodes.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
 from nodes.remap import expected_peak_shading, lambertian_remap
 from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
@@ -73,7 +73,7 @@ class LoadNode:
         if "image" not in frame.data:
             frame.data["image"] = load_image(frame.source)
         image = frame.data["image"]
-        if min(image.shape) < 16:
+        if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if "light" not in frame.data else None
         eyes = side.eyes if side is not None and side.eyes is not None else self.options.eyes
@@ -134,7 +134,12 @@ class RobustFitNode:
         self.model, self.config, self.observer = model, config, observer
 
     def __call__(self, frame: Frame) -> Frame:
-        hook = None if self.observer is None else (lambda it: self.observer(frame, it))
+        def hook(it: FitIteration) -> None:
+            if frame.cancelled:  # timed out or stopped: nobody waits for this fit any more
+                raise FrameFailed(f"{frame.source}: fit abandoned at iteration {it.iteration}")
+            if self.observer is not None:
+                self.observer(frame, it)
+
         intensity = frame.data["remapped"][self.model.mask]
         result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook)
         frame.data["fit"] = result

@@ -9,7 +9,7 @@ from nodes.loader import InputError, load_image, parse_light, read_sidecar, yale
 
 @pytest.fixture
 def gradient():
-    return np.tile(np.linspace(0, 1, 40), (30, 1))
+    return np.tile(np.linspace(0, 1, 48), (40, 1))
 
 
 @pytest.mark.parametrize("ext", [".png", ".pgm", ".tif", ".jpg"])
@@ -20,17 +20,17 @@ def test_8_and_16_bit_grey(tmp_path, gradient, ext):
         p = tmp_path / f"img{np.dtype(dtype).itemsize}{ext}"
         cv2.imwrite(str(p), np.round(gradient * top).astype(dtype))
         img = load_image(p)
-        assert img.dtype == np.float32 and img.shape == (30, 40)
+        assert img.dtype == np.float32 and img.shape == (40, 48)
         np.testing.assert_allclose(img, gradient, atol=0.02 if ext == ".jpg" else 1.0 / top)
 
 
 def test_colour_and_alpha_to_luminance(tmp_path, gradient):
-    bgr = np.zeros((30, 40, 3), np.uint8)
+    bgr = np.zeros((40, 48, 3), np.uint8)
     bgr[..., 1] = np.round(gradient * 255)  # pure green
     p = tmp_path / "c.png"
     cv2.imwrite(str(p), bgr)
     np.testing.assert_allclose(load_image(p), 0.587 * gradient, atol=0.01)
-    bgra = np.dstack([bgr, np.full((30, 40), 7, np.uint8)])
+    bgra = np.dstack([bgr, np.full((40, 48), 7, np.uint8)])
     cv2.imwrite(str(tmp_path / "a.png"), bgra)
     np.testing.assert_allclose(load_image(tmp_path / "a.png"), 0.587 * gradient, atol=0.01)
 
@@ -74,5 +74,5 @@ def test_light_sources(tmp_path):
     np.testing.assert_allclose(side.light, [0, 1 / np.sqrt(2), 1 / np.sqrt(2)])
     np.testing.assert_allclose(side.eyes, [[10, 20], [30, 20]])
     (tmp_path / "face.json").write_text("{not json")
-    with pytest.raises(InputError, match="face.json: malformed"):
+    with pytest.raises(InputError, match="face.png: malformed sidecar face.json"):
         read_sidecar(img)
