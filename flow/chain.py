@@ -20,16 +20,18 @@ class Chain:
 
     An exception inside a node fails that frame (status = the exception's one-line text,
     ``failed_in`` = the node) and skips its remaining nodes; the stream goes on. Per-node
-    wall times (seconds) are kept in ``frame.meta["timings"]``.
+    wall times (seconds) are kept in ``frame.meta["timings"]``; ``frame_timeout`` as in ``run_node``.
     """
 
-    def __init__(self, nodes: Iterable[Node], on_done: Callable[[Frame], None] | None = None):
+    def __init__(self, nodes: Iterable[Node], on_done: Callable[[Frame], None] | None = None,
+                 frame_timeout: float | None = None):
         self.nodes = list(nodes)
         self.on_done = on_done
+        self.frame_timeout = frame_timeout
 
     def process(self, frame: Frame) -> Frame:
         for node in self.nodes:
-            frame = run_node(node, frame)
+            frame = run_node(node, frame, self.frame_timeout)
         if self.on_done is not None:
             self.on_done(frame)
         return frame

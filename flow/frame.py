@@ -27,6 +27,7 @@ class Frame:
     failed_in: str | None = None
     skipped: bool = False  # passes through every node untouched (e.g. already done: resume)
     cancelled: bool = False  # the stream was stopped before this frame finished: not a result
+    error: BaseException | None = field(default=None, repr=False)  # what failed it, if an exception
 
     @property
     def ok(self) -> bool:

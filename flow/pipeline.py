@@ -10,6 +10,7 @@ finishes first); frames finished before the stop are emitted as usual.
 """
 from __future__ import annotations
 
+import dataclasses
 import queue
 import signal
 import threading
@@ -22,18 +23,21 @@ from flow.frame import Frame
 _DONE = object()  # end-of-stream marker, one per worker of the next stage
 
 
-def run_node(node, frame: Frame) -> Frame:
-    """Run one node on one frame with fault isolation and timing.
+def run_node(node, frame: Frame, timeout: float | None = None) -> Frame:
+    """Run one node on one frame with fault isolation, a time limit and timing.
 
     A failed, skipped or cancelled frame passes through untouched. An exception fails the frame with a one-line
     reason that names the frame's source; the node's wall time (s) goes to
-    ``frame.meta["timings"][node.name]``.
+    ``frame.meta["timings"][node.name]``. With ``timeout`` (seconds) the node runs on a copy
+    of the frame in its own thread; past the limit the frame fails ("timed out") and goes on.
+    Python cannot kill a thread: the abandoned call's copy is marked ``cancelled`` (a node
+    that checks it, like a fit loop, stops early) and its result is dropped.
     """
     if not frame.ok or frame.skipped or frame.cancelled:
         return frame
     t0 = time.perf_counter()
     try:
-        frame = node(frame)
+        frame = node(frame) if timeout is None else _call_with_timeout(node, frame, timeout)
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # noqa: BLE001 - a node's failure is the frame's, not the stream's
@@ -41,8 +45,31 @@ def run_node(node, frame: Frame) -> Frame:
         if not text.startswith(frame.source):
             text = f"{frame.source}: {type(exc).__name__}: {text}"
         frame.fail(node.name, text)
+        frame.error = exc
     frame.meta.setdefault("timings", {})[node.name] = time.perf_counter() - t0
     return frame
+
+
+def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
+    work = dataclasses.replace(frame, data=dict(frame.data), meta=dict(frame.meta))
+    box: dict = {}
+
+    def call() -> None:
+        try:
+            box["frame"] = node(work)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = exc
+
+    name = getattr(node, "name", "node")
+    thread = threading.Thread(target=call, name=f"flow-{name}-call", daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if thread.is_alive():
+        work.cancelled = True
+        raise TimeoutError(f"{frame.source}: timed out after {timeout:g} s in {name}")
+    if "error" in box:
+        raise box["error"]
+    return box["frame"]
 
 
 @dataclass(frozen=True)
@@ -58,16 +85,18 @@ class Pipeline:
 
     stages: nodes or ``Stage``s in order. queue_size: capacity of each queue between stages.
     on_done: called in input order with each finished (or failed) frame, on the caller's
-    thread, before it is yielded.
+    thread, before it is yielded. frame_timeout: seconds one node may take on one frame
+    (None: no limit), see ``run_node``.
     """
 
     def __init__(self, stages: Iterable, queue_size: int = 2,
-                 on_done: Callable[[Frame], None] | None = None):
+                 on_done: Callable[[Frame], None] | None = None, frame_timeout: float | None = None):
         self.stages = [s if isinstance(s, Stage) else Stage(s) for s in stages]
         if not self.stages:
             raise ValueError("a pipeline needs at least one node")
         self.queue_size = max(1, int(queue_size))
         self.on_done = on_done
+        self.frame_timeout = frame_timeout
         self._stop = threading.Event()  # stop() was asked for: take no new frames
         self._closing = threading.Event()  # the consumer is gone: the source must end too
         self.max_in_flight = 0  # observed, for tests and benchmarks
@@ -118,7 +147,7 @@ class Pipeline:
                 if self._stop.is_set():
                     frame.cancelled = True  # stopped: unfinished frames leave without more work
                 try:
-                    frame = run_node(stage.node, frame)
+                    frame = run_node(stage.node, frame, self.frame_timeout)
                 except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
                     frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
                     self._stop.set()
