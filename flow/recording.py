@@ -236,6 +236,11 @@ class Recorder:
         self._thread = threading.Thread(target=self._loop, name="flow-recorder", daemon=True)
         self._thread.start()
 
+    @property
+    def error(self) -> BaseException | None:
+        """The first error a sink raised (recording stopped there), or None."""
+        return self._error
+
     def keep_iteration(self, iteration: int, last: bool = False) -> bool:
         return last or self.options.every <= 1 or (iteration - 1) % self.options.every == 0
 

@@ -4,21 +4,48 @@ Face-agnostic: a "convergence" channel is any scalars channel with per-iteration
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from flow.recording import Event, Recording, RecordingError, read_mcap
+from flow.recording import Event, FrameRecording, Recording, RecordingError, read_mcap
+
+
+def _part_number(path: Path) -> int:
+    m = re.search(r"\.part(\d+)$", path.stem)
+    return int(m.group(1)) if m else 1
+
+
+def merge_recordings(parts: list[Recording], path: Path) -> Recording:
+    """One recording from the parts of an interrupted and resumed job, in order.
+
+    A frame finished in a later part replaces any earlier copy (a frame cut short by a kill is
+    redone by the resumed run); an unfinished frame is kept only if no part finished it.
+    """
+    frames: dict[int, FrameRecording] = {}
+    for rec in parts:
+        for fid, fr in rec.frames.items():
+            if fr.finished or fid not in frames or not frames[fid].finished:
+                frames[fid] = fr
+    return Recording(path, dict(sorted(frames.items())), bool(parts) and parts[-1].truncated)
 
 
 def open_recording(path: str | Path) -> Recording:
     """Open an MCAP recording (``.mcap``) for walking frame -> iteration -> arrays.
 
+    A folder opens the recordings of one job in it, ``run.mcap`` then ``run.part2.mcap``,
+    ``run.part3.mcap``... (written by ``--resume``), merged by ``merge_recordings``.
     ``.rrd`` files hold display forms (images, plots), not the exact arrays: replay them in
     the Rerun viewer, and use the MCAP twin written beside them for tables and diffs.
     """
     path = Path(path)
+    if path.is_dir():
+        files = sorted(path.glob("*.mcap"), key=lambda p: (_part_number(p), p.name))
+        if not files:
+            raise RecordingError(f"{path}: no .mcap recording in this folder")
+        return merge_recordings([read_mcap(f) for f in files], path)
     if path.suffix.lower() == ".rrd":
         raise RecordingError(f"{path}: tables and diffs read the exact MCAP recording (run.mcap beside it)")
     return read_mcap(path)

@@ -33,13 +33,15 @@ def _load_model(path: str | None):
 
 
 def expand_inputs(items: list[str], note=print) -> list[str]:
-    """Files, folders (sorted, non-images skipped with a note) and glob patterns -> paths."""
+    """Files, folders (sorted, not recursed; names without an image suffix skipped with a
+    note) and glob patterns -> paths. Anything named like an image is kept, even a folder,
+    a broken link or a pipe: its frame then fails with the loader's exact reason."""
     out: list[str] = []
     for item in items:
         p = Path(item)
         if p.is_dir():
             for f in sorted(p.iterdir()):
-                if f.suffix.lower() in IMAGE_SUFFIXES and f.is_file():
+                if f.suffix.lower() in IMAGE_SUFFIXES:
                     out.append(str(f))
                 elif f.suffix.lower() != ".json":
                     note(f"{f}: skipped (not an image)")
@@ -71,10 +73,12 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from flow.recording import RecordOptions
-    from nodes.runner import RunOptions, run_stream, watch_folder
+    from nodes.runner import RunOptions, check_writable, run_stream, watch_folder
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if args.frame_timeout is not None and not args.frame_timeout > 0:
+        raise ValueError(f"--frame-timeout must be a positive number of seconds, not {args.frame_timeout}")
+    check_writable(out)
     inputs = list(args.inputs)
     if args.demo:
         inputs = write_demo_inputs(out / "demo-inputs") + inputs
@@ -96,7 +100,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations), integrator=args.integrator,
                             light=light, eyes=eyes, shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
-                     fit_workers=args.workers, resume=args.resume, quiet=args.quiet)
+                     fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
+                     frame_timeout=args.frame_timeout)
     if args.watch:
         paths = expand_inputs(inputs, note) if inputs else []
         stream = (p for src in (paths, watch_folder(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit))
@@ -113,7 +118,7 @@ def cmd_run(args: argparse.Namespace) -> int:
          f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
     if result.stopped:
         return 130
-    return 0 if failures == 0 else 1
+    return 0 if failures == 0 and result.storage_error is None else 1
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -230,6 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")
     r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
     r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
+    r.add_argument("--frame-timeout", type=float, metavar="SECONDS",
+                   help="fail a frame when one step takes longer than this on it (default: no limit)")
     r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")
     r.add_argument("--watch", metavar="DIR", help="keep processing new images that appear in DIR")
     r.add_argument("--idle-exit", type=float, metavar="SECONDS", help="with --watch: stop after this long with nothing new")
@@ -264,13 +271,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_eval)
 
     rp = sub.add_parser("replay", help="convergence table / plot / re-log to Rerun of a recording")
-    rp.add_argument("recording", help="run.mcap")
+    rp.add_argument("recording", help="run.mcap, or a run's --out folder (its parts merged)")
     rp.add_argument("--plot", metavar="PNG", help="write a convergence plot")
     rp.add_argument("--rrd", metavar="RRD", help="re-log the recording into a Rerun file")
     rp.set_defaults(func=cmd_replay)
 
     d = sub.add_parser("diff", help="compare two recordings; exit 0 same, 1 different, 2 unreadable")
-    d.add_argument("a")
+    d.add_argument("a", help="run.mcap, or a run's --out folder (a resumed run's parts merged)")
     d.add_argument("b")
     d.add_argument("--atol", type=float, default=0.0)
     d.add_argument("--rtol", type=float, default=0.0)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import re
 import unicodedata
 from pathlib import Path
@@ -19,6 +20,14 @@ from nodes.shape_model import ShapeModel
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
                 "relit.png", "novel_view.png", "mesh.ply")
+
+
+def real_path(path: str | Path) -> Path:
+    """Absolute path with symlinks resolved as far as they go (a symlink loop stops there)."""
+    try:
+        return Path(path).resolve()
+    except (OSError, RuntimeError):  # a symlink loop: its own name is the best we know
+        return Path(os.path.abspath(path))
 
 
 def safe_stem(path: str, taken: set[str]) -> str:
@@ -111,7 +120,7 @@ class WriteNode:
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
-        clash = [n for n in OUTPUT_FILES if (folder / n).resolve() in self.protected]
+        clash = [n for n in OUTPUT_FILES if real_path(folder / n) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {folder / clash[0]} would overwrite an input")
         write_outputs(frame, self.model, folder)

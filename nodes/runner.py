@@ -2,6 +2,7 @@
 write outputs and recordings, keep ``summary.json`` current after every frame."""
 from __future__ import annotations
 
+import errno
 import json
 import sys
 import time
@@ -9,10 +10,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
 
+from flow.files import atomic_write_bytes
 from flow.frame import Frame
 from flow.pipeline import Pipeline, Stage
 from flow.recording import McapSink, RecordOptions, Recorder, RerunSink
-from nodes.outputs import OUTPUT_FILES, WriteNode, safe_stem, summary_record, write_summary
+from nodes.outputs import OUTPUT_FILES, WriteNode, real_path, safe_stem, summary_record, write_summary
 from nodes.pipeline import LoadNode, MethodOptions, RobustFitNode, method_nodes
 from nodes.record import FitObserver, RecordNode, default_blueprint
 from nodes.shape_model import ShapeModel
@@ -21,7 +23,8 @@ from nodes.shape_model import ShapeModel
 @dataclass
 class RunOptions:
     """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node;
-    resume: skip inputs whose outputs are complete; quiet: no progress or notes."""
+    resume: skip inputs whose outputs are complete; quiet: no progress or notes;
+    frame_timeout: seconds any one node may spend on one frame before the frame fails."""
 
     record: tuple[str, ...] = ("rerun", "mcap")
     record_options: RecordOptions = field(default_factory=RecordOptions)
@@ -29,6 +32,7 @@ class RunOptions:
     queue_size: int = 2
     resume: bool = False
     quiet: bool = False
+    frame_timeout: float | None = None
 
 
 def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
@@ -40,6 +44,28 @@ def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
             path = out / f"run.part{k}.{suffix}"
             k += 1
     return path
+
+
+# errors that fail every later write too: the run stops instead of failing frame after frame
+STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+
+
+class StorageError(OSError):
+    """The output folder cannot take more data (full, read-only, over quota)."""
+
+
+def check_writable(out: Path) -> None:
+    """Create ``out`` if needed and prove a file can be written there; else ``StorageError``."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = atomic_write_bytes(out / ".shadowflow-write-test", b"ok")
+        probe.unlink()
+    except OSError as exc:
+        raise StorageError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _storage_failure(exc: BaseException | None) -> bool:
+    return isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS
 
 
 def complete(folder: Path) -> bool:
@@ -71,16 +97,22 @@ class Progress:
 
 @dataclass
 class RunResult:
-    """records: the summary records, in input order; stopped: a stop (signal) cut the run short."""
+    """records: the summary records, in input order; stopped: a stop (signal) cut the run short;
+    storage_error: why the output folder stopped taking data, if it did (the run stopped then)."""
 
     records: list[dict]
     stopped: bool
+    storage_error: str | None = None
 
 
 def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
                run: RunOptions, total: int | None = None) -> RunResult:
-    """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``.
+
+    A full, read-only or over-quota output folder stops the run (frames written so far stay
+    complete, ``summary.json`` lists them); ``--resume`` finishes the job once there is room.
+    """
+    check_writable(out)
     previous = _previous_summary(out) if run.resume else {}
     sinks = []
     if "mcap" in run.record:
@@ -97,18 +129,25 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
                 n.observer = observer
         nodes.append(RecordNode(model, recorder, observer))
     # outputs must never land on an input: all of them when the list is known, else as they come
-    protected: set[Path] = {Path(p).resolve() for p in paths} if isinstance(paths, (list, tuple)) else set()
+    protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
     nodes.append(WriteNode(model, out, protected))
     stages = [Stage(n, run.fit_workers if isinstance(n, RobustFitNode) else 1) for n in nodes]
 
     records: list[dict] = []
     progress = Progress(total, not run.quiet)
+    storage: list[str] = []  # the first storage failure, which stops the run
+
+    def out_of_storage(why: str) -> None:
+        if not storage:
+            storage.append(why)
+            print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
+        pipeline.stop()
 
     def frames() -> Iterator[Frame]:
         taken: set[str] = set()
         for i, path in enumerate(paths):
             stem = safe_stem(path, taken)
-            protected.add(Path(path).resolve())
+            protected.add(real_path(path))
             frame = Frame(i, path)
             frame.meta["stem"] = stem
             if run.resume and stem in previous and previous[stem].get("status") == "ok" and complete(out / stem):
@@ -125,28 +164,42 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             write_summary(out, records)
             progress.update(True)
             return
+        if _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
+            out_of_storage(frame.status)
+            frame.data.clear()
+            return
         rec = summary_record(frame)
         records.append(rec)
         if recorder is not None:
             recorder.frame_done(frame.id, rec)
-        write_summary(out, records)
+            if recorder.error is not None:
+                out_of_storage(f"{out}: recording failed ({recorder.error})")
+        try:
+            write_summary(out, records)
+        except OSError as exc:
+            out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
         progress.update(frame.ok)
         if not frame.ok:
             print(f"error: {frame.status}", file=sys.stderr)
         frame.data.clear()  # the frame's arrays are on disk now: free them
 
-    pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done)
+    pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
     try:
         for _ in pipeline.run(frames(), handle_signals=True):
             pass
     finally:
         progress.close()
         if recorder is not None:
-            recorder.close()
-        if pipeline.stopped:  # shown even under --quiet: the job is not complete
+            try:
+                recorder.close()
+            except RuntimeError as exc:
+                if not storage:
+                    raise
+                print(f"note: {exc}", file=sys.stderr)
+        if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
-    return RunResult(records, pipeline.stopped)
+    return RunResult(records, pipeline.stopped and not storage, storage[0] if storage else None)
 
 
 def _previous_summary(out: Path) -> dict[str, dict]:

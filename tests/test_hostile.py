@@ -1,0 +1,321 @@
+"""Hostile inputs and faults: every case ends in its documented outcome, good faces in the same
+stream come out exactly as they do alone, nothing outside ``--out`` is touched.
+
+The corpus is generated here (no committed blobs); README "Bad input" lists the outcomes.
+"""
+import io
+import json
+import os
+import resource
+import shutil
+import struct
+import subprocess
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from flow.frame import Frame
+from flow.pipeline import Pipeline
+from nodes.geometry import angle_deg
+from nodes.reflectance import light_from_angles
+from nodes.synth.inputs import write_shadowed_face
+
+CLI = [sys.executable, "-m", "nodes.cli"]
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose header declares ``width`` x ``height`` grey pixels, with no pixel data."""
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b"")
+
+
+def _npy_header_only(shape: tuple[int, ...]) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f4", "fortran_order": False, "shape": shape})
+    return buf.getvalue() + b"\x00" * 64
+
+
+def _unprivileged() -> list[str]:
+    """A command prefix that makes file permissions bind even for root (CI runs as root)."""
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("running as root without setpriv: file permissions cannot be tested")
+    return [setpriv, "--bounding-set", "-dac_override,-dac_read_search"]
+
+
+def _good_faces(folder: Path) -> dict[str, Path]:
+    """Good inputs with sidecar lights, including awkward names and two with one stem."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(5)
+    base = write_shadowed_face(folder / "face.png", rng, light_from_angles(40, 0))
+    image = cv2.imread(str(base), cv2.IMREAD_GRAYSCALE)
+    side = base.with_suffix(".json").read_text()
+    faces = {"face.png": base}
+    for name in ("a face.png", "ünïcødé.png", "-rf.png", "x..y.png"):
+        shutil.copy(base, folder / name)
+        (folder / name).with_suffix(".json").write_text(side)
+        faces[name] = folder / name
+    cv2.imwrite(str(folder / "face.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 98])  # same stem as face.png
+    faces["face.jpg"] = folder / "face.jpg"
+    return faces
+
+
+def _variants(folder: Path, image: np.ndarray, side: str) -> dict[str, str]:
+    """The same face stored in other ways the loader must read: name -> expected 'ok'."""
+    from PIL import Image
+
+    out = {}
+
+    def put(name: str, write) -> None:
+        write(folder / name)
+        (folder / name).with_suffix(".json").write_text(side)
+        out[name] = "ok"
+
+    put("sixteen.png", lambda p: cv2.imwrite(str(p), image.astype(np.uint16) * 257))
+    grey3 = np.dstack([image] * 3)
+    put("colour.png", lambda p: cv2.imwrite(str(p), grey3))
+    put("alpha.png", lambda p: cv2.imwrite(str(p), np.dstack([grey3, np.full_like(image, 128)])))
+    put("palette.png", lambda p: Image.fromarray(image).convert("P").save(p))
+
+    def exif_rotated(p: Path) -> None:  # stored rotated; the EXIF tag says how to show it upright
+        im = Image.fromarray(np.ascontiguousarray(np.rot90(image, 1)))
+        exif = im.getexif()
+        exif[0x0112] = 6  # "rotate 90 degrees clockwise to display"
+        im.save(p, "JPEG", quality=98, exif=exif.tobytes())
+
+    put("exif.jpg", exif_rotated)
+    put("saturated.png", lambda p: cv2.imwrite(str(p), np.clip(image.astype(np.float32) * 1.6, 0, 255).astype(np.uint8)))
+    return out
+
+
+def _hostile(folder: Path, good_png: bytes, unprivileged: bool) -> dict[str, str]:
+    """Write the hostile corpus; returns name -> a piece of the expected one-line error."""
+    cases: dict[str, str] = {}
+
+    def put(name: str, data: bytes, expect: str, sidecar: str | None = None) -> None:
+        (folder / name).write_bytes(data)
+        if sidecar is not None:
+            (folder / name).with_suffix(".json").write_text(sidecar)
+        cases[name] = expect
+
+    good_jpg = cv2.imencode(".jpg", cv2.imdecode(np.frombuffer(good_png, np.uint8), 0))[1].tobytes()
+    crc = bytearray(good_png)
+    crc[crc.find(b"IDAT") + 40] ^= 0xFF
+    rng = np.random.default_rng(0)
+    put("empty.png", b"", "is empty (0 bytes)")
+    put("half.png", good_png[: len(good_png) // 2], "corrupt or truncated PNG")
+    put("half.jpg", good_jpg[: len(good_jpg) // 2], "corrupt or truncated JPEG")
+    put("badcrc.png", bytes(crc), "corrupt or truncated PNG")
+    put("text.jpg", b"just some notes, not a picture\n", "not a recognised image")
+    put("noise.tif", rng.integers(0, 256, 4096, dtype=np.uint8).tobytes(), "not a recognised image")
+    put("tiny1.png", cv2.imencode(".png", np.full((1, 1), 100, np.uint8))[1].tobytes(), "too small for a face")
+    put("tiny8.png", cv2.imencode(".png", rng.integers(0, 256, (8, 8), dtype=np.uint8))[1].tobytes(), "too small for a face")
+    put("huge.png", _png_header_only(20000, 20000), "megapixel limit")
+    put("big.png", _png_header_only(8000, 6000), "megapixel limit")
+    put("black.png", cv2.imencode(".png", np.zeros((64, 64), np.uint8))[1].tobytes(), "no contrast")
+    put("white.png", cv2.imencode(".png", np.full((64, 64), 255, np.uint8))[1].tobytes(), "no contrast")
+    face = cv2.imdecode(np.frombuffer(good_png, np.uint8), 0) / 255.0
+    for name, bad in (("nan.npy", np.nan), ("inf.npy", np.inf)):
+        arr = face.copy()
+        arr[60, 60] = bad
+        buf = io.BytesIO()
+        np.save(buf, arr)
+        put(name, buf.getvalue(), "NaN or infinite")
+    buf = io.BytesIO()
+    np.save(buf, np.array([{"run": "code"}], dtype=object), allow_pickle=True)
+    put("pickle.npy", buf.getvalue(), "2-D numeric")
+    buf = io.BytesIO()
+    np.save(buf, np.zeros((4, 4, 4)))
+    put("cube.npy", buf.getvalue(), "2-D numeric")
+    put("declared-huge.npy", _npy_header_only((100000, 100000)), "megapixel limit")
+    put("badjson.png", good_png, "malformed sidecar", "{not json")
+    put("zerolight.png", good_png, "zero vector", '{"light": [0, 0, 0]}')
+    put("behind.png", good_png, "points away from the camera", '{"light": [0, 0, -1]}')
+    put("nanlight.png", good_png, "finite", '{"light": [NaN, 0, 1]}')
+    put("badeyes.png", good_png, "eyes must be", '{"light": [0, 0, 1], "eyes": [[1, 2]]}')
+    put("listjson.png", good_png, "top level is not an object", "[1, 2, 3]")
+    put("yaleB99_P00A+200E+00.png", good_png, "impossible Yale B angles")
+    put("yaleB99_P00A+120E+00.png", good_png, "points away from the camera")
+    put("portrait.png", good_png, "no Yale B light")
+    (folder / "folder.png").mkdir()
+    cases["folder.png"] = "is a directory"
+    os.symlink(folder / "loop-b.png", folder / "loop-a.png")
+    os.symlink(folder / "loop-a.png", folder / "loop-b.png")
+    cases["loop-a.png"] = cases["loop-b.png"] = "symlink loop"
+    os.symlink(folder / "gone.png", folder / "dangling.png")
+    cases["dangling.png"] = "dangling symlink"
+    os.mkfifo(folder / "pipe.png")
+    cases["pipe.png"] = "not a regular file"
+    if unprivileged:
+        put("locked.png", good_png, "Permission denied", '{"light": [0, 0, 1]}')
+        os.chmod(folder / "locked.png", 0)
+    return cases
+
+
+def _normals_by_source(out: Path) -> dict[str, np.ndarray]:
+    summary = json.loads((out / "summary.json").read_text())
+    return {Path(r["source"]).name: np.load(out / r["stem"] / "normals.npy", allow_pickle=False)
+            for r in summary if r["status"] == "ok"}
+
+
+def test_a_stream_of_hostile_inputs_fails_each_alone_and_keeps_good_faces_exact(tmp_path):
+    prefix = _unprivileged()
+    good_dir = tmp_path / "good"
+    faces = _good_faces(good_dir)
+    mixed = tmp_path / "mixed"
+    shutil.copytree(good_dir, mixed)
+    base = faces["face.png"]
+    expected = {name: "ok" for name in faces}
+    expected.update(_variants(mixed, cv2.imread(str(base), 0), base.with_suffix(".json").read_text()))
+    hostile = _hostile(mixed, base.read_bytes(), unprivileged=True)
+    expected.update(hostile)
+    (mixed / "notes.txt").write_text("not an image")
+    assert len(hostile) >= 25
+    before = {p: p.read_bytes() for p in mixed.rglob("*")
+              if p.is_file() and not p.is_symlink() and os.access(p, os.R_OK)}
+
+    opts = ["--light", "yaleb", "--max-iterations", "15", "--record", "mcap", "--quiet"]
+    out = tmp_path / "out"
+    proc = subprocess.run(prefix + CLI + ["run", str(mixed), "--out", str(out)] + opts,
+                          capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert proc.returncode == 1, proc.stderr  # some frames failed, the stream finished
+    summary = json.loads((out / "summary.json").read_text())
+    by_name = {Path(r["source"]).name: r for r in summary}
+    assert set(by_name) == set(expected), set(by_name) ^ set(expected)
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error: ")]
+    for name, expect in expected.items():
+        status = by_name[name]["status"]
+        if expect == "ok":
+            assert status == "ok", (name, status)
+            continue
+        assert expect in status and name in status and "\n" not in status, (name, status)
+        assert any(name in e and expect in e for e in errors), name  # and it was said on stderr
+    assert len(errors) == len(hostile)
+
+    # every output stays inside --out, one folder per input, none overwriting another
+    stems = [r["stem"] for r in summary if r["status"] == "ok"]
+    assert len(set(stems)) == len(stems) and {"face", "face-2"} <= set(stems)
+    for stem in stems:
+        assert (out / stem).resolve().parent == out.resolve() and not stem.startswith(("-", "."))
+    # the inputs are untouched
+    assert {p: p.read_bytes() for p in before} == before
+
+    # the good faces come out exactly as in a run of the good faces alone
+    alone = tmp_path / "alone"
+    subprocess.run(CLI + ["run", str(good_dir), "--out", str(alone)] + opts, check=True, cwd=REPO, timeout=600)
+    mixed_normals, alone_normals = _normals_by_source(out), _normals_by_source(alone)
+    for name in faces:
+        np.testing.assert_array_equal(mixed_normals[name], alone_normals[name])
+    # and the other encodings of the same face are read as that face
+    ref = mixed_normals["face.png"]
+    for name in ("sixteen.png", "colour.png", "alpha.png", "palette.png", "exif.jpg"):
+        n = mixed_normals[name]
+        ok = np.isfinite(n[..., 0]) & np.isfinite(ref[..., 0])
+        assert n.shape == ref.shape and np.mean(angle_deg(n[ok], ref[ok])) < 1.0, name
+
+
+class _Sleepy:
+    """A node that hangs on frames whose source contains 'hang' (and raises on 'boom')."""
+
+    name = "sleepy"
+
+    def __call__(self, frame: Frame) -> Frame:
+        if "hang" in frame.source:
+            time.sleep(30)
+        if "boom" in frame.source:
+            raise RuntimeError("exploded")
+        frame.data["seen"] = True
+        return frame
+
+
+def test_a_hanging_or_raising_node_fails_only_its_frame():
+    sources = ["a", "hang-1", "b", "boom", "c"]
+    t0 = time.perf_counter()
+    frames = list(Pipeline([_Sleepy()], frame_timeout=0.5).run(Frame(i, s) for i, s in enumerate(sources)))
+    assert time.perf_counter() - t0 < 10  # not 30 s: the hung call was abandoned
+    assert [f.source for f in frames] == sources
+    assert [f.ok for f in frames] == [True, False, True, False, True]
+    assert "timed out after 0.5 s in sleepy" in frames[1].status and frames[1].failed_in == "sleepy"
+    assert "RuntimeError: exploded" in frames[3].status
+    assert all(f.data.get("seen") for f in frames if f.ok)
+
+
+def test_frame_timeout_abandons_a_slow_fit_and_the_run_goes_on(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(9)
+    for i in range(2):
+        write_shadowed_face(src / f"f{i}.png", rng, light_from_angles(50, 0))
+    out = tmp_path / "out"
+    proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--frame-timeout", "0.01", "--record", "mcap"],
+                          capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert proc.returncode == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary) == 2
+    assert all("timed out after 0.01 s" in r["status"] for r in summary)
+    assert not any((out / r["stem"] / "normals.npy").exists() for r in summary)
+    from flow.replay import open_recording
+
+    rec = open_recording(out / "run.mcap")
+    assert [f.record["status"] for f in rec.finished_frames()] == [r["status"] for r in summary]
+
+
+def _limit_file_size(limit: int):
+    def apply() -> None:  # Python ignores SIGXFSZ, so writes past the limit fail with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+@pytest.mark.parametrize("record", ["none", "mcap"])
+def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_path, record):
+    src = tmp_path / "in"
+    src.mkdir()
+    rng = np.random.default_rng(3)
+    for i in range(3):
+        write_shadowed_face(src / f"f{i}.png", rng, light_from_angles(45, 0))
+    out = tmp_path / "out"
+    cmd = CLI + ["run", str(src), "--out", str(out), "--record", record, "--max-iterations", "10", "--quiet"]
+    limit = 60_000 if record == "none" else 400_000  # normals.npy (196 KB) / a frame of MCAP won't fit
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=300,
+                          preexec_fn=_limit_file_size(limit))
+    assert proc.returncode == 1
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and "File too large" in errors[0] and "--resume" in errors[0], proc.stderr
+    # no file is left half-written under its real name: each is complete or absent
+    for p in out.rglob("*"):
+        assert not p.name.endswith(".tmp"), p
+        if p.suffix == ".npy":
+            np.load(p, allow_pickle=False)
+    done = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else []
+    assert len(done) < 3
+    resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert [r["status"] for r in summary] == ["ok"] * 3
+
+
+def test_an_unwritable_out_is_refused_before_any_work(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    proc = subprocess.run(CLI + ["run", "--demo", "--out", str(blocker / "out")], capture_output=True, text=True,
+                          cwd=REPO, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"shadowflow run: --out {blocker / 'out'}: cannot write there (Not a directory)"
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    os.chmod(ro, 0o555)
+    proc = subprocess.run(_unprivileged() + CLI + ["run", "--demo", "--out", str(ro)], capture_output=True,
+                          text=True, cwd=REPO, timeout=120)
+    assert proc.returncode == 2 and "cannot write there (Permission denied)" in proc.stderr
+    assert list(ro.iterdir()) == []
