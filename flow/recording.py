@@ -233,6 +233,9 @@ class Recorder:
         self.options = options or RecordOptions()
         self._q: queue.Queue = queue.Queue(maxsize=max_pending)
         self._error: BaseException | None = None
+        self._closed_frames = 0  # frames flushed by every sink (or dropped after an error)
+        self._asked = 0  # frames handed to frame_done
+        self._flushed = threading.Condition()
         self._thread = threading.Thread(target=self._loop, name="flow-recorder", daemon=True)
         self._thread.start()
 
@@ -251,23 +254,32 @@ class Recorder:
                 event = Event(event.frame, event.path, event.kind, a.astype(np.float16), event.iteration)
         self._q.put(("event", event))
 
-    def frame_done(self, frame: int, record: dict) -> None:
-        """Close a frame: its status record, then every sink flushes it to disk."""
+    def frame_done(self, frame: int, record: dict, wait: bool = False) -> None:
+        """Close a frame: its status record, then every sink flushes it to disk. ``wait``:
+        return only once that is done (so a caller can then mark the frame finished)."""
         self._q.put(("event", Event(frame, "frames", "frame", record)))
         self._q.put(("done", frame))
+        self._asked += 1
+        if wait:
+            target = self._asked
+            with self._flushed:
+                self._flushed.wait_for(lambda: self._closed_frames >= target or not self._thread.is_alive())
 
     def _loop(self) -> None:
         while True:
             kind, item = self._q.get()
             if kind == "stop":
                 return
-            if self._error is not None:
-                continue
-            try:
-                for s in self.sinks:
-                    s.write(item) if kind == "event" else s.frame_done(item)
-            except BaseException as exc:  # noqa: BLE001 - reported by close()
-                self._error = exc
+            if self._error is None:  # after an error nothing more is written; close() reports it
+                try:
+                    for s in self.sinks:
+                        s.write(item) if kind == "event" else s.frame_done(item)
+                except BaseException as exc:  # noqa: BLE001 - reported by close()
+                    self._error = exc
+            if kind == "done":
+                with self._flushed:
+                    self._closed_frames += 1
+                    self._flushed.notify_all()
 
     def close(self) -> None:
         self._q.put(("stop", None))
@@ -353,7 +365,6 @@ def read_mcap(path: str | Path) -> Recording:
     whitelist of dtypes and a size check; a record claiming more than 1 GiB is refused. A
     file cut short (killed run) yields what came before the cut, ``truncated=True``.
     """
-    from mcap.exceptions import McapError
     from mcap.reader import NonSeekingReader
 
     path = Path(path)
@@ -375,7 +386,7 @@ def read_mcap(path: str | Path) -> Recording:
                 schema, channel, message = next(it)
             except StopIteration:
                 break
-            except (McapError, EOFError, struct.error, ValueError, RuntimeError, MemoryError) as exc:
+            except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors, EOF...: all mean a bad file
                 if not frames:
                     raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
                 truncated = True

@@ -84,10 +84,9 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{p}: not a readable .npy array ({exc})") from None
-    arr = arr.astype(np.float32)
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{p}: .npy input holds NaN or infinite values")
-    return np.clip(arr, 0.0, 1.0)
+    return np.clip(arr, 0.0, 1.0).astype(np.float32)
 
 
 def load_image(path: str | os.PathLike) -> np.ndarray:
@@ -107,7 +106,7 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     else:
         try:
             with warnings.catch_warnings():
-                warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit is lower
+                warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
                     width, height = probe.size
                     kind = probe.format or "image"

@@ -171,7 +171,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
         rec = summary_record(frame)
         records.append(rec)
         if recorder is not None:
-            recorder.frame_done(frame.id, rec)
+            recorder.frame_done(frame.id, rec, wait=True)  # recorded before summary.json says done
             if recorder.error is not None:
                 out_of_storage(f"{out}: recording failed ({recorder.error})")
         try:

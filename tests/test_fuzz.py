@@ -1,0 +1,151 @@
+"""Property-based fuzzing of the two readers of untrusted bytes: the image loader and the
+recording reader. Any input gives a result or the reader's own one-line error; never another
+exception, never a large allocation. Bounded and derandomised, so CI runs the same cases."""
+import io
+import tempfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from flow.recording import Event, McapSink, Recorder, RecordingError, read_mcap
+from nodes.loader import IMAGE_SUFFIXES, InputError, load_image
+
+FUZZ = settings(max_examples=120, deadline=None, derandomize=True,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+WORK = Path(tempfile.mkdtemp(prefix="shadowflow-fuzz-"))
+MAX_GROWTH = 300 << 20  # bytes of peak resident memory any one fuzz run may add
+
+
+def _peak_rss() -> int:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) << 10 for line in f if line.startswith("VmHWM"))
+
+
+def _reset_peak() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")  # resets VmHWM to the current resident size (Linux >= 4.0)
+        return True
+    except OSError:
+        return False
+
+
+def _image_seeds() -> dict[str, bytes]:
+    rng = np.random.default_rng(1)
+    img = (rng.random((40, 48)) * 255).astype(np.uint8)
+    seeds = {ext: cv2.imencode(ext, img)[1].tobytes() for ext in (".png", ".jpg", ".tif", ".bmp", ".pgm")}
+    seeds[".png16"] = cv2.imencode(".png", img.astype(np.uint16) * 257)[1].tobytes()
+    buf = io.BytesIO()
+    np.save(buf, img / 255.0)
+    seeds[".npy"] = buf.getvalue()
+    return seeds
+
+
+IMAGE_SEEDS = _image_seeds()
+
+
+def _mutate(seed: bytes, edits: list[tuple[int, int]], cut: float | None) -> bytes:
+    """Overwrite bytes (position fraction -> value) and maybe cut the tail."""
+    data = bytearray(seed)
+    for pos, value in edits:
+        data[pos % len(data)] = value
+    if cut is not None:
+        data = data[: int(len(data) * cut)]
+    return bytes(data)
+
+
+edits = st.lists(st.tuples(st.integers(0, 1 << 20), st.integers(0, 255)), max_size=12)
+cuts = st.none() | st.floats(0.0, 1.0)
+
+
+def _check_image(name: str, data: bytes) -> None:
+    path = WORK / name
+    path.write_bytes(data)
+    try:
+        img = load_image(path)
+    except InputError as exc:
+        assert str(exc).startswith(str(path)) and "\n" not in str(exc)
+        return
+    assert img.dtype == np.float32 and img.ndim == 2 and min(img.shape) >= 32
+    assert np.all(np.isfinite(img)) and img.min() >= 0.0 and img.max() <= 1.0
+
+
+@FUZZ
+@given(kind=st.sampled_from(sorted(IMAGE_SEEDS)), edits=edits, cut=cuts)
+def test_loader_survives_mutated_images(kind, edits, cut):
+    suffix = ".png" if kind == ".png16" else kind
+    _check_image(f"mutant{suffix}", _mutate(IMAGE_SEEDS[kind], edits, cut))
+
+
+@FUZZ
+@given(data=st.binary(max_size=4096), suffix=st.sampled_from(sorted(IMAGE_SUFFIXES)))
+def test_loader_survives_random_bytes(data, suffix):
+    _check_image(f"random{suffix}", data)
+
+
+def _recording_seed() -> bytes:
+    """A small recording with every message kind the reader takes."""
+    path = WORK / "seed.mcap"
+    rec = Recorder([McapSink(path)])
+    rng = np.random.default_rng(2)
+    for frame in range(2):
+        for it in (1, 2):
+            rec.emit(Event(frame, "fit/weights", "image", rng.random((8, 8)).astype(np.float32), it))
+            rec.emit(Event(frame, "fit/convergence", "scalars", {"sigma": 0.1 / it}, it))
+        rec.emit(Event(frame, "fit/normals", "normals", rng.random((8, 8, 3)).astype(np.float32)))
+        rec.frame_done(frame, {"source": f"f{frame}", "status": "ok"})
+    rec.close()
+    return path.read_bytes()
+
+
+RECORDING_SEED = _recording_seed()
+
+
+def _check_recording(data: bytes) -> None:
+    path = WORK / "mutant.mcap"
+    path.write_bytes(data)
+    try:
+        rec = read_mcap(path)
+    except RecordingError as exc:
+        assert str(exc).startswith(str(path)) and "\n" not in str(exc)
+        return
+    for fr in rec.frames.values():
+        for by_it in fr.arrays.values():
+            assert all(isinstance(a, np.ndarray) and a.dtype.kind in "fiub" for a in by_it.values())
+
+
+@FUZZ
+@given(edits=edits, cut=cuts)
+def test_recording_reader_survives_mutated_recordings(edits, cut):
+    _check_recording(_mutate(RECORDING_SEED, edits, cut))
+
+
+@FUZZ
+@given(position=st.integers(0, 1 << 20), value=st.sampled_from([2**31 - 1, 2**32 - 1, 2**62, 2**64 - 1]))
+def test_recording_reader_refuses_huge_declared_lengths(position, value):
+    """Any 8 bytes (a length, an offset, a size) replaced by a huge number."""
+    data = bytearray(RECORDING_SEED)
+    pos = 8 + position % (len(data) - 16)
+    data[pos:pos + 8] = value.to_bytes(8, "little")
+    _check_recording(bytes(data))
+
+
+def test_fuzzing_stays_within_a_memory_bound():
+    """Re-run a sample of the hostile cases with the peak resident size reset and measured."""
+    if not _reset_peak():
+        pytest.skip("/proc/self/clear_refs is not writable here: peak memory cannot be reset")
+    start = _peak_rss()
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        kind = sorted(IMAGE_SEEDS)[rng.integers(len(IMAGE_SEEDS))]
+        pos = [(int(p), int(v)) for p, v in zip(rng.integers(0, 1 << 20, 6), rng.integers(0, 256, 6))]
+        _check_image(f"mem{'.png' if kind == '.png16' else kind}", _mutate(IMAGE_SEEDS[kind], pos, None))
+        data = bytearray(RECORDING_SEED)
+        p = 8 + int(rng.integers(0, len(data) - 16))
+        data[p:p + 8] = (2**62).to_bytes(8, "little")
+        _check_recording(bytes(data))
+    assert _peak_rss() - start < MAX_GROWTH
