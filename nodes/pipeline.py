@@ -36,7 +36,7 @@ from nodes.integrate import frankot_chellappa, masked_least_squares
 from nodes.light import estimate_light
 from nodes.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
-from nodes.remap import expected_peak_shading, lambertian_remap
+from nodes.remap import expected_peak_shading, lambertian_remap, ratio_scale
 from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from nodes.shadow import confirm_with_image, shadow_maps
 from nodes.shape_model import ShapeModel
@@ -99,17 +99,27 @@ class LoadNode:
 
 
 class RemapNode:
-    """``model_peak``: the brightest point's shading is the mean face's peak, not 1 (paper)."""
+    """``model_peak``: the brightest point's shading is the mean face's peak, not 1 (paper).
+    When more than ``max_clipped`` of the face is at or above ``saturation`` (over-exposed),
+    the scale comes from ``ratio_scale`` instead."""
 
     name = "remap"
 
-    def __init__(self, model: ShapeModel, model_peak: bool = True):
+    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = 0.99,
+                 max_clipped: float = 0.005):
         self.model, self.model_peak = model, model_peak
+        self.saturation, self.max_clipped = saturation, max_clipped
 
     def __call__(self, frame: Frame) -> Frame:
-        peak = expected_peak_shading(self.model.mean_normals, frame.data["grid_light"]) if self.model_peak else 1.0
-        frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(
-            frame.data["grid_image"], self.model.mask, peak_shading=peak)
+        image, s, m = frame.data["grid_image"], frame.data["grid_light"], self.model.mask
+        clipped = float(np.mean(image[m] >= self.saturation))
+        if clipped > self.max_clipped:  # over-exposed: the brightest point no longer sets the scale
+            scale = ratio_scale(image[m], self.model.mean_normals @ s, self.saturation)
+            frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
+            frame.meta.update(remap_scale=scale, clipped_fraction=round(clipped, 4))
+            return frame
+        peak = expected_peak_shading(self.model.mean_normals, s) if self.model_peak else 1.0
+        frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(image, m, peak_shading=peak)
         return frame
 
 
@@ -141,7 +151,9 @@ class RobustFitNode:
                 self.observer(frame, it)
 
         intensity = frame.data["remapped"][self.model.mask]
-        result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook)
+        saturated = frame.data["grid_image"][self.model.mask] >= self.config.saturation
+        result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
+                     unreliable=saturated)
         frame.data["fit"] = result
         frame.meta.update(iterations=result.iterations, converged=result.converged, final_sigma=result.sigma)
         return frame
@@ -220,7 +232,7 @@ class RelightNode:
 def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_views: bool = True) -> list:
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo)."""
     nodes = [
-        RemapNode(model, options.fit.solver != "paper"),
+        RemapNode(model, options.fit.solver != "paper", options.fit.saturation),
         SfsInitNode(model, options.fit),
         RobustFitNode(model, options.fit, observer),
         CombineNode(model),

@@ -32,3 +32,19 @@ def expected_peak_shading(mean_normals: np.ndarray, light: np.ndarray) -> float:
     """The largest ``n . s`` of the model's mean face under ``light``: where the brightest
     point of a typical face sits on the shading scale. mean_normals (N, 3); light (3,)."""
     return float(np.max(np.asarray(mean_normals, np.float64) @ np.asarray(light, np.float64)))
+
+
+def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: float = 0.99,
+                min_shading: float = 0.2, min_intensity: float = 0.02) -> float:
+    """Brightness scale of a face whose brightest points are clipped (over-exposed).
+
+    The peak is lost there, so the scale is the median of ``I / (n_mean . s)`` over pixels
+    that are neither clipped nor dark and that the mean face lights well. intensity (N,)
+    brightness, mean_shading (N,) the mean face's ``n . s``. Returns the scale (> 0).
+    """
+    I = np.asarray(intensity, np.float64)
+    sh = np.asarray(mean_shading, np.float64)
+    ok = (I < saturation) & (I > min_intensity) & (sh > min_shading)
+    if ok.sum() < 20:
+        raise ValueError("too few unclipped lit pixels to set the brightness scale")
+    return float(np.median(I[ok] / sh[ok]))

@@ -51,12 +51,14 @@ class FitConfig:
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
     n_modes: int | None = None  # use the model's first K modes (None: all)
+    saturation: float = 0.99  # input brightness at or above this is clipped: no constraint (> 1: off)
 
     @staticmethod
     def paper(**overrides) -> "FitConfig":
-        """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone."""
+        """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone,
+        saturated pixels kept."""
         base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
-                         release_cast=False)
+                         release_cast=False, saturation=2.0)
         return replace(base, **overrides)
 
 
@@ -125,12 +127,15 @@ def fit(
     config: FitConfig = FitConfig(),
     initial: np.ndarray | None = None,
     on_iteration: Callable[[FitIteration], None] | None = None,
+    unreliable: np.ndarray | None = None,
 ) -> FitResult:
     """Fit ``model`` to remapped brightness under a known light.
 
     intensity: (N,) remapped brightness at the model pixels, [0, 1]. light: (3,) unit,
     camera frame. initial: (N, 3) starting normals (default: the mean face on its cones,
     see ``initial_normals``). on_iteration: called with every ``FitIteration``.
+    unreliable: (N,) bool, pixels whose brightness says nothing (e.g. saturated): weight 0,
+    their normals come from the model, like cast-shadowed dark pixels.
     """
     if config.n_modes is not None and config.n_modes < model.n_modes:
         model = model.truncated(config.n_modes)
@@ -148,7 +153,8 @@ def fit(
     else:
         n = np.asarray(initial, np.float64)
     w = np.ones(n_pix)
-    released = np.zeros(n_pix, bool)  # dark pixels in the current shape's cast shadow
+    known_bad = np.zeros(n_pix, bool) if unreliable is None else np.asarray(unreliable, bool)
+    released = known_bad.copy()  # plus dark pixels in the current shape's cast shadow
     history: list[dict[str, float]] = []
     converged = False
     it = 0
@@ -172,7 +178,7 @@ def fit(
         n_model = model.unproject(v_fit)
         n_new = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
         if config.release_cast and dark is not None and it % config.cast_every == 0:
-            released = dark & _cast_by_shape(model, n_model, s)
+            released = known_bad | (dark & _cast_by_shape(model, n_model, s))
         if released.any():
             n_new[released] = n_model[released]
             w = np.where(released, 0.0, w)

@@ -119,3 +119,32 @@ def test_combine_blends_by_weight_and_keeps_normals_visible():
     np.testing.assert_allclose(out[1], [np.sqrt(0.5), 0, np.sqrt(0.5)])
     assert out[2, 2] > 0 and out[2, 0] > 0.99  # faced away: moved to the silhouette, same azimuth
     np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1)
+
+
+def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
+    """An over-exposed photo (brightness x1.8, clipped): the scale from unclipped pixels and
+    no constraint from clipped ones (3.4 deg) must beat taking them at face value (29.9 deg)."""
+    import dataclasses
+
+    from flow.chain import Chain
+    from flow.frame import Frame
+    from nodes.evaluate import IDENTITY, render_scene, score
+    from nodes.pipeline import MethodOptions, method_nodes
+
+    depths, _ = procedural(4, seed=21)
+    s = light_from_angles(30, 0)
+    errors = {}
+    for name, saturation in (("excluded", 0.99), ("trusted", 2.0)):
+        opts = MethodOptions(fit=dataclasses.replace(FitConfig(), saturation=saturation))
+        chain = Chain(method_nodes(procedural_model, opts, with_views=False))
+        errs = []
+        for i, d in enumerate(depths):
+            scene = render_scene(d, 1.0, s, procedural_model.mask)
+            image = np.clip(scene.image * 1.8, 0, 1).astype(np.float32)
+            assert np.mean(image[procedural_model.mask] >= 0.99) > 0.2
+            frame = chain.process(Frame(i, "overexposed", data={
+                "image": image, "grid_image": image, "light": s, "grid_light": s, "alignment": IDENTITY}))
+            errs.append(score(scene, frame)["err_all"])
+        errors[name] = float(np.mean(errs))
+    assert errors["excluded"] < 0.5 * errors["trusted"], errors
+    assert errors["excluded"] < 5.0, errors
