@@ -50,6 +50,22 @@ def run_node(node, frame: Frame, timeout: float | None = None) -> Frame:
     return frame
 
 
+_abandoned: list[threading.Thread] = []  # node calls left running past their time limit
+
+
+def wait_for_abandoned(timeout: float) -> int:
+    """Give node calls abandoned by a time limit up to ``timeout`` seconds (in all) to end;
+    returns how many still run. A process should not exit while one runs inside native code
+    (the interpreter's shutdown can abort it): call this first, and leave with ``os._exit``
+    if any remain."""
+    deadline = time.monotonic() + timeout
+    for t in list(_abandoned):
+        t.join(max(0.0, deadline - time.monotonic()))
+        if not t.is_alive():
+            _abandoned.remove(t)
+    return len(_abandoned)
+
+
 def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
     work = dataclasses.replace(frame, data=dict(frame.data), meta=dict(frame.meta))
     box: dict = {}
@@ -66,6 +82,7 @@ def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
     thread.join(timeout)
     if thread.is_alive():
         work.cancelled = True
+        _abandoned.append(thread)
         raise TimeoutError(f"{frame.source}: timed out after {timeout:g} s in {name}")
     if "error" in box:
         raise box["error"]

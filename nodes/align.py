@@ -55,7 +55,7 @@ def centred_alignment(input_shape: tuple[int, int], grid: tuple[int, int]) -> Al
     return Alignment(np.array([[s, 0.0, tx], [0.0, s, ty]]), "centred crop")
 
 
-def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray) -> Alignment:
+def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray, how: str = "eyes") -> Alignment:
     """The similarity putting the model's canonical eyes (2, 2) on the input's eyes (2, 2).
 
     Eyes are ``[[x, y], [x, y]]`` pixel coordinates (x = column), image-left eye first.
@@ -70,7 +70,15 @@ def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray) -> Alignment:
     ang = np.arctan2(vd[1], vd[0]) - np.arctan2(vs[1], vs[0])
     lin = s * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
     t = dst[0] - lin @ src[0]
-    return Alignment(np.column_stack([lin, t]), "eyes")
+    return Alignment(np.column_stack([lin, t]), how)
+
+
+def inside_input(al: Alignment, input_shape: tuple[int, int], grid: tuple[int, int]) -> np.ndarray:
+    """(Hm, Wm) bool: model pixels whose place in the input lies inside the photo."""
+    ones = np.ones(input_shape[:2], np.float32)
+    inside = cv2.warpAffine(ones, al.matrix, (grid[1], grid[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return inside >= 0.999
 
 
 def to_model_grid(image: np.ndarray, al: Alignment, grid: tuple[int, int]) -> np.ndarray:

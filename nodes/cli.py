@@ -5,6 +5,7 @@ import argparse
 import dataclasses
 import glob
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -73,6 +74,7 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from flow.recording import RecordOptions
+    from flow.pipeline import wait_for_abandoned
     from nodes.runner import RunOptions, check_writable, run_stream, watch_folder
 
     out = Path(args.out)
@@ -94,11 +96,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.light not in ("auto", "yaleb"):
         light = parse_light(args.light)
     eyes = None
-    if args.eyes:
-        eyes = np.array([float(t) for t in args.eyes.split(",")]).reshape(2, 2)
+    if args.eyes not in ("auto", "centre"):
+        try:
+            eyes = np.array([float(t) for t in args.eyes.split(",")], np.float64).reshape(2, 2)
+        except ValueError:
+            raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations), integrator=args.integrator,
-                            light=light, eyes=eyes, shadows=args.shadows)
+                            remap=args.remap, light=light, eyes=eyes, detect_eyes=args.eyes == "auto",
+                            shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
@@ -116,9 +122,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     failures = sum(r["status"] != "ok" for r in records)
     note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
          f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
-    if result.stopped:
-        return 130
-    return 0 if failures == 0 and result.storage_error is None else 1
+    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None else 1
+    if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
+        print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -135,7 +145,40 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_eval_yaleb(args: argparse.Namespace) -> int:
+    from nodes.evaluate_yaleb import evaluate_yaleb, summarise
+
+    if not args.data:
+        raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
+    model = _load_model(args.model)
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes), light="yaleb", integrator=args.integrator,
+                            remap=args.remap, shadows=args.shadows)
+    t0 = time.perf_counter()
+    print(f"model: {args.model or 'built-in procedural'}, K={args.modes or model.n_modes}; light: Yale B names; "
+          "ground truth: photometric stereo of each subject's exposures")
+    report = evaluate_yaleb(args.data, model, options)
+    cols = [("err", "normals"), ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"),
+            ("psnr", "relit dB"), ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
+            ("light_err_deg", "auto light"), ("iterations", "iterations")]
+    print("per subject and light (errors in degrees):")
+    print(f"{'subject':8} {'A,E':>7} " + " ".join(f"{t:>12}" for _, t in cols))
+    for r in report["rows"]:
+        print(f"{r['subject']:8} {r['light']:>7} " + " ".join(f"{r[k]:12.2f}" for k, _ in cols))
+    print("means over the subjects:")
+    summary = summarise(report["rows"])
+    for s in summary:
+        print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
+    report.update(summary=summary, model=args.model or "built-in procedural", seconds=time.perf_counter() - t0)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        print(f"written: {args.json}")
+    return 0
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.benchmark == "yaleb":
+        return cmd_eval_yaleb(args)
     from nodes.evaluate import evaluate, model_floor
     from nodes.shape_model import load_model, train_shape_model
     from nodes.synth.sources import load_source
@@ -148,7 +191,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     else:
         train_src = args.train_source or args.source
         tr, _ = load_source(train_src, args.n_train, args.train_seed, size)
-        model = train_shape_model(tr, args.modes, source=train_src)
+        model = train_shape_model(tr, args.modes or 60, source=train_src)
         trained_on = f"{args.n_train} faces of {train_src} (seed {args.train_seed})"
     test, albedo = load_source(args.source, args.n_test, args.test_seed, model.grid)
     if args.albedo == "constant":
@@ -165,7 +208,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "iterations", "seconds_per_face"]
     print(f"{'fit':6} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
     for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator, shadows=args.shadows)
+        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator, remap=args.remap,
+                             shadows=args.shadows)
         res = evaluate(model, test, albedo, angles, opts)
         report["results"][name] = res["per_angle"]
         for angle, row in res["per_angle"].items():
@@ -225,11 +269,16 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--fit", choices=["irls", "paper"], default="irls")
     r.add_argument("--modes", type=int, help="use only the model's first K modes")
     r.add_argument("--max-iterations", type=int, help="cap on fit iterations (default 100)")
+    r.add_argument("--remap", choices=["ratio", "peak"], default="ratio",
+                   help="brightness scale: median ratio to the mean face (default) or the brightest point "
+                        "(the paper's; also what --fit paper uses)")
     r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
     r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
                    help="cast shadows traced and checked against the image (default) or traced only (paper)")
-    r.add_argument("--eyes", help="X1,Y1,X2,Y2 input eye centres (image-left eye first)")
+    r.add_argument("--eyes", default="auto",
+                   help="auto (detect; default) | centre (a frontal crop framed like the model) | "
+                        "X1,Y1,X2,Y2 input eye centres, image-left eye first; a sidecar's eyes win")
     r.add_argument("--record", default="rerun,mcap", help="rerun,mcap | rerun | mcap | none (files run.rrd, run.mcap in --out)")
     r.add_argument("--record-every", type=int, default=1, metavar="N",
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")
@@ -252,7 +301,10 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", required=True)
     t.set_defaults(func=cmd_train)
 
-    e = sub.add_parser("eval", help="accuracy on rendered held-out faces")
+    e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb"], default="synthetic",
+                   help="synthetic (default): rendered faces of --source; yaleb: real photos in --data")
+    e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders")
     e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
     e.add_argument("--model", help="model .npz (default: train one, see --train-source)")
     e.add_argument("--train-source", help="training faces (default: --source)")
@@ -260,11 +312,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--n-test", type=int, default=20)
     e.add_argument("--train-seed", type=int, default=0)
     e.add_argument("--test-seed", type=int, default=1)
-    e.add_argument("--modes", type=int, default=60)
+    e.add_argument("--modes", type=int, help="modes to train (synthetic, default 60) or to use (yaleb)")
     e.add_argument("--size", default="128,128")
     e.add_argument("--angles", default="45,60,75", help="light angles from the view axis, degrees")
     e.add_argument("--albedo", choices=["constant", "varied"], default="constant")
     e.add_argument("--fit", choices=["irls", "paper", "both"], default="irls")
+    e.add_argument("--remap", choices=["ratio", "peak"], default="ratio")
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")

@@ -31,7 +31,8 @@ import numpy as np
 
 from flow.frame import Frame, FrameFailed
 from nodes.albedo import estimate_albedo
-from nodes.align import Alignment, centred_alignment, eyes_alignment, to_model_grid
+from nodes.eyes import detect_eyes
+from nodes.align import Alignment, centred_alignment, eyes_alignment, inside_input, to_model_grid
 from nodes.integrate import frankot_chellappa, masked_least_squares
 from nodes.light import estimate_light
 from nodes.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
@@ -49,14 +50,17 @@ class MethodOptions:
     """Everything that changes what the method computes.
 
     light: "auto" | "yaleb" | a (3,) vector (input camera frame); a sidecar light wins.
-    eyes: (2, 2) input eye centres for every input, or None (sidecar, else centred crop).
+    eyes: (2, 2) input eye centres for every input, or None: a sidecar's, else detected
+    (``detect_eyes``, see ``nodes.eyes``), else a centred frontal crop.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
     integrator: str = "lsq"
+    remap: str = "ratio"  # brightness scale: "ratio" (median ratio to the mean face) or "peak" (the paper)
     shadows: str = "confirmed"  # "geometric": traced only (the paper); "confirmed": checked against the image
     light: str | np.ndarray = "auto"
     eyes: np.ndarray | None = None
+    detect_eyes: bool = True
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
     novel_yaw_deg: float = 45.0
 
@@ -76,17 +80,31 @@ class LoadNode:
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if "light" not in frame.data else None
-        eyes = side.eyes if side is not None and side.eyes is not None else self.options.eyes
-        al = eyes_alignment(eyes, self.model.eyes) if eyes is not None else centred_alignment(image.shape, self.model.grid)
+        al = self._alignment(image, side)
         grid_image = to_model_grid(image, al, self.model.grid)
+        frame.data["grid_valid"] = inside_input(al, image.shape, self.model.grid)
         if "light" not in frame.data:
-            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, grid_image, al)
+            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, grid_image, al, frame.data["grid_valid"])
         frame.data.update(alignment=al, grid_image=grid_image,
                           grid_light=al.vector_to_model(frame.data["light"]))
         frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
         return frame
 
-    def _light(self, source: str, side, grid_image: np.ndarray, al: Alignment) -> tuple[np.ndarray, str]:
+    def _alignment(self, image: np.ndarray, side) -> Alignment:
+        if side is not None and side.eyes is not None:
+            return eyes_alignment(side.eyes, self.model.eyes, "sidecar eyes")
+        if self.options.eyes is not None:
+            return eyes_alignment(self.options.eyes, self.model.eyes, "given eyes")
+        why = "eye detection off"
+        if self.options.detect_eyes:
+            eyes, why = detect_eyes(image)
+            if eyes is not None:
+                return eyes_alignment(eyes, self.model.eyes, why)
+        al = centred_alignment(image.shape, self.model.grid)
+        return Alignment(al.matrix, f"{al.how} ({why})")
+
+    def _light(self, source: str, side, grid_image: np.ndarray, al: Alignment,
+               valid: np.ndarray) -> tuple[np.ndarray, str]:
         opt = self.options.light
         if side is not None and side.light is not None:
             return side.light, "sidecar"
@@ -94,27 +112,33 @@ class LoadNode:
             return opt, "given"
         if opt == "yaleb":
             return yaleb_light(source), "yaleb name"
-        grid_light = estimate_light(grid_image[self.model.mask], self.model.mean_normals)
+        seen = valid[self.model.mask]
+        grid_light = estimate_light(grid_image[self.model.mask][seen], self.model.mean_normals[seen])
         return al.vector_to_input(grid_light), "estimated"
 
 
 class RemapNode:
-    """``model_peak``: the brightest point's shading is the mean face's peak, not 1 (paper).
-    When more than ``max_clipped`` of the face is at or above ``saturation`` (over-exposed),
-    the scale comes from ``ratio_scale`` instead."""
+    """Brightness scale. ``scale="peak"``: the brightest point (3x3 median) has the mean face's
+    peak shading (``model_peak``; the paper's 1 otherwise). ``"ratio"``: the median ratio of
+    brightness to the mean face's shading (``ratio_scale``), which specular shine and a few
+    pale pixels cannot move. Either way, when more than ``max_clipped`` of the face is at or
+    above ``saturation`` (over-exposed) the ratio is used."""
 
     name = "remap"
 
     def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = 0.99,
-                 max_clipped: float = 0.005):
-        self.model, self.model_peak = model, model_peak
+                 max_clipped: float = 0.005, scale: str = "peak"):
+        if scale not in ("peak", "ratio"):
+            raise ValueError(f"unknown remap scale {scale!r}: peak or ratio")
+        self.model, self.model_peak, self.scale = model, model_peak, scale
         self.saturation, self.max_clipped = saturation, max_clipped
 
     def __call__(self, frame: Frame) -> Frame:
-        image, s, m = frame.data["grid_image"], frame.data["grid_light"], self.model.mask
+        image, s = frame.data["grid_image"], frame.data["grid_light"]
+        m = self.model.mask & frame.data.get("grid_valid", True)  # face pixels the photo shows
         clipped = float(np.mean(image[m] >= self.saturation))
-        if clipped > self.max_clipped:  # over-exposed: the brightest point no longer sets the scale
-            scale = ratio_scale(image[m], self.model.mean_normals @ s, self.saturation)
+        if self.scale == "ratio" or clipped > self.max_clipped:  # over-exposed: no peak to go by
+            scale = ratio_scale(image[m], self.model.to_image(self.model.mean_normals)[m] @ s, self.saturation)
             frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
             frame.meta.update(remap_scale=scale, clipped_fraction=round(clipped, 4))
             return frame
@@ -152,8 +176,9 @@ class RobustFitNode:
 
         intensity = frame.data["remapped"][self.model.mask]
         saturated = frame.data["grid_image"][self.model.mask] >= self.config.saturation
+        unseen = ~np.asarray(frame.data.get("grid_valid", True) & self.model.mask)[self.model.mask]
         result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
-                     unreliable=saturated)
+                     unreliable=saturated | unseen)
         frame.data["fit"] = result
         frame.meta.update(iterations=result.iterations, converged=result.converged, final_sigma=result.sigma)
         return frame
@@ -232,7 +257,8 @@ class RelightNode:
 def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_views: bool = True) -> list:
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo)."""
     nodes = [
-        RemapNode(model, options.fit.solver != "paper", options.fit.saturation),
+        RemapNode(model, options.fit.solver != "paper", options.fit.saturation,
+                  scale="peak" if options.fit.solver == "paper" else options.remap),  # the paper's remap
         SfsInitNode(model, options.fit),
         RobustFitNode(model, options.fit, observer),
         CombineNode(model),

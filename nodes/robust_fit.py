@@ -41,13 +41,19 @@ class FitConfig:
 
     solver: Literal["irls", "paper"] = "irls"
     scale: Literal["rayleigh", "mad"] = "rayleigh"
-    huber_k: float = 2.0  # Huber threshold in units of sigma
+    huber_k: float = 1.5  # Huber threshold in units of sigma
     init: Literal["mean", "gradient"] = "mean"
     attached_shadow: bool = True  # I <= dark_threshold: n.s <= 0 instead of the 90-degree cone
     dark_threshold: float = 0.02
     release_cast: bool = True  # dark pixels the current shape casts a shadow on: no constraint
     cast_every: int = 5  # re-trace cast shadows every this many iterations
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
+    # weight of the same prior in units of the current residual variance sigma^2 (MAP with
+    # correlated residuals): strong when the image fits badly (real skin), nil on clean input
+    adaptive_prior: float = 300.0
+    # a pixel lit nearly head-on has an ill-conditioned cone angle (d arccos(I) / dI -> inf): its
+    # weight is scaled by (sin(angle) / sin(cone_confidence_deg))^2, at most 1 (0: off)
+    cone_confidence_deg: float = 0.0
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
     n_modes: int | None = None  # use the model's first K modes (None: all)
@@ -56,9 +62,9 @@ class FitConfig:
     @staticmethod
     def paper(**overrides) -> "FitConfig":
         """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone,
-        saturated pixels kept."""
+        saturated pixels kept, no prior."""
         base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
-                         release_cast=False, saturation=2.0)
+                         release_cast=False, saturation=2.0, adaptive_prior=0.0)
         return replace(base, **overrides)
 
 
@@ -148,11 +154,18 @@ def fit(
     P = model.modes.astype(np.float64)  # (2N, K)
     vbar = model.mean_proj.astype(np.float64)
     prior = config.prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
+    adaptive = config.adaptive_prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
+    sigma_prev = 0.0  # no residuals before the first pass
     if initial is None:
         n = mean_init(model.mean_normals, I, s, dark)
     else:
         n = np.asarray(initial, np.float64)
-    w = np.ones(n_pix)
+    if config.cone_confidence_deg > 0:
+        sin_ref = np.sin(np.radians(config.cone_confidence_deg))
+        confidence = np.clip((1.0 - I**2) / sin_ref**2, 0.02, 1.0)  # sin^2 of the cone angle arccos(I)
+    else:
+        confidence = np.ones(n_pix)
+    w = confidence.copy()
     known_bad = np.zeros(n_pix, bool) if unreliable is None else np.asarray(unreliable, bool)
     released = known_bad.copy()  # plus dark pixels in the current shape's cast shadow
     history: list[dict[str, float]] = []
@@ -164,7 +177,7 @@ def fit(
         w2 = np.repeat(np.where(released, 0.0, w), 2)
         if config.solver == "irls":
             gram = P.T @ (P * w2[:, None])
-            gram[np.diag_indices_from(gram)] += prior
+            gram[np.diag_indices_from(gram)] += prior + adaptive * sigma_prev**2
             b = np.linalg.solve(gram, P.T @ (w2 * r0))
         elif config.solver == "paper":
             c = n_pix / max(float(w.sum()), 1e-12)
@@ -174,7 +187,8 @@ def fit(
         v_fit = vbar + (P @ b).reshape(-1, 2)
         eta = np.linalg.norm(v - v_fit, axis=1)
         sigma = residual_scale(eta, config.scale)
-        w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
+        sigma_prev = sigma
+        w = huber_weights(eta, config.huber_k * max(sigma, 1e-9)) * confidence
         n_model = model.unproject(v_fit)
         n_new = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
         if config.release_cast and dark is not None and it % config.cast_every == 0:

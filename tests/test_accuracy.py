@@ -46,10 +46,12 @@ def test_sfm_source(sfm_faces):
 @pytest.mark.slow
 def test_default_procedural_model_on_sfm_faces(sfm_faces):
     """Cross-source: the shipped model (procedural faces only) on real-scan faces. The issue
-    asks to report it and aim for 6 degrees at 45; we measure 11.3 on 20 faces (README), the
-    generator's shape space being narrower than real faces (floor 9.8). This guards that level."""
+    asks to report it and aim for 6 degrees at 45; the generator's shape space is narrower than
+    real faces (floor 9.8). The misfit-scaled prior (for real photos, README) pulls such fits
+    toward the procedural mean: 10.8 -> 13.8 deg on these 8 faces, while on Yale B photos it
+    takes the same model from 28.5 to 22.7 deg. This guards the level with the prior on."""
     from nodes.default_model import default_model
 
     _, test = sfm_faces
     report = evaluate(default_model(), test, None, [45])
-    assert report["per_angle"]["45"]["err_all"] <= 13.0
+    assert report["per_angle"]["45"]["err_all"] <= 14.5
