@@ -37,7 +37,7 @@ from nodes.integrate import frankot_chellappa, masked_least_squares
 from nodes.light import estimate_light
 from nodes.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
-from nodes.remap import expected_peak_shading, lambertian_remap, ratio_scale
+from nodes.remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from nodes.robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from nodes.shadow import confirm_with_image, shadow_maps
 from nodes.shape_model import ShapeModel
@@ -126,8 +126,8 @@ class RemapNode:
 
     name = "remap"
 
-    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = 0.99,
-                 max_clipped: float = 0.005, scale: str = "peak"):
+    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = 0.998,
+                 max_clipped: float = 0.02, scale: str = "peak"):
         if scale not in ("peak", "ratio"):
             raise ValueError(f"unknown remap scale {scale!r}: peak or ratio")
         self.model, self.model_peak, self.scale = model, model_peak, scale
@@ -136,8 +136,8 @@ class RemapNode:
     def __call__(self, frame: Frame) -> Frame:
         image, s = frame.data["grid_image"], frame.data["grid_light"]
         m = self.model.mask & frame.data.get("grid_valid", True)  # face pixels the photo shows
-        clipped = float(np.mean(image[m] >= self.saturation))
-        if self.scale == "ratio" or clipped > self.max_clipped:  # over-exposed: no peak to go by
+        clipped = float(np.mean(clipped_pixels(image[m], self.saturation, self.max_clipped)))
+        if self.scale == "ratio" or clipped > 0:  # over-exposed: no peak to go by
             scale = ratio_scale(image[m], self.model.to_image(self.model.mean_normals)[m] @ s, self.saturation)
             frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
             frame.meta.update(remap_scale=scale, clipped_fraction=round(clipped, 4))
@@ -175,7 +175,7 @@ class RobustFitNode:
                 self.observer(frame, it)
 
         intensity = frame.data["remapped"][self.model.mask]
-        saturated = frame.data["grid_image"][self.model.mask] >= self.config.saturation
+        saturated = clipped_pixels(frame.data["grid_image"][self.model.mask], self.config.saturation)
         unseen = ~np.asarray(frame.data.get("grid_valid", True) & self.model.mask)[self.model.mask]
         result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
                      unreliable=saturated | unseen)

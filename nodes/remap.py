@@ -34,7 +34,7 @@ def expected_peak_shading(mean_normals: np.ndarray, light: np.ndarray) -> float:
     return float(np.max(np.asarray(mean_normals, np.float64) @ np.asarray(light, np.float64)))
 
 
-def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: float = 0.99,
+def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: float = 0.998,
                 min_shading: float = 0.2, min_intensity: float = 0.02) -> float:
     """Brightness scale of a face whose brightest points are clipped (over-exposed).
 
@@ -48,3 +48,11 @@ def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: flo
     if ok.sum() < 20:
         raise ValueError("too few unclipped lit pixels to set the brightness scale")
     return float(np.median(I[ok] / sh[ok]))
+
+
+def clipped_pixels(intensity: np.ndarray, saturation: float = 0.998, min_fraction: float = 0.02) -> np.ndarray:
+    """(N,) bool: pixels clipped by over-exposure. A few pixels at the top of the range are
+    normal in a well-exposed photo (the brightest point of the face); only when more than
+    ``min_fraction`` of them reach ``saturation`` is the photo over-exposed and they are clipped."""
+    top = np.asarray(intensity) >= saturation
+    return top if top.mean() > min_fraction else np.zeros_like(top)

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field, replace
 from typing import Callable, Literal
 
 import numpy as np
+from scipy import linalg
+from scipy.linalg import blas
 
 from nodes.geometry import angle_deg
 from nodes.integrate import masked_least_squares
@@ -50,14 +52,11 @@ class FitConfig:
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
-    adaptive_prior: float = 300.0
-    # a pixel lit nearly head-on has an ill-conditioned cone angle (d arccos(I) / dI -> inf): its
-    # weight is scaled by (sin(angle) / sin(cone_confidence_deg))^2, at most 1 (0: off)
-    cone_confidence_deg: float = 0.0
+    adaptive_prior: float = 100.0
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
     n_modes: int | None = None  # use the model's first K modes (None: all)
-    saturation: float = 0.99  # input brightness at or above this is clipped: no constraint (> 1: off)
+    saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
 
     @staticmethod
     def paper(**overrides) -> "FitConfig":
@@ -151,7 +150,9 @@ def fit(
     n_pix = model.n_pixels
     dark = (I <= config.dark_threshold) if config.attached_shadow else None
 
-    P = model.modes.astype(np.float64)  # (2N, K)
+    P = model.modes_as(np.float64)  # (2N, K)
+    P32 = model.modes_as(np.float32)  # the Gram matrix in single precision: half the time, same fit
+    scaled = np.empty_like(P32)  # reused: sqrt(w) P
     vbar = model.mean_proj.astype(np.float64)
     prior = config.prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
     adaptive = config.adaptive_prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
@@ -160,12 +161,7 @@ def fit(
         n = mean_init(model.mean_normals, I, s, dark)
     else:
         n = np.asarray(initial, np.float64)
-    if config.cone_confidence_deg > 0:
-        sin_ref = np.sin(np.radians(config.cone_confidence_deg))
-        confidence = np.clip((1.0 - I**2) / sin_ref**2, 0.02, 1.0)  # sin^2 of the cone angle arccos(I)
-    else:
-        confidence = np.ones(n_pix)
-    w = confidence.copy()
+    w = np.ones(n_pix)
     known_bad = np.zeros(n_pix, bool) if unreliable is None else np.asarray(unreliable, bool)
     released = known_bad.copy()  # plus dark pixels in the current shape's cast shadow
     history: list[dict[str, float]] = []
@@ -176,9 +172,7 @@ def fit(
         r0 = (v - vbar).reshape(-1)
         w2 = np.repeat(np.where(released, 0.0, w), 2)
         if config.solver == "irls":
-            gram = P.T @ (P * w2[:, None])
-            gram[np.diag_indices_from(gram)] += prior + adaptive * sigma_prev**2
-            b = np.linalg.solve(gram, P.T @ (w2 * r0))
+            b = _weighted_solve(P32, scaled, w2, r0, prior + adaptive * sigma_prev**2)
         elif config.solver == "paper":
             c = n_pix / max(float(w.sum()), 1e-12)
             b = c * (P.T @ (w2 * r0))
@@ -188,7 +182,7 @@ def fit(
         eta = np.linalg.norm(v - v_fit, axis=1)
         sigma = residual_scale(eta, config.scale)
         sigma_prev = sigma
-        w = huber_weights(eta, config.huber_k * max(sigma, 1e-9)) * confidence
+        w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
         n_model = model.unproject(v_fit)
         n_new = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
         if config.release_cast and dark is not None and it % config.cast_every == 0:
@@ -206,6 +200,24 @@ def fit(
             converged = True
             break
     return FitResult(n, n_model, w, eta, b, sigma, it, converged, history)
+
+
+def _weighted_solve(modes32: np.ndarray, scaled: np.ndarray, w2: np.ndarray, r0: np.ndarray,
+                    ridge: np.ndarray) -> np.ndarray:
+    """``b = (Pᵀ W P + diag(ridge))⁻¹ Pᵀ W r0``: the Gram matrix by a symmetric rank-k update
+    (BLAS syrk) of ``sqrt(w) P`` in float32 into ``scaled`` (2N, K), solved in float64 by
+    Cholesky. modes32 (2N, K) float32; w2, r0 (2N,); ridge (K,)."""
+    sw = np.sqrt(w2).astype(np.float32)
+    np.multiply(modes32, sw[:, None], out=scaled)
+    gram = blas.ssyrk(1.0, scaled.T, trans=0).astype(np.float64)  # upper triangle of Pᵀ W P
+    gram[np.diag_indices_from(gram)] += ridge
+    rhs = (scaled.T @ (sw * r0).astype(np.float32)).astype(np.float64)
+    try:
+        return linalg.cho_solve(linalg.cho_factor(gram, lower=False, overwrite_a=True, check_finite=False), rhs,
+                                check_finite=False)
+    except linalg.LinAlgError:  # every weight 0 on some mode: fall back to least squares
+        full = np.triu(gram) + np.triu(gram, 1).T
+        return np.linalg.lstsq(full, rhs, rcond=None)[0]
 
 
 def _cast_by_shape(model: ShapeModel, normals: np.ndarray, light: np.ndarray) -> np.ndarray:

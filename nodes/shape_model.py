@@ -43,11 +43,19 @@ class ShapeModel:
     source: str
     e1: np.ndarray = field(init=False, repr=False)
     e2: np.ndarray = field(init=False, repr=False)
+    _derived: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.grid = (int(self.grid[0]), int(self.grid[1]))
         self.mask = np.asarray(self.mask, bool)
         self.e1, self.e2 = tangent_basis(self.mean_normals.astype(np.float64))
+
+    def modes_as(self, dtype) -> np.ndarray:
+        """The (2N, K) modes as C-contiguous ``dtype``, converted once per model."""
+        key = ("modes", np.dtype(dtype).str)
+        if key not in self._derived:
+            self._derived[key] = np.ascontiguousarray(self.modes, dtype=dtype)
+        return self._derived[key]
 
     @property
     def n_pixels(self) -> int:
@@ -60,8 +68,11 @@ class ShapeModel:
     def truncated(self, k: int) -> "ShapeModel":
         """The same model with only its first ``k`` modes."""
         k = max(1, min(int(k), self.n_modes))
-        return ShapeModel(self.grid, self.eyes, self.mask, self.mean_normals, self.mean_proj,
-                          self.modes[:, :k], self.eigenvalues[:k], self.source)
+        key = ("truncated", k)
+        if key not in self._derived:  # kept: a stream asks for the same one every frame
+            self._derived[key] = ShapeModel(self.grid, self.eyes, self.mask, self.mean_normals, self.mean_proj,
+                                            self.modes[:, :k], self.eigenvalues[:k], self.source)
+        return self._derived[key]
 
     def project(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) unit normals on the mask pixels -> (N, 2) AEP coordinates."""

@@ -123,7 +123,7 @@ def test_combine_blends_by_weight_and_keeps_normals_visible():
 
 def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
     """An over-exposed photo (brightness x1.8, clipped): the scale from unclipped pixels and
-    no constraint from clipped ones (3.4 deg) must beat taking them at face value (29.9 deg)."""
+    no constraint from clipped ones (2.1 deg) must beat taking them at face value (16.4 deg)."""
     import dataclasses
 
     from flow.chain import Chain
