@@ -62,13 +62,20 @@ edits = st.lists(st.tuples(st.integers(0, 1 << 20), st.integers(0, 255)), max_si
 cuts = st.none() | st.floats(0.0, 1.0)
 
 
-def _check_image(name: str, data: bytes) -> None:
+def _read_or_refuse(name: str, data: bytes, read, error):
+    """``read`` the bytes from a file; its own ``error`` (one line naming the file) -> None."""
     path = WORK / name
     path.write_bytes(data)
     try:
-        img = load_image(path)
-    except InputError as exc:
+        return read(path)
+    except error as exc:
         assert str(exc).startswith(str(path)) and "\n" not in str(exc)
+        return None
+
+
+def _check_image(name: str, data: bytes) -> None:
+    img = _read_or_refuse(name, data, load_image, InputError)
+    if img is None:
         return
     assert img.dtype == np.float32 and img.ndim == 2 and min(img.shape) >= 32
     assert np.all(np.isfinite(img)) and img.min() >= 0.0 and img.max() <= 1.0
@@ -106,12 +113,8 @@ RECORDING_SEED = _recording_seed()
 
 
 def _check_recording(data: bytes) -> None:
-    path = WORK / "mutant.mcap"
-    path.write_bytes(data)
-    try:
-        rec = read_mcap(path)
-    except RecordingError as exc:
-        assert str(exc).startswith(str(path)) and "\n" not in str(exc)
+    rec = _read_or_refuse("mutant.mcap", data, read_mcap, RecordingError)
+    if rec is None:
         return
     for fr in rec.frames.values():
         for by_it in fr.arrays.values():

@@ -251,12 +251,17 @@ def test_a_hanging_or_raising_node_fails_only_its_frame():
     assert all(f.data.get("seen") for f in frames if f.ok)
 
 
+def _faces(folder: Path, count: int, seed: int) -> Path:
+    """``count`` rendered faces with sidecars in a new ``folder``."""
+    folder.mkdir()
+    rng = np.random.default_rng(seed)
+    for i in range(count):
+        write_shadowed_face(folder / f"f{i}.png", rng, light_from_angles(45, 0))
+    return folder
+
+
 def test_frame_timeout_abandons_a_slow_fit_and_the_run_goes_on(tmp_path):
-    src = tmp_path / "in"
-    src.mkdir()
-    rng = np.random.default_rng(9)
-    for i in range(2):
-        write_shadowed_face(src / f"f{i}.png", rng, light_from_angles(50, 0))
+    src = _faces(tmp_path / "in", 2, seed=9)
     out = tmp_path / "out"
     proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--frame-timeout", "0.01", "--record", "mcap"],
                           capture_output=True, text=True, cwd=REPO, timeout=300)
@@ -279,11 +284,7 @@ def _limit_file_size(limit: int):
 
 @pytest.mark.parametrize("record", ["none", "mcap"])
 def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_path, record):
-    src = tmp_path / "in"
-    src.mkdir()
-    rng = np.random.default_rng(3)
-    for i in range(3):
-        write_shadowed_face(src / f"f{i}.png", rng, light_from_angles(45, 0))
+    src = _faces(tmp_path / "in", 3, seed=3)
     out = tmp_path / "out"
     cmd = CLI + ["run", str(src), "--out", str(out), "--record", record, "--max-iterations", "10", "--quiet"]
     limit = 60_000 if record == "none" else 400_000  # normals.npy (196 KB) / a frame of MCAP won't fit
