@@ -143,6 +143,12 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
         pipeline.stop()
 
+    def save_summary() -> None:
+        try:
+            write_summary(out, records)
+        except OSError as exc:
+            out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
+
     def frames() -> Iterator[Frame]:
         taken: set[str] = set()
         for i, path in enumerate(paths):
@@ -161,7 +167,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             return
         if frame.skipped:
             records.append(frame.meta["previous"])
-            write_summary(out, records)
+            save_summary()
             progress.update(True)
             return
         if _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
@@ -174,10 +180,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             recorder.frame_done(frame.id, rec, wait=True)  # recorded before summary.json says done
             if recorder.error is not None:
                 out_of_storage(f"{out}: recording failed ({recorder.error})")
-        try:
-            write_summary(out, records)
-        except OSError as exc:
-            out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
+        save_summary()
         progress.update(frame.ok)
         if not frame.ok:
             print(f"error: {frame.status}", file=sys.stderr)
