@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flow.files import atomic_write_bytes
 from nodes.loader import IMAGE_SUFFIXES, parse_light
 from nodes.pipeline import MethodOptions
 from nodes.robust_fit import FitConfig
@@ -145,6 +146,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_report(path: str | None, report: dict) -> None:
+    """The JSON report of ``eval``, written atomically, if ``--json`` asked for one."""
+    if path:
+        atomic_write_bytes(path, (json.dumps(report, indent=2) + "\n").encode())
+        print(f"written: {path}")
+
+
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     from nodes.evaluate_yaleb import evaluate_yaleb, summarise
 
@@ -169,10 +177,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     for s in summary:
         print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
     report.update(summary=summary, model=args.model or "built-in procedural", seconds=time.perf_counter() - t0)
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
-        print(f"written: {args.json}")
+    _write_report(args.json, report)
     return 0
 
 
@@ -215,10 +220,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         for angle, row in res["per_angle"].items():
             print(f"{name:6} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
     report["seconds"] = time.perf_counter() - t0
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
-        print(f"written: {args.json}")
+    _write_report(args.json, report)
     return 0
 
 

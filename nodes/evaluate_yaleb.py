@@ -19,7 +19,6 @@ from flow.chain import Chain
 from flow.frame import Frame
 from nodes.align import normals_to_input
 from nodes.geometry import angle_deg
-from nodes.loader import load_image
 from nodes.outputs import input_grid_products
 from nodes.pipeline import LoadNode, MethodOptions, method_nodes
 from nodes.reflectance import light_from_angles
@@ -75,9 +74,9 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
             "iterations": frame.meta.get("iterations"), "seconds": seconds,
         }
         row["psnr"], row["ssim"] = relight_scores(out["relit"], subject.frontal, region)
-        row["psnr_input"], row["ssim_input"] = relight_scores(load_image(path), subject.frontal, region)
+        row["psnr_input"], row["ssim_input"] = relight_scores(frame.data["image"], subject.frontal, region)
         if estimate_light:
-            est = auto.process(Frame(0, str(path)))
+            est = auto.process(Frame(0, str(path), data={"image": frame.data["image"]}))
             row["light_err_deg"] = float(angle_deg(np.asarray(est.data["light"])[None], truth_light[None])[0])
         rows.append(row)
     return rows
@@ -95,7 +94,7 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
         s = subjects[-1]
         odd = {k: v for k, v in s.excluded.items() if "behind" not in v}
         moved = sum(np.hypot(*d) > 0.5 for d in s.shifts.values())
-        note(f"{s.name}: stereo from {64 - len(s.excluded)} exposures; left out {odd or 'none besides lights behind the face'}; "
+        note(f"{s.name}: stereo from {s.exposures - len(s.excluded)} exposures; left out {odd or 'none besides lights behind the face'}; "
              f"{moved} registered by > 0.5 px")
     rows = []
     for i, s in enumerate(subjects):

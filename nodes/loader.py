@@ -75,14 +75,15 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
         version = np.lib.format.read_magic(fh)
         read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
         shape, _, dtype = read_header(fh)
-        if len(shape) != 2 or dtype.hasobject or not np.issubdtype(dtype, np.number):
-            raise InputError(f"{p}: .npy input must be a 2-D numeric array, got {dtype} {shape}")
-        _check_size(p, shape[1], shape[0])
+    except (ValueError, EOFError) as exc:
+        raise InputError(f"{p}: not a readable .npy array ({exc})") from None
+    if len(shape) != 2 or dtype.hasobject or not np.issubdtype(dtype, np.number):
+        raise InputError(f"{p}: .npy input must be a 2-D numeric array, got {dtype} {shape}")
+    _check_size(p, shape[1], shape[0])
+    try:
         fh.seek(0)
         arr = np.load(fh, allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
-        if isinstance(exc, InputError):
-            raise
         raise InputError(f"{p}: not a readable .npy array ({exc})") from None
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{p}: .npy input holds NaN or infinite values")
@@ -138,14 +139,21 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     return img
 
 
-def yaleb_light(path: str | os.PathLike) -> np.ndarray:
-    """Light from an Extended Yale B name ``..._P00A+035E-20...`` (conventions.md)."""
+def yaleb_angles(path: str | os.PathLike) -> tuple[int, int]:
+    """(azimuth, elevation) in degrees from an Extended Yale B name ``..._P00A+035E-20...``;
+    lights behind the face are returned too (``yaleb_light`` refuses them)."""
     m = _YALEB.search(Path(path).name)
     if not m:
         raise InputError(f"{path}: name has no Yale B light (expected _PnnA+aaaE+ee)")
     a, e = int(m.group(1)), int(m.group(2))
     if abs(a) > 180 or abs(e) > 90:
         raise InputError(f"{path}: impossible Yale B angles A={a} E={e}")
+    return a, e
+
+
+def yaleb_light(path: str | os.PathLike) -> np.ndarray:
+    """Light from an Extended Yale B name ``..._P00A+035E-20...`` (conventions.md)."""
+    a, e = yaleb_angles(path)
     try:
         return checked_light(light_from_angles(a, e), f"Yale B light A={a} E={e}")
     except ValueError as exc:

@@ -65,6 +65,13 @@ class MethodOptions:
     novel_yaw_deg: float = 45.0
 
 
+def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
+    """(N,) bool over the model pixels: those the photo shows (all when the frame was put on the
+    model grid without ``LoadNode``'s ``grid_valid``, e.g. a render)."""
+    valid = frame.data.get("grid_valid")
+    return np.ones(model.n_pixels, bool) if valid is None else valid[model.mask]
+
+
 class LoadNode:
     """Reads the input file, finds its light and alignment, resamples it to the model grid."""
 
@@ -84,7 +91,8 @@ class LoadNode:
         grid_image = to_model_grid(image, al, self.model.grid)
         frame.data["grid_valid"] = inside_input(al, image.shape, self.model.grid)
         if "light" not in frame.data:
-            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, grid_image, al, frame.data["grid_valid"])
+            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, grid_image, al,
+                                                                          seen_pixels(frame, self.model))
         frame.data.update(alignment=al, grid_image=grid_image,
                           grid_light=al.vector_to_model(frame.data["light"]))
         frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
@@ -104,7 +112,7 @@ class LoadNode:
         return Alignment(al.matrix, f"{al.how} ({why})")
 
     def _light(self, source: str, side, grid_image: np.ndarray, al: Alignment,
-               valid: np.ndarray) -> tuple[np.ndarray, str]:
+               seen: np.ndarray) -> tuple[np.ndarray, str]:
         opt = self.options.light
         if side is not None and side.light is not None:
             return side.light, "sidecar"
@@ -112,7 +120,6 @@ class LoadNode:
             return opt, "given"
         if opt == "yaleb":
             return yaleb_light(source), "yaleb name"
-        seen = valid[self.model.mask]
         grid_light = estimate_light(grid_image[self.model.mask][seen], self.model.mean_normals[seen])
         return al.vector_to_input(grid_light), "estimated"
 
@@ -135,14 +142,16 @@ class RemapNode:
 
     def __call__(self, frame: Frame) -> Frame:
         image, s = frame.data["grid_image"], frame.data["grid_light"]
-        m = self.model.mask & frame.data.get("grid_valid", True)  # face pixels the photo shows
-        clipped = float(np.mean(clipped_pixels(image[m], self.saturation, self.max_clipped)))
+        seen = seen_pixels(frame, self.model)  # face pixels the photo shows
+        face = image[self.model.mask][seen]
+        clipped = float(np.mean(clipped_pixels(face, self.saturation, self.max_clipped)))
         if self.scale == "ratio" or clipped > 0:  # over-exposed: no peak to go by
-            scale = ratio_scale(image[m], self.model.to_image(self.model.mean_normals)[m] @ s, self.saturation)
+            scale = ratio_scale(face, self.model.mean_normals[seen] @ s, self.saturation)
             frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
             frame.meta.update(remap_scale=scale, clipped_fraction=round(clipped, 4))
             return frame
         peak = expected_peak_shading(self.model.mean_normals, s) if self.model_peak else 1.0
+        m = self.model.to_image(seen, fill=False).astype(bool)
         frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(image, m, peak_shading=peak)
         return frame
 
@@ -176,7 +185,7 @@ class RobustFitNode:
 
         intensity = frame.data["remapped"][self.model.mask]
         saturated = clipped_pixels(frame.data["grid_image"][self.model.mask], self.config.saturation)
-        unseen = ~np.asarray(frame.data.get("grid_valid", True) & self.model.mask)[self.model.mask]
+        unseen = ~seen_pixels(frame, self.model)
         result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
                      unreliable=saturated | unseen)
         frame.data["fit"] = result

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nodes.loader import load_image
+from nodes.loader import load_image, yaleb_angles
 from nodes.photometric_stereo import StereoResult, photometric_stereo, register_translation, render
 from nodes.reflectance import light_from_angles
 
@@ -40,6 +40,7 @@ class YaleSubject:
     folder: Path
     stereo: StereoResult
     frontal: np.ndarray
+    exposures: int
     excluded: dict[str, str] = field(default_factory=dict)
     shifts: dict[str, tuple[float, float]] = field(default_factory=dict)
 
@@ -60,7 +61,7 @@ def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: 
     names = [light_name(p) for p in paths]
     raw = np.stack([load_image(p) for p in paths])
     images = np.clip(raw - ambient, 0.0, 1.0)
-    lights = np.stack([light_from_angles(*_angles(p)) for p in paths])
+    lights = np.stack([light_from_angles(*yaleb_angles(p)) for p in paths])
     excluded: dict[str, str] = {}
 
     stripes = np.array([stripe_score(im) for im in images])
@@ -75,6 +76,7 @@ def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: 
         return photometric_stereo(imgs[use], lights[use])
 
     stereo = fit(images)
+    before = len(excluded)
     # lamp off: far darker than the fit predicts for its light
     for i, n in enumerate(names):
         if n in excluded:
@@ -83,9 +85,10 @@ def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: 
         ratio = images[i][stereo.valid].sum() / max(pred[stereo.valid].sum(), 1e-9)
         if ratio < 0.3:
             excluded[n] = f"too dark for its light (lamp off?): {ratio:.2f} of the expected brightness"
+    if len(excluded) > before:
+        stereo = fit(images)
     shifts: dict[str, tuple[float, float]] = {}
     for _ in range(register_rounds):
-        stereo = fit(images)
         registered = images.copy()
         for i, n in enumerate(names):
             if n in excluded:
@@ -94,12 +97,6 @@ def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: 
             if np.hypot(*shift) <= max_shift:  # larger: a poor rendering to match, not a move
                 registered[i], shifts[n] = moved, shift
         images = registered
-    stereo = fit(images)
+        stereo = fit(images)
     frontal = raw[names.index(FRONTAL)] if FRONTAL in names else None
-    return YaleSubject(name, folder, stereo, frontal, excluded, shifts)
-
-
-def _angles(path: Path) -> tuple[int, int]:
-    """(azimuth, elevation) in degrees; lights behind the face are kept here (and excluded)."""
-    n = light_name(path)
-    return int(n[4:8]), int(n[9:12])
+    return YaleSubject(name, folder, stereo, frontal, len(paths), excluded, shifts)
