@@ -33,34 +33,39 @@ def tangent_basis(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product along the last axis (einsum: no (..., 3) temporary)."""
+    return np.einsum("...i,...i->...", a, b)
+
+
 def aep_forward(n: np.ndarray, m: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
     """Azimuthal equidistant projection of normals ``n`` about references ``m``.
 
     The point lies in the tangent plane at ``m`` along the great circle to ``n``, at a
-    distance equal to the geodesic angle (radians). n, m, e1, e2: (..., 3).
-    Returns (..., 2) float coordinates in the basis ``(e1, e2)``.
+    distance equal to the geodesic angle (radians). n, m, e1, e2: (..., 3), ``(e1, e2, m)``
+    orthonormal. Returns (..., 2) float coordinates in the basis ``(e1, e2)``.
     """
-    c = np.clip(np.sum(n * m, axis=-1), -1.0, 1.0)
-    theta = np.arccos(c)
-    t = n - c[..., None] * m  # tangent component, |t| = sin(theta)
-    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
-    # theta / sin(theta) -> 1 as theta -> 0
-    scale = np.where(s > 1e-7, theta / np.maximum(s, 1e-7), 1.0)
-    return np.stack([np.sum(t * e1, axis=-1), np.sum(t * e2, axis=-1)], axis=-1) * scale[..., None]
+    x, y = _dot(n, e1), _dot(n, e2)  # the tangent component of n (e1, e2 are orthogonal to m)
+    s = np.hypot(x, y)  # sin(theta), exact for small angles unlike sqrt(1 - cos^2)
+    theta = np.arctan2(s, _dot(n, m))
+    scale = np.divide(theta, s, out=np.ones_like(s), where=s > 1e-12)  # theta / sin(theta) -> 1
+    out = np.empty(x.shape + (2,), np.result_type(x, np.float64))
+    out[..., 0] = x * scale
+    out[..., 1] = y * scale
+    return out
 
 
 def aep_inverse(v: np.ndarray, m: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
     """Inverse azimuthal equidistant projection: (..., 2) tangent coordinates to unit normals."""
-    theta = np.linalg.norm(v, axis=-1)
-    # sin(theta) / theta -> 1 as theta -> 0 (np.sinc is sin(pi x)/(pi x))
-    sinc = np.sinc(theta / np.pi)
-    d = v[..., 0:1] * e1 + v[..., 1:2] * e2
-    return np.cos(theta)[..., None] * m + sinc[..., None] * d
+    v0, v1 = v[..., 0], v[..., 1]
+    theta = np.hypot(v0, v1)
+    k = np.divide(np.sin(theta), theta, out=np.ones_like(theta), where=theta > 1e-12)  # sin(theta) / theta
+    return np.cos(theta)[..., None] * m + (k * v0)[..., None] * e1 + (k * v1)[..., None] * e2
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle in degrees between unit vectors ``a`` and ``b`` along the last axis."""
-    c = np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)
+    c = np.clip(_dot(a, b), -1.0, 1.0)
     return np.degrees(np.arccos(c))
 
 

@@ -34,7 +34,7 @@ def project_to_cone(
     cos_a = np.clip(intensity, 0.0, 1.0)
     sin_a = np.sqrt(1.0 - cos_a * cos_a)
     u = normals - (normals @ s)[:, None] * s
-    un = np.linalg.norm(u, axis=1)
+    un = np.sqrt(np.einsum("ij,ij->i", u, u))
     bad = un < 1e-9
     if np.any(bad):
         alt = np.broadcast_to(np.array([0.0, 0.0, 1.0]), normals.shape) if fallback is None else fallback
@@ -44,8 +44,9 @@ def project_to_cone(
         alt[alt_n < 1e-9] = np.cross(s, [1.0, 0.0, 0.0]) if abs(s[0]) < 0.9 else np.cross(s, [0.0, 1.0, 0.0])
         u[bad] = alt
         un = np.linalg.norm(u, axis=1)
-    u = u / un[:, None]
-    return cos_a[:, None] * s + sin_a[:, None] * u
+    out = u * (sin_a / un)[:, None]
+    out += cos_a[:, None] * s
+    return out
 
 
 def project_to_halfspace(normals: np.ndarray, light: np.ndarray) -> np.ndarray:
