@@ -20,7 +20,8 @@ class ShadowMaps:
         return ~(self.cast | self.attached)
 
 
-def cast_shadow(depth: np.ndarray, light: np.ndarray, bias: float = 0.05) -> np.ndarray:
+def cast_shadow(depth: np.ndarray, light: np.ndarray, bias: float = 0.05,
+                sources: np.ndarray | None = None) -> np.ndarray:
     """Pixels whose ray toward the light is blocked by the height field.
 
     depth: (H, W) height toward the viewer, pixel units, NaN off the surface (never blocks).
@@ -28,7 +29,8 @@ def cast_shadow(depth: np.ndarray, light: np.ndarray, bias: float = 0.05) -> np.
     of travel in the image toward ``(s_x, -s_y)`` (columns, rows); the pixel is shadowed if
     the (bilinearly interpolated) surface anywhere along it is higher than the ray by more
     than ``bias`` pixels. Marching is vectorised over pixels, one step per pixel of travel,
-    and ends once the ray is above the highest point. Returns (H, W) bool (NaN pixels False).
+    and ends once the ray is above the highest point. ``sources`` (H, W) bool: trace only from
+    these pixels (default: every surface pixel). Returns (H, W) bool (NaN pixels False).
     """
     s = np.asarray(light, np.float64)
     z = np.asarray(depth, np.float64)
@@ -43,7 +45,7 @@ def cast_shadow(depth: np.ndarray, light: np.ndarray, bias: float = 0.05) -> np.
     d_col, d_row, rise = s[0] / horiz, -s[1] / horiz, s[2] / horiz
     low = np.nanmin(z) - 1e6  # empty pixels behave as a very low floor
     zf = np.where(valid, z, low)
-    rows, cols = np.nonzero(valid)
+    rows, cols = np.nonzero(valid if sources is None else valid & sources)
     z0 = z[rows, cols]
     zmax = np.nanmax(z)
     blocked = np.zeros(len(rows), bool)
@@ -68,12 +70,16 @@ def cast_shadow(depth: np.ndarray, light: np.ndarray, bias: float = 0.05) -> np.
     return out
 
 
-def shadow_maps(depth: np.ndarray, normals: np.ndarray, light: np.ndarray, bias: float = 0.05) -> ShadowMaps:
-    """Cast and attached shadow maps of a surface. depth (H, W); normals (H, W, 3); light (3,)."""
+def shadow_maps(depth: np.ndarray, normals: np.ndarray, light: np.ndarray, bias: float = 0.05,
+                candidates: np.ndarray | None = None) -> ShadowMaps:
+    """Cast and attached shadow maps of a surface. depth (H, W); normals (H, W, 3); light (3,).
+    candidates (H, W) bool: the only pixels that may be in cast shadow (e.g. the dark ones of
+    an image), so rays are traced from them alone; default every pixel."""
     facing = np.einsum("hwc,c->hw", np.nan_to_num(normals), np.asarray(light, np.float64))
     valid = np.isfinite(depth) & np.all(np.isfinite(normals), axis=-1)
     attached = valid & (facing <= 0)
-    cast = cast_shadow(depth, light, bias=bias) & valid & ~attached
+    sources = valid & ~attached if candidates is None else valid & ~attached & candidates
+    cast = cast_shadow(depth, light, bias=bias, sources=sources) & valid & ~attached
     return ShadowMaps(cast=cast, attached=attached)
 
 
