@@ -227,7 +227,9 @@ class ShadowNode:
         self.mode, self.dark_threshold = mode, dark_threshold
 
     def __call__(self, frame: Frame) -> Frame:
-        maps = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"])
+        dark = frame.data["remapped"] <= self.dark_threshold if self.mode == "confirmed" else None
+        # a confirmed cast shadow is dark in the image: only dark pixels need a ray traced
+        maps = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"], candidates=dark)
         if self.mode == "confirmed":
             maps = confirm_with_image(maps, frame.data["remapped"], self.dark_threshold)
         frame.data["shadow"] = maps

@@ -1,16 +1,28 @@
 """Robust fit of the needle-map model to one image (Smith & Hancock, sections 3-4).
 
-Alternate (a) a robust fit of the model to the current on-cone needle-map in AEP coordinates
-and (b) rotating the fitted normals back onto their reflectance cones, until the needle-map
-stops changing. Two solvers:
+The paper alternates (a) a robust fit of the model to the current on-cone needle-map in AEP
+coordinates and (b) rotating the fitted normals back onto their reflectance cones, until the
+needle-map stops changing. Its fixed point is where the weighted gradient
+``Pᵀ W r - ridge b`` vanishes, ``r`` being each model normal's AEP offset to its cone. Three
+solvers:
 
-* ``irls`` (default): exact iteratively reweighted least squares, per iteration
-  ``b = (P^T W P + lambda Lambda^-1)^-1 P^T W (v - vbar)``, with Huber weights from the
-  previous iteration's residuals. This is the M-estimate the paper's equation (1) asks for.
+* ``gauss-newton`` (default): Gauss-Newton steps on that same objective. A cone constrains one
+  direction per pixel, its normal ``nu``; the step uses ``Qᵀ W Q`` with ``Q = nuᵀ P`` where the
+  alternation uses ``Pᵀ W P``, which also holds back motion *along* the cones that the image
+  does not constrain. Same fixed point, 3-7x fewer iterations, and half the Gram matrix work
+  (N rows instead of 2N). If a step makes the residual scale jump, the fit falls back to the
+  alternation, which cannot diverge.
+* ``irls``: the paper's alternation with the exact weighted least squares per pass,
+  ``b = (P^T W P + ridge)^-1 P^T W (v - vbar)``, Huber weights from the previous residuals, and
+  over-relaxation. This is the M-estimate the paper's equation (1) asks for.
 * ``paper``: the paper's one-step formula (3), ``b = C P^T W (v - vbar)`` with ``C = N / sum(w)``.
   The paper prints ``C = N Tr(W^-1)``, which is at least ``N^2`` and scales ``b`` away at
   once; ``N / sum(w)`` is the compensation for the overall scaling of ``W`` the text intends.
   Even so the formula ignores the correlation that ``W`` puts between modes and drifts.
+
+The residual scale comes from the pixels that constrain the fit: released pixels (saturated,
+outside the photo, in the shape's own cast shadow) and dark pixels already facing away from the
+light have zero residual by construction and would drag the median to zero.
 
 Residuals are 2-D (per pixel, in the tangent plane), so their norms are Rayleigh rather than
 normal: ``scale="rayleigh"`` (default) estimates the per-axis spread as
@@ -24,8 +36,7 @@ from dataclasses import dataclass, field, replace
 from typing import Callable, Literal
 
 import numpy as np
-from scipy import linalg
-from scipy.linalg import blas
+from scipy.linalg import blas, lapack
 
 from nodes.geometry import angle_deg
 from nodes.integrate import masked_least_squares
@@ -41,7 +52,7 @@ RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))  # median of a unit Rayleigh
 class FitConfig:
     """Options of the robust fit; ``FitConfig.paper()`` is the paper's variant throughout."""
 
-    solver: Literal["irls", "paper"] = "irls"
+    solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"
     scale: Literal["rayleigh", "mad"] = "rayleigh"
     huber_k: float = 1.5  # Huber threshold in units of sigma
     init: Literal["mean", "gradient"] = "mean"
@@ -57,6 +68,7 @@ class FitConfig:
     # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
     # a residual scale that jumps switches it off for the rest of the fit)
     relaxation: float = 1.8
+    damping: float = 1e-3  # gauss-newton: Levenberg term added to the K x K system (modes are orthonormal)
     max_iterations: int = 100
     tolerance_deg: float = 0.01  # stop when the mean normal change falls below this
     n_modes: int | None = None  # use the model's first K modes (None: all)
@@ -94,7 +106,7 @@ class FitIteration:
         return {
             "sigma": float(self.sigma),
             "residual_mean": float(np.mean(r)),
-            "residual_median": float(np.median(r)),
+            "residual_median": _median(r),
             "downweighted_fraction": float(np.mean(self.weights < 1.0)),
             "change_deg": float(self.change_deg),
         }
@@ -124,9 +136,22 @@ def huber_weights(residuals: np.ndarray, threshold: float) -> np.ndarray:
 def residual_scale(residuals: np.ndarray, method: str) -> float:
     """Robust scale of residual norms (radians): ``rayleigh`` or the paper's ``mad``."""
     r = np.asarray(residuals, np.float64)
+    if r.size == 0:
+        return 0.0
     if method == "mad":
-        return float(1.4826 * np.median(np.abs(r - np.median(r))))
-    return float(np.median(r) / RAYLEIGH_MEDIAN)
+        return float(1.4826 * _median(np.abs(r - _median(r))))
+    return float(_median(r) / RAYLEIGH_MEDIAN)
+
+
+def _median(x: np.ndarray) -> float:
+    """Median of a 1-D array by partial sort (np.median's checks cost more than the sort here)."""
+    n = x.size
+    if n == 0:
+        return float("nan")
+    if n % 2:
+        return float(np.partition(x, n // 2)[n // 2])
+    part = np.partition(x, (n // 2 - 1, n // 2))
+    return 0.5 * float(part[n // 2 - 1] + part[n // 2])
 
 
 def fit(
@@ -156,12 +181,15 @@ def fit(
 
     P = model.modes_as(np.float64)  # (2N, K)
     P32 = model.modes_as(np.float32)  # the Gram matrix in single precision: half the time, same fit
+    px, py = model.modes_split(np.float32)  # (N, K) each: the x and y tangent rows of P
     scaled = np.empty_like(P32)  # reused: sqrt(w) P
+    along = np.empty_like(px)  # reused: sqrt(w) nu^T P, and a scratch of the same shape
+    scratch = np.empty_like(px)
     vbar = model.mean_proj.astype(np.float64)
     prior = config.prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
     adaptive = config.adaptive_prior / np.maximum(model.eigenvalues.astype(np.float64), 1e-12)
     sigma_prev = 0.0  # no residuals before the first pass
-    b_prev = None
+    newton = config.solver == "gauss-newton"
     omega = config.relaxation if config.solver == "irls" else 1.0
     if initial is None:
         n = mean_init(model.mean_normals, I, s, dark)
@@ -172,32 +200,55 @@ def fit(
     released = known_bad.copy()  # plus dark pixels in the current shape's cast shadow
     history: list[dict[str, float]] = []
     converged = False
+    b: np.ndarray | None = None
+    v_fit = vbar
+    n_model = n
     it = 0
     for it in range(1, config.max_iterations + 1):
         v = model.project(n)
-        r0 = (v - vbar).reshape(-1)
-        w2 = np.repeat(np.where(released, 0.0, w), 2)
-        if config.solver == "irls":
-            b = _weighted_solve(P32, scaled, w2, r0, prior + adaptive * sigma_prev**2)
-        elif config.solver == "paper":
-            c = n_pix / max(float(w.sum()), 1e-12)
-            b = c * (P.T @ (w2 * r0))
-        else:
-            raise ValueError(f"unknown solver {config.solver!r}")
-        if omega != 1.0 and b_prev is not None:
-            b = b_prev + omega * (b - b_prev)
-        b_prev = b
-        v_fit = vbar + (P @ b).reshape(-1, 2)
-        eta = np.linalg.norm(v - v_fit, axis=1)
-        sigma = residual_scale(eta, config.scale)
-        if omega != 1.0 and it > 2 and sigma > 1.5 * sigma_prev:
-            omega = 1.0  # the relaxed steps overshoot: plain iterations from here on
-        sigma_prev = sigma
-        w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
+        if newton and b is not None:
+            # the model's distance to its cones: r points along each cone's normal direction
+            r = v - v_fit
+            eta = np.hypot(r[:, 0], r[:, 1])
+            active = _constrained(released, dark, n_model, s)
+            sigma = residual_scale(eta[active], config.scale)
+            if it > 3 and sigma > 1.5 * sigma_prev:
+                newton = False  # the step overshot: alternating projections (always stable) from here on
+            else:
+                w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
+                w[~active] = 0.0
+                on_cone = active & (eta < 1e-6)  # at the round-off of the AEP round trip: r has no direction
+                if on_cone.any():
+                    r[on_cone] = 1e-6 * _cone_normal(model, n_model[on_cone], s, on_cone)
+                step = _newton_step(px, py, along, scratch, r, np.maximum(eta, 1e-6), w, prior + adaptive * sigma**2, b,
+                                    config.damping)
+                b = b + step
+                sigma_prev = sigma
+                v_fit = _synthesize(P32, vbar, b)
+        if not newton or b is None:
+            r0 = (v - vbar).reshape(-1)
+            w2 = np.repeat(np.where(released, 0.0, w), 2)
+            if config.solver == "paper":
+                c = n_pix / max(float(w.sum()), 1e-12)
+                b_new = c * (P.T @ (w2 * r0))
+            elif config.solver in ("irls", "gauss-newton"):
+                b_new = _weighted_solve(P32, scaled, w2, r0, prior + adaptive * sigma_prev**2)
+            else:
+                raise ValueError(f"unknown solver {config.solver!r}")
+            if omega != 1.0 and b is not None:
+                b_new = b + omega * (b_new - b)
+            b = b_new
+            v_fit = _synthesize(P32, vbar, b)
+            eta = np.linalg.norm(v - v_fit, axis=1)
+            sigma = residual_scale(eta[_constrained(released, dark, n_model, s)], config.scale)
+            if omega != 1.0 and it > 2 and sigma > 1.5 * sigma_prev:
+                omega = 1.0  # the relaxed steps overshoot: plain iterations from here on
+            sigma_prev = sigma
+            w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
         n_model = model.unproject(v_fit)
         n_new = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
         if config.release_cast and dark is not None and it % config.cast_every == 0:
-            released = known_bad | (dark & _cast_by_shape(model, n_model, s))
+            released = known_bad | _cast_by_shape(model, n_model, s, dark)
         if released.any():
             n_new[released] = n_model[released]
             w = np.where(released, 0.0, w)
@@ -213,6 +264,62 @@ def fit(
     return FitResult(n, n_model, w, eta, b, sigma, it, converged, history)
 
 
+def _newton_step(px: np.ndarray, py: np.ndarray, along: np.ndarray, scratch: np.ndarray, r: np.ndarray,
+                 eta: np.ndarray, w: np.ndarray, ridge: np.ndarray, b: np.ndarray, damping: float) -> np.ndarray:
+    """Gauss-Newton step on ``sum w eta^2 + sum ridge b^2`` (eta: each pixel's distance to its cone).
+
+    A cone constrains one direction per pixel, its normal ``nu = r / eta`` in the tangent plane;
+    along the cone the brightness says nothing. The step is ``(Qᵀ W Q + diag(ridge) + damping I)⁻¹
+    (Qᵀ W eta - ridge b)`` with ``Q = nuᵀ P`` (N, K); the alternating loop solves the same with
+    ``Pᵀ W P``, which also resists motion along the cones, hence its many small steps. Both stop at
+    the same place (the right-hand side, the gradient, is the same). px, py (N, K) float32 mode
+    rows; along, scratch (N, K) float32 buffers; r (N, 2); eta, w (N,); ridge, b (K,).
+    """
+    sw = np.sqrt(w)
+    unit = np.where(eta > 1e-12, sw / np.maximum(eta, 1e-12), 0.0)
+    np.multiply(px, (r[:, 0] * unit).astype(np.float32)[:, None], out=along)
+    np.multiply(py, (r[:, 1] * unit).astype(np.float32)[:, None], out=scratch)
+    along += scratch
+    gram = blas.ssyrk(1.0, along.T, trans=0).astype(np.float64)  # upper triangle of Qᵀ W Q
+    gram[np.diag_indices_from(gram)] += ridge + damping
+    rhs = (along.T @ (sw * eta).astype(np.float32)).astype(np.float64) - ridge * b
+    return _cholesky_solve(gram, rhs)
+
+
+def _constrained(released: np.ndarray, dark: np.ndarray | None, model_normals: np.ndarray,
+                 light: np.ndarray) -> np.ndarray:
+    """(N,) bool: pixels whose brightness constrains the current fit: not released, and not dark
+    pixels already facing away from the light (an attached-shadow constraint that is obeyed is
+    inactive). Their residuals alone set the scale: the others' are zero by construction."""
+    free = released if dark is None else released | (dark & (model_normals @ light <= 0.0))
+    return ~free
+
+
+def _synthesize(modes32: np.ndarray, vbar: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Model AEP coordinates (N, 2) float64 of coefficients ``b`` (K,): ``vbar + P b``, the product
+    in single precision (1e-7 relative, far below the fit's tolerance; a third of the time)."""
+    return vbar + (modes32 @ b.astype(np.float32)).reshape(-1, 2)
+
+
+def _cone_normal(model: ShapeModel, normals: np.ndarray, light: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """(M, 2) unit AEP direction (first order, mean-normal tangent basis) in which the angle of
+    ``normals`` (M, 3) from ``light`` grows: the normal of their cones."""
+    u = (normals @ light)[:, None] * normals - light
+    d = np.stack([np.sum(u * model.e1[where], axis=1), np.sum(u * model.e2[where], axis=1)], axis=1)
+    return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+
+
+def _cholesky_solve(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve a symmetric positive (semi-)definite system given its upper triangle (K, K)."""
+    factor, info = lapack.dpotrf(upper, lower=0, clean=0, overwrite_a=0)
+    if info == 0:
+        x, info = lapack.dpotrs(factor, rhs, lower=0)
+        if info == 0:
+            return x
+    full = np.triu(upper) + np.triu(upper, 1).T  # every weight 0 on some mode: least squares
+    return np.linalg.lstsq(full, rhs, rcond=None)[0]
+
+
 def _weighted_solve(modes32: np.ndarray, scaled: np.ndarray, w2: np.ndarray, r0: np.ndarray,
                     ridge: np.ndarray) -> np.ndarray:
     """``b = (Pᵀ W P + diag(ridge))⁻¹ Pᵀ W r0``: the Gram matrix by a symmetric rank-k update
@@ -223,18 +330,16 @@ def _weighted_solve(modes32: np.ndarray, scaled: np.ndarray, w2: np.ndarray, r0:
     gram = blas.ssyrk(1.0, scaled.T, trans=0).astype(np.float64)  # upper triangle of Pᵀ W P
     gram[np.diag_indices_from(gram)] += ridge
     rhs = (scaled.T @ (sw * r0).astype(np.float32)).astype(np.float64)
-    try:
-        return linalg.cho_solve(linalg.cho_factor(gram, lower=False, overwrite_a=True, check_finite=False), rhs,
-                                check_finite=False)
-    except linalg.LinAlgError:  # every weight 0 on some mode: fall back to least squares
-        full = np.triu(gram) + np.triu(gram, 1).T
-        return np.linalg.lstsq(full, rhs, rcond=None)[0]
+    return _cholesky_solve(gram, rhs)
 
 
-def _cast_by_shape(model: ShapeModel, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
-    """(N,) bool: model pixels in the cast shadow of the surface integrated from ``normals``."""
+def _cast_by_shape(model: ShapeModel, normals: np.ndarray, light: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    """(N,) bool: which of the ``sources`` (N,) bool model pixels lie in the cast shadow of the
+    surface integrated from ``normals`` (N, 3); rays are traced from those pixels only."""
+    if not sources.any():
+        return sources.copy()
     depth = masked_least_squares(model.to_image(normals.astype(np.float32)), model.mask)
-    return cast_shadow(depth, light)[model.mask]
+    return cast_shadow(depth, light, sources=model.to_image(sources, fill=False).astype(bool))[model.mask]
 
 
 def initial_normals(model: ShapeModel, image: np.ndarray, light: np.ndarray, config: FitConfig) -> np.ndarray:

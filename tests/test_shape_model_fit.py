@@ -79,6 +79,39 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
     np.testing.assert_allclose(res.normals[lit] @ s, I[lit], atol=1e-6)
 
 
+def _fit_errors(model, depths, light, configs: dict) -> dict:
+    """Mean angular error (degrees) of the combined normals and the iterations, per config name."""
+    from nodes.evaluate import render_scene
+    from nodes.robust_fit import initial_normals
+
+    out = {name: {"err": [], "iterations": []} for name in configs}
+    for d in depths:
+        sc = render_scene(d, 1.0, light, model.mask)
+        ok = sc.valid[model.mask]
+        for name, cfg in configs.items():
+            r = fit(model, sc.image[model.mask], light, cfg, initial_normals(model, sc.image, light, cfg))
+            n = combine(r.normals, r.model_normals, r.weights)
+            out[name]["err"].append(float(np.mean(angle_deg(n[ok], sc.normals[model.mask][ok]))))
+            out[name]["iterations"].append(r.iterations)
+    return out
+
+
+def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(procedural_model):
+    """The Gauss-Newton steps and the paper's alternation have the same fixed point (equal
+    gradient); the steps that ignore motion along the cones get there in far fewer iterations,
+    while the alternation creeps and stops (change < 0.01 deg per iteration) short of it.
+    Measured on these faces: 45 deg: errors 0.28 vs 0.34 deg, 10 vs 30 iterations;
+    70 deg: 0.39 vs 0.84 deg, 12 vs 80 iterations."""
+    depths, _ = procedural(4, seed=7)
+    for angle in (45, 70):
+        res = _fit_errors(procedural_model, depths, light_from_angles(angle),
+                          {"gn": FitConfig(), "irls": FitConfig(solver="irls")})
+        gn, alt = res["gn"], res["irls"]
+        assert np.all(np.subtract(gn["err"], alt["err"]) < 0.02), (angle, res)  # as good on every face
+        assert np.mean(gn["err"]) < 0.5, (angle, res)
+        assert np.mean(gn["iterations"]) < 0.5 * np.mean(alt["iterations"]), (angle, res)
+
+
 def test_exact_irls_beats_the_papers_one_step_formula(procedural_model):
     from nodes.evaluate import render_scene
     from nodes.robust_fit import initial_normals
