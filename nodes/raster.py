@@ -111,3 +111,51 @@ def grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ):
         tris.append(np.stack([p[cond], q[cond], r[cond]], 1))
     return pix, np.concatenate(tris).astype(np.int64)
+
+
+def rasterize_row_edges(vertices: np.ndarray, triangles: np.ndarray, shape: tuple[int, int],
+                        attributes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """``rasterize`` for meshes whose vertices all lie on pixel rows (integer y), such as
+    ``grid_mesh`` turned about the vertical axis: pixel centres then meet the triangles only on
+    their horizontal edges, so rendering is 1-D interpolation along those edges, z-buffered.
+    Same arguments and result as ``rasterize`` (which it matches to rounding), O(fragments)."""
+    h, w = shape
+    v = np.asarray(vertices, np.float64)
+    tri = np.asarray(triangles, np.int64)
+    if not np.array_equal(v[:, 1], np.round(v[:, 1])):
+        raise ValueError("rasterize_row_edges needs every vertex on a pixel row; use rasterize")
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    edges = np.sort(edges[v[edges[:, 0], 1] == v[edges[:, 1], 1]], axis=1)
+    key = np.unique(edges[:, 0] * len(v) + edges[:, 1])  # each shared edge once
+    edges = np.column_stack([key // len(v), key % len(v)])
+    swap = v[edges[:, 0], 0] > v[edges[:, 1], 0]
+    edges[swap] = edges[swap][:, ::-1]  # left to right
+    a, b = edges[:, 0], edges[:, 1]
+    x0, x1 = v[a, 0], v[b, 0]
+    row = v[a, 1].astype(np.int64)
+    c0 = np.maximum(np.ceil(x0 - 1e-9), 0).astype(np.int64)
+    c1 = np.minimum(np.floor(x1 + 1e-9), w - 1).astype(np.int64)
+    ok = (row >= 0) & (row < h)
+    count = np.where(ok, np.maximum(c1 - c0 + 1, 0), 0)
+    depth = np.full(h * w, np.nan)
+    attr_img = None
+    if attributes is not None:
+        attributes = np.asarray(attributes, np.float64).reshape(len(v), -1)
+        attr_img = np.full((h * w, attributes.shape[1]), np.nan)
+    if count.sum() == 0:
+        return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
+    e = np.repeat(np.arange(len(edges)), count)
+    col = c0[e] + np.arange(len(e)) - np.repeat(np.cumsum(count) - count, count)
+    span = x1[e] - x0[e]
+    t = np.clip(np.divide(col - x0[e], span, out=np.zeros(len(e)), where=span > 1e-12), 0.0, 1.0)
+    z = v[a[e], 2] + t * (v[b[e], 2] - v[a[e], 2])
+    pix = row[e] * w + col
+    order = np.lexsort((-z, pix))  # z-buffer: the largest z (nearest the viewer) per pixel
+    first = np.ones(len(order), bool)
+    first[1:] = pix[order][1:] != pix[order][:-1]
+    win = order[first]
+    depth[pix[win]] = z[win]
+    if attr_img is not None:
+        tw = t[win][:, None]
+        attr_img[pix[win]] = (1 - tw) * attributes[a[e[win]]] + tw * attributes[b[e[win]]]
+    return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
