@@ -92,11 +92,13 @@ class McapSink(Sink):
     """MCAP file: exact arrays (``shadowflow.ndarray``), scalars and frame records as JSON,
     images also as ``foxglove.RawImage`` (mono8, JSON) so Foxglove shows them.
 
-    Compressed (zstd) chunks; the chunk is closed and flushed after every frame, so a
+    Compressed chunks, lz4 by default: on float arrays it writes in about half the CPU time of
+    mcap's zstd (level 3) for files about a quarter larger, and the recorder shares the machine
+    with the fit. The chunk is closed and flushed after every frame, so a
     killed run leaves every finished frame readable.
     """
 
-    def __init__(self, path: str | Path, compression: str = "zstd"):
+    def __init__(self, path: str | Path, compression: str = "lz4"):
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
