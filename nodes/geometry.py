@@ -90,21 +90,15 @@ def normals_from_depth(depth: np.ndarray, mask: np.ndarray | None = None) -> np.
 def _masked_derivative(z: np.ndarray, valid: np.ndarray, axis: int) -> np.ndarray:
     """d z / d index along ``axis``: central where both neighbours are valid, else one-sided."""
     zf = np.where(valid, z, 0.0)
-    fwd_ok = valid & np.roll(valid, -1, axis=axis)
-    bwd_ok = valid & np.roll(valid, 1, axis=axis)
-    # np.roll wraps: forbid differences across the array border
-    edge = [slice(None)] * z.ndim
-    edge[axis] = -1
-    fwd_ok[tuple(edge)] = False
-    edge[axis] = 0
-    bwd_ok[tuple(edge)] = False
-    fwd = np.roll(zf, -1, axis=axis) - zf
-    bwd = zf - np.roll(zf, 1, axis=axis)
-    both = fwd_ok & bwd_ok
-    d = np.zeros_like(z)
-    d[both] = 0.5 * (fwd[both] + bwd[both])
-    only_f = fwd_ok & ~bwd_ok
-    d[only_f] = fwd[only_f]
-    only_b = bwd_ok & ~fwd_ok
-    d[only_b] = bwd[only_b]
-    return d
+    zt, vt = np.moveaxis(zf, axis, -1), np.moveaxis(valid, axis, -1)
+    step = np.zeros_like(zt)  # step[..., i] = z[i + 1] - z[i], where both are valid
+    step[..., :-1] = zt[..., 1:] - zt[..., :-1]
+    ok = np.zeros(vt.shape, bool)
+    ok[..., :-1] = vt[..., 1:] & vt[..., :-1]
+    fwd, fwd_ok = step, ok
+    bwd = np.zeros_like(zt)
+    bwd[..., 1:] = step[..., :-1]
+    bwd_ok = np.zeros_like(ok)
+    bwd_ok[..., 1:] = ok[..., :-1]
+    d = np.where(fwd_ok & bwd_ok, 0.5 * (fwd + bwd), np.where(fwd_ok, fwd, np.where(bwd_ok, bwd, 0.0)))
+    return np.moveaxis(d, -1, axis)

@@ -1,6 +1,8 @@
 """Orthographic z-buffer rasterisation of triangle meshes, vectorised over triangles."""
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 
@@ -84,13 +86,29 @@ def rasterize(
     return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
 
 
+_MESHES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
 def grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of the pixel grid inside ``mask``.
 
     mask: (H, W) bool. Returns ``(pixel_index (V,) flat indices of the vertices,
     triangles (T, 3) into that vertex list)``: each 2x2 block with 3 or 4 mask pixels gives
-    one or two triangles, wound counter-clockwise as seen from +z (y up).
+    one or two triangles, wound counter-clockwise as seen from +z (y up). Kept (read-only) for
+    the last few masks: a stream asks for the same face region every frame.
     """
+    m = np.asarray(mask, bool)
+    key = (m.shape, hashlib.sha1(np.packbits(m).tobytes()).hexdigest())
+    if key not in _MESHES:
+        if len(_MESHES) >= 8:
+            _MESHES.pop(next(iter(_MESHES)))
+        pix, tris = _grid_mesh(m)
+        pix.flags.writeable = tris.flags.writeable = False
+        _MESHES[key] = (pix, tris)
+    return _MESHES[key]
+
+
+def _grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     h, w = mask.shape
     m = np.asarray(mask, bool)
     vid = np.full((h, w), -1, np.int64)

@@ -235,6 +235,8 @@ def fit(
             if config.solver == "paper":
                 c = n_pix / max(float(w.sum()), 1e-12)
                 b_new = c * (P.T @ (w2 * r0))
+            elif b is None and not prior.any() and released.mean() < 0.5:  # first pass: unit weights
+                b_new = _unit_weight_solve(P32, released, r0)
             elif config.solver in ("irls", "gauss-newton"):
                 b_new = _weighted_solve(P32, scaled, w2, r0, prior + adaptive * sigma_prev**2)
             else:
@@ -322,6 +324,18 @@ def _cholesky_solve(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
             return x
     full = np.triu(upper) + np.triu(upper, 1).T  # every weight 0 on some mode: least squares
     return np.linalg.lstsq(full, rhs, rcond=None)[0]
+
+
+def _unit_weight_solve(modes32: np.ndarray, released: np.ndarray, r0: np.ndarray) -> np.ndarray:
+    """``(Pᵀ W P)⁻¹ Pᵀ W r0`` for W = 1 except 0 on ``released`` (N,) pixels: the modes are
+    orthonormal, so ``Pᵀ W P = I - P_Rᵀ P_R`` needs the released rows only (none: one product).
+    modes32 (2N, K) float32; r0 (2N,)."""
+    rows = np.repeat(released, 2)
+    rhs = (modes32.T @ np.where(rows, 0.0, r0).astype(np.float32)).astype(np.float64)
+    if not rows.any():
+        return rhs
+    cut = modes32[rows]
+    return _cholesky_solve(np.eye(len(rhs)) - (cut.T @ cut).astype(np.float64), rhs)
 
 
 def _weighted_solve(modes32: np.ndarray, scaled: np.ndarray, w2: np.ndarray, r0: np.ndarray,
