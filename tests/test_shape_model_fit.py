@@ -181,3 +181,19 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
         errors[name] = float(np.mean(errs))
     assert errors["excluded"] < 0.5 * errors["trusted"], errors
     assert errors["excluded"] < 5.0, errors
+
+
+def test_first_pass_shortcut_equals_the_weighted_solve(procedural_model):
+    """With unit weights the Gram matrix of orthonormal modes is I minus the released rows'
+    part: the shortcut must give the weighted least squares' coefficients."""
+    from nodes.robust_fit import _unit_weight_solve, _weighted_solve
+
+    m = procedural_model
+    P32 = m.modes_as(np.float32)
+    rng = np.random.default_rng(3)
+    r0 = rng.normal(0.0, 0.2, 2 * m.n_pixels)
+    for fraction in (0.0, 0.1, 0.4):
+        released = rng.random(m.n_pixels) < fraction
+        w2 = np.repeat(np.where(released, 0.0, 1.0), 2)
+        exact = _weighted_solve(P32, np.empty_like(P32), w2, r0, np.zeros(m.n_modes))
+        np.testing.assert_allclose(_unit_weight_solve(P32, released, r0), exact, rtol=1e-4, atol=1e-5)
