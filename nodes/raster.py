@@ -131,24 +131,38 @@ def _grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pix, np.concatenate(tris).astype(np.int64)
 
 
-def rasterize_row_edges(vertices: np.ndarray, triangles: np.ndarray, shape: tuple[int, int],
+def grid_row_edges(mask: np.ndarray) -> np.ndarray:
+    """(E, 2) vertex pairs (into ``grid_mesh(mask)``'s vertices, left then right) of the mesh's
+    horizontal edges: row neighbours that share a triangle. Kept per mask like the mesh."""
+    pix, tris = grid_mesh(mask)
+    key = ("edges", tris.shape, hashlib.sha1(np.packbits(np.asarray(mask, bool)).tobytes()).hexdigest())
+    if key not in _MESHES:
+        if len(_MESHES) >= 16:
+            _MESHES.pop(next(iter(_MESHES)))
+        rows = pix // np.asarray(mask).shape[1]
+        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+        e = np.sort(e[rows[e[:, 0]] == rows[e[:, 1]]], axis=1)  # same row: left vertex has the lower index
+        k = np.unique(e[:, 0] * len(pix) + e[:, 1])  # each shared edge once
+        edges = np.column_stack([k // len(pix), k % len(pix)])
+        edges.flags.writeable = False
+        _MESHES[key] = edges
+    return _MESHES[key]
+
+
+def rasterize_row_edges(vertices: np.ndarray, edges: np.ndarray, shape: tuple[int, int],
                         attributes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """``rasterize`` for meshes whose vertices all lie on pixel rows (integer y), such as
     ``grid_mesh`` turned about the vertical axis: pixel centres then meet the triangles only on
-    their horizontal edges, so rendering is 1-D interpolation along those edges, z-buffered.
-    Same arguments and result as ``rasterize`` (which it matches to rounding), O(fragments)."""
+    their horizontal edges (``grid_row_edges``, (E, 2) vertex pairs), so rendering is 1-D
+    interpolation along those edges, z-buffered. Otherwise the arguments and result of
+    ``rasterize`` (which it matches to rounding), in O(fragments)."""
     h, w = shape
     v = np.asarray(vertices, np.float64)
-    tri = np.asarray(triangles, np.int64)
     if not np.array_equal(v[:, 1], np.round(v[:, 1])):
         raise ValueError("rasterize_row_edges needs every vertex on a pixel row; use rasterize")
-    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    edges = np.sort(edges[v[edges[:, 0], 1] == v[edges[:, 1], 1]], axis=1)
-    key = np.unique(edges[:, 0] * len(v) + edges[:, 1])  # each shared edge once
-    edges = np.column_stack([key // len(v), key % len(v)])
-    swap = v[edges[:, 0], 0] > v[edges[:, 1], 0]
-    edges[swap] = edges[swap][:, ::-1]  # left to right
-    a, b = edges[:, 0], edges[:, 1]
+    a, b = np.asarray(edges, np.int64).T
+    swap = v[a, 0] > v[b, 0]
+    a, b = np.where(swap, b, a), np.where(swap, a, b)  # left to right on screen
     x0, x1 = v[a, 0], v[b, 0]
     row = v[a, 1].astype(np.int64)
     c0 = np.maximum(np.ceil(x0 - 1e-9), 0).astype(np.int64)
@@ -162,7 +176,7 @@ def rasterize_row_edges(vertices: np.ndarray, triangles: np.ndarray, shape: tupl
         attr_img = np.full((h * w, attributes.shape[1]), np.nan)
     if count.sum() == 0:
         return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
-    e = np.repeat(np.arange(len(edges)), count)
+    e = np.repeat(np.arange(len(a)), count)
     col = c0[e] + np.arange(len(e)) - np.repeat(np.cumsum(count) - count, count)
     span = x1[e] - x0[e]
     t = np.clip(np.divide(col - x0[e], span, out=np.zeros(len(e)), where=span > 1e-12), 0.0, 1.0)

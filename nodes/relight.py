@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from nodes.geometry import normals_from_depth
-from nodes.raster import grid_mesh, rasterize_row_edges
+from nodes.raster import grid_mesh, grid_row_edges, rasterize_row_edges
 from nodes.shadow import cast_shadow
 
 FRONTAL = np.array([0.0, 0.0, 1.0])
@@ -37,14 +37,14 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
     """
     mask = np.isfinite(depth)
     h, w = depth.shape
-    pix, tris = grid_mesh(mask)
+    pix, _ = grid_mesh(mask)
     rows, cols = np.divmod(pix, w)
     x, y, z = cols.astype(float), rows.astype(float), depth.flat[pix].astype(float)
     cx, cz = x.mean(), z.mean()
     a = np.radians(yaw_deg)
     xr = cx + np.cos(a) * (x - cx) + np.sin(a) * (z - cz)
     zr = cz - np.sin(a) * (x - cx) + np.cos(a) * (z - cz)
-    height, attrs = rasterize_row_edges(np.column_stack([xr, y, zr]), tris, (h, w), attributes=np.nan_to_num(albedo.ravel()[pix])[:, None])
+    height, attrs = rasterize_row_edges(np.column_stack([xr, y, zr]), grid_row_edges(mask), (h, w), attributes=np.nan_to_num(albedo.ravel()[pix])[:, None])
     n = normals_from_depth(height)
     img = relight(attrs[..., 0], np.nan_to_num(n), light)
     return np.nan_to_num(np.clip(img, 0.0, 1.0)).astype(np.float32)

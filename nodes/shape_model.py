@@ -57,14 +57,6 @@ class ShapeModel:
             self._derived[key] = np.ascontiguousarray(self.modes, dtype=dtype)
         return self._derived[key]
 
-    def modes_split(self, dtype) -> tuple[np.ndarray, np.ndarray]:
-        """The modes' x and y tangent rows as two C-contiguous (N, K) ``dtype`` arrays, once per model."""
-        key = ("split", np.dtype(dtype).str)
-        if key not in self._derived:
-            rows = np.asarray(self.modes, dtype=dtype).reshape(self.n_pixels, 2, -1)
-            self._derived[key] = (np.ascontiguousarray(rows[:, 0]), np.ascontiguousarray(rows[:, 1]))
-        return self._derived[key]
-
     @property
     def n_pixels(self) -> int:
         return int(self.mean_normals.shape[0])

@@ -3,7 +3,7 @@ import pytest
 
 from nodes.geometry import normals_from_depth
 from nodes.integrate import frankot_chellappa, harmonic_fill, masked_least_squares
-from nodes.raster import grid_mesh, rasterize, rasterize_row_edges
+from nodes.raster import grid_mesh, grid_row_edges, rasterize, rasterize_row_edges
 from nodes.reflectance import light_from_angles
 from nodes.shadow import cast_shadow, confirm_with_image, shadow_maps
 
@@ -158,10 +158,10 @@ def test_row_edge_rasterizer_matches_the_general_one_on_a_turned_face():
         verts = np.column_stack([x_turned, rows, z_turned])
         attrs = np.nan_to_num(albedo.ravel()[pix])[:, None]
         d1, a1 = rasterize(verts, tris, (h, w), attributes=attrs)
-        d2, a2 = rasterize_row_edges(verts, tris, (h, w), attributes=attrs)
+        d2, a2 = rasterize_row_edges(verts, grid_row_edges(np.isfinite(d)), (h, w), attributes=attrs)
         assert np.isfinite(d1).sum() > 3000
         np.testing.assert_array_equal(np.isfinite(d1), np.isfinite(d2))
         np.testing.assert_allclose(d2, d1, atol=1e-9)
         np.testing.assert_allclose(a2, a1, atol=1e-9)
     with pytest.raises(ValueError, match="pixel row"):
-        rasterize_row_edges(verts + [0.0, 0.5, 0.0], tris, (h, w))
+        rasterize_row_edges(verts + [0.0, 0.5, 0.0], grid_row_edges(np.isfinite(d)), (h, w))
