@@ -92,7 +92,9 @@ class FitIteration:
     """One pass of the loop. Arrays are over the N model pixels.
 
     normals: (N, 3) on-cone normals n''; model_normals: (N, 3) model fit n';
-    weights: (N,) Huber weights from this pass's residuals; residuals: (N,) radians;
+    weights: (N,) Huber weights of this pass; residuals: (N,) radians, the offsets they came from
+    (gauss-newton: the previous model's distance to its cones, before this pass's step; irls:
+    this pass's fit to the previous on-cone normals);
     sigma: scale (radians); b: (K,) coefficients; change_deg: mean angle n -> n''.
     """
 
