@@ -218,6 +218,8 @@ def fit(
             sigma = residual_scale(eta[active], config.scale)
             if it > 3 and sigma > 1.5 * sigma_prev:
                 newton = False  # the step overshot: alternating projections (always stable) from here on
+                if config.tolerance_deg is None:
+                    tolerance = 0.01  # and the alternation's stopping rule, as it creeps
             else:
                 w = huber_weights(eta, config.huber_k * max(sigma, 1e-9))
                 w[~active] = 0.0
