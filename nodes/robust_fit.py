@@ -53,7 +53,7 @@ RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))  # median of a unit Rayleigh
 class FitConfig:
     """Options of the robust fit; ``FitConfig.paper()`` is the paper's variant throughout."""
 
-    solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"
+    solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"  # see the module docstring
     scale: Literal["rayleigh", "mad"] = "rayleigh"
     huber_k: float = 1.5  # Huber threshold in units of sigma
     init: Literal["mean", "gradient"] = "mean"
@@ -65,7 +65,7 @@ class FitConfig:
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
     adaptive_prior: float = 100.0
-    # over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
+    # irls: over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
     # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
     # a residual scale that jumps switches it off for the rest of the fit)
     relaxation: float = 1.8
