@@ -7,10 +7,11 @@ fit of finite differences between face pixels only, with no boundary assumption)
 """
 from __future__ import annotations
 
-import hashlib
 import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse.linalg import factorized, splu
+
+from nodes.mask_cache import per_mask
 
 MAX_SLOPE = 10.0  # |dz/dx| clamp for normals near the silhouette (84 degrees)
 
@@ -119,20 +120,9 @@ def _finish(z: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return z.astype(np.float32)
 
 
-_OPERATORS: dict[tuple, tuple] = {}
-_MAX_CACHED_OPERATORS = 8
-
-
 def _factorised_operator(mask: np.ndarray) -> tuple:
     """``(solve, D, horizontal pairs, vertical pairs, mask pixel indices)`` for ``mask``, cached."""
-    key = (mask.shape, hashlib.sha1(np.packbits(mask).tobytes()).hexdigest())
-    hit = _OPERATORS.get(key)
-    if hit is None:
-        hit = _build_operator(mask)
-        if len(_OPERATORS) >= _MAX_CACHED_OPERATORS:
-            _OPERATORS.pop(next(iter(_OPERATORS)))
-        _OPERATORS[key] = hit
-    return hit
+    return per_mask("integration operator", mask, _build_operator)
 
 
 def _build_operator(mask: np.ndarray) -> tuple:

@@ -1,9 +1,9 @@
 """Orthographic z-buffer rasterisation of triangle meshes, vectorised over triangles."""
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
+
+from nodes.mask_cache import per_mask
 
 
 def rasterize(
@@ -86,26 +86,15 @@ def rasterize(
     return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
 
 
-_MESHES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-
-
 def grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of the pixel grid inside ``mask``.
 
     mask: (H, W) bool. Returns ``(pixel_index (V,) flat indices of the vertices,
     triangles (T, 3) into that vertex list)``: each 2x2 block with 3 or 4 mask pixels gives
-    one or two triangles, wound counter-clockwise as seen from +z (y up). Kept (read-only) for
-    the last few masks: a stream asks for the same face region every frame.
+    one or two triangles, wound counter-clockwise as seen from +z (y up). Kept per mask
+    (read-only, ``nodes.mask_cache``).
     """
-    m = np.asarray(mask, bool)
-    key = (m.shape, hashlib.sha1(np.packbits(m).tobytes()).hexdigest())
-    if key not in _MESHES:
-        if len(_MESHES) >= 8:
-            _MESHES.pop(next(iter(_MESHES)))
-        pix, tris = _grid_mesh(m)
-        pix.flags.writeable = tris.flags.writeable = False
-        _MESHES[key] = (pix, tris)
-    return _MESHES[key]
+    return per_mask("grid mesh", mask, _grid_mesh)
 
 
 def _grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -128,25 +117,26 @@ def _grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         (a, d, b, (a >= 0) & (b >= 0) & (c < 0) & (d >= 0)),
     ):
         tris.append(np.stack([p[cond], q[cond], r[cond]], 1))
-    return pix, np.concatenate(tris).astype(np.int64)
+    tris = np.concatenate(tris).astype(np.int64)
+    pix.flags.writeable = tris.flags.writeable = False
+    return pix, tris
 
 
 def grid_row_edges(mask: np.ndarray) -> np.ndarray:
     """(E, 2) vertex pairs (into ``grid_mesh(mask)``'s vertices, left then right) of the mesh's
     horizontal edges: row neighbours that share a triangle. Kept per mask like the mesh."""
+    return per_mask("grid row edges", mask, _grid_row_edges)
+
+
+def _grid_row_edges(mask: np.ndarray) -> np.ndarray:
     pix, tris = grid_mesh(mask)
-    key = ("edges", tris.shape, hashlib.sha1(np.packbits(np.asarray(mask, bool)).tobytes()).hexdigest())
-    if key not in _MESHES:
-        if len(_MESHES) >= 16:
-            _MESHES.pop(next(iter(_MESHES)))
-        rows = pix // np.asarray(mask).shape[1]
-        e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-        e = np.sort(e[rows[e[:, 0]] == rows[e[:, 1]]], axis=1)  # same row: left vertex has the lower index
-        k = np.unique(e[:, 0] * len(pix) + e[:, 1])  # each shared edge once
-        edges = np.column_stack([k // len(pix), k % len(pix)])
-        edges.flags.writeable = False
-        _MESHES[key] = edges
-    return _MESHES[key]
+    rows = pix // mask.shape[1]
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    e = np.sort(e[rows[e[:, 0]] == rows[e[:, 1]]], axis=1)  # same row: left vertex has the lower index
+    k = np.unique(e[:, 0] * len(pix) + e[:, 1])  # each shared edge once
+    edges = np.column_stack([k // len(pix), k % len(pix)])
+    edges.flags.writeable = False
+    return edges
 
 
 def rasterize_row_edges(vertices: np.ndarray, edges: np.ndarray, shape: tuple[int, int],
