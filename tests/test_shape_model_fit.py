@@ -113,21 +113,10 @@ def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(proced
 
 
 def test_exact_irls_beats_the_papers_one_step_formula(procedural_model):
-    from nodes.evaluate import render_scene
-    from nodes.robust_fit import initial_normals
-
-    m = procedural_model
     depths, _ = procedural(4, seed=7)
-    s = light_from_angles(60)
-    errs = {"irls": [], "paper": []}
-    for d in depths:
-        sc = render_scene(d, 1.0, s, m.mask)
-        for name, cfg in (("irls", FitConfig()), ("paper", FitConfig.paper())):
-            r = fit(m, sc.image[m.mask], s, cfg, initial_normals(m, sc.image, s, cfg))
-            n = combine(r.normals, r.model_normals, r.weights)
-            ok = sc.valid[m.mask]
-            errs[name].append(np.mean(angle_deg(n[ok], sc.normals[m.mask][ok])))
-    assert np.mean(errs["irls"]) < 0.5 * np.mean(errs["paper"])
+    res = _fit_errors(procedural_model, depths, light_from_angles(60),
+                      {"irls": FitConfig(), "paper": FitConfig.paper()})
+    assert np.mean(res["irls"]["err"]) < 0.5 * np.mean(res["paper"]["err"])
 
 
 def test_iteration_records_are_complete(procedural_model):
