@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from flow.frame import Frame
-from flow.recording import Event, Recorder
+from flow.recording import Event, OnMask, Recorder
 from nodes.relight import surface_mesh
 from nodes.robust_fit import FitIteration
 from nodes.shape_model import ShapeModel
@@ -39,12 +39,17 @@ class FitObserver:
             self._emit(frame.id, it)
 
     def _emit(self, fid: int, it: FitIteration) -> None:
-        m, r, k = self.model, self.recorder, it.iteration
-        r.emit(Event(fid, "robust_fit/normals", "normals", m.to_image(it.normals.astype(np.float32)), k))
-        r.emit(Event(fid, "robust_fit/model_normals", "normals", m.to_image(it.model_normals.astype(np.float32)), k))
-        r.emit(Event(fid, "robust_fit/weights", "image", m.to_image(it.weights.astype(np.float32)), k))
-        r.emit(Event(fid, "robust_fit/residuals", "array", m.to_image(it.residuals.astype(np.float32)), k))
-        r.emit(Event(fid, "robust_fit/b", "array", it.b.astype(np.float32), k))
+        """Face-pixel copies only: the recorder's thread puts them on the grid (``OnMask``)."""
+        mask, r, k = self.model.mask, self.recorder, it.iteration
+
+        def on_face(values: np.ndarray) -> OnMask:
+            return OnMask(np.array(values, np.float32), mask)
+
+        r.emit(Event(fid, "robust_fit/normals", "normals", on_face(it.normals), k))
+        r.emit(Event(fid, "robust_fit/model_normals", "normals", on_face(it.model_normals), k))
+        r.emit(Event(fid, "robust_fit/weights", "image", on_face(it.weights), k))
+        r.emit(Event(fid, "robust_fit/residuals", "array", on_face(it.residuals), k))
+        r.emit(Event(fid, "robust_fit/b", "array", np.array(it.b, np.float32), k))
         r.emit(Event(fid, "robust_fit/convergence", "scalars", it.scalars(), k))
 
 
@@ -63,7 +68,7 @@ class RecordNode:
         d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
         emit(Event(fid, "load/grid_image", "image", d["grid_image"].astype(np.float32)))
         emit(Event(fid, "remap/remapped", "image", d["remapped"]))
-        emit(Event(fid, "sfs_init/normals", "normals", m.to_image(d["initial"].astype(np.float32))))
+        emit(Event(fid, "sfs_init/normals", "normals", OnMask(np.array(d["initial"], np.float32), m.mask)))
         emit(Event(fid, "combine/normals", "normals", d["normals"]))
         emit(Event(fid, "integrate/depth", "depth", d["depth"]))
         emit(Event(fid, "shadow/cast", "image", d["shadow"].cast.astype(np.float32)))

@@ -71,6 +71,43 @@ def test_rerun_opens_both_recordings(demo):
     assert info.message_count > 6 * iterations  # six per-iteration channels, plus the per-frame ones
 
 
+def _rrd_rows(path: Path, entity: str, component: str) -> dict[int, object]:
+    """iteration -> the component's value in that row, for one entity of an .rrd file."""
+    rc = pytest.importorskip("rerun.chunk")
+    rows = {}
+    for chunk in rc.RrdReader(path).store().stream():
+        if chunk.entity_path != entity:
+            continue
+        rb = chunk.to_record_batch()
+        if component in rb.schema.names and "iteration" in rb.schema.names:
+            for it, value in zip(rb.column("iteration").to_pylist(), rb.column(component).to_pylist()):
+                rows[int(it)] = value
+    return rows
+
+
+def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
+    """The .rrd's per-iteration rows (sent in columns, a frame at a time) show exactly the MCAP's
+    arrays: weights as float images with 0 off the face, normals as (n + 1) * 127.5 RGB,
+    the coefficients and sigma as scalars, at the same iterations."""
+    rec = read_mcap(demo / "run.mcap")
+    fr = rec.finished_frames()[1]
+    its = fr.iterations("robust_fit/weights")
+    base = f"/frames/{fr.frame:05d}/robust_fit"
+    weights = _rrd_rows(demo / "run.rrd", f"{base}/weights", "Image:buffer")
+    normals = _rrd_rows(demo / "run.rrd", f"{base}/normals", "Image:buffer")
+    b = _rrd_rows(demo / "run.rrd", f"{base}/b", "Scalars:scalars")
+    sigma = _rrd_rows(demo / "run.rrd", f"{base}/convergence/sigma", "Scalars:scalars")
+    assert sorted(weights) == sorted(normals) == sorted(b) == sorted(sigma) == its and len(its) >= 3
+    for it in its:
+        w = np.frombuffer(bytes(weights[it][0]), np.float32).reshape(128, 128)
+        assert np.array_equal(w, np.nan_to_num(fr.arrays["robust_fit/weights"][it]))
+        n = np.frombuffer(bytes(normals[it][0]), np.uint8).reshape(128, 128, 3)
+        expect = ((np.nan_to_num(fr.arrays["robust_fit/normals"][it]) + 1) * 127.5).clip(0, 255).astype(np.uint8)
+        assert np.array_equal(n, expect)
+        assert np.allclose(b[it], fr.arrays["robust_fit/b"][it], rtol=0, atol=1e-7)
+        assert sigma[it] == [pytest.approx(fr.scalars["robust_fit/convergence"][it]["sigma"], rel=1e-12)]
+
+
 def test_replay_and_diff_commands(demo, tmp_path):
     cli = [sys.executable, "-m", "nodes.cli"]
     out = subprocess.run(cli + ["replay", str(demo / "run.mcap"), "--plot", str(tmp_path / "c.png"),
