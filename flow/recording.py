@@ -74,33 +74,63 @@ def log_time_ns(frame: int, iteration: int | None) -> int:
     return int(frame) * 1_000_000_000 + (0 if iteration is None else int(iteration) + 1) * 1_000_000
 
 
-def encode_array(frame: int, iteration: int | None, arr: np.ndarray) -> bytes:
-    """``SFA1`` + uint32 LE header length + JSON header + raw C-order little-endian bytes."""
+def encode_array(frame: int, iteration: int | None, arr: np.ndarray, mask: np.ndarray | None = None) -> bytes:
+    """``SFA1`` + uint32 LE header length + JSON header + payload.
+
+    Dense (``mask`` None): the payload is ``arr``'s raw C-order little-endian bytes. Masked:
+    ``arr`` holds the values (N, ...) at the N True pixels of the bool grid ``mask`` (H, W);
+    the header says ``"masked": true`` with the full shape (H, W, ...), and the payload is
+    ``np.packbits(mask)`` followed by the values' bytes. Readers rebuild the full array with
+    NaN (floats) or 0 off the mask.
+    """
     a = np.ascontiguousarray(arr)
     if a.dtype.byteorder == ">":
         a = a.astype(a.dtype.newbyteorder("<"))
-    header = json.dumps({"frame": int(frame), "iteration": iteration, "dtype": a.dtype.str,
-                         "shape": list(a.shape)}, separators=(",", ":")).encode()
-    return ARRAY_MAGIC + struct.pack("<I", len(header)) + header + a.tobytes()
+    shape = list(a.shape) if mask is None else list(mask.shape) + list(a.shape[1:])
+    head = {"frame": int(frame), "iteration": iteration, "dtype": a.dtype.str, "shape": shape}
+    if mask is not None:
+        head["masked"] = True
+    header = json.dumps(head, separators=(",", ":")).encode()
+    bits = b"" if mask is None else np.packbits(mask).tobytes()
+    return ARRAY_MAGIC + struct.pack("<I", len(header)) + header + bits + a.tobytes()
 
 
 def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
-    """Inverse of ``encode_array``; raises ``ValueError`` on anything malformed."""
+    """Inverse of ``encode_array`` (a masked message comes back as the full array); raises
+    ``ValueError`` on anything malformed."""
     if len(data) < 8 or data[:4] != ARRAY_MAGIC:
         raise ValueError("not a shadowflow array message")
     (hlen,) = struct.unpack("<I", data[4:8])
     if hlen > 4096 or 8 + hlen > len(data):
         raise ValueError("array header length out of range")
     header = json.loads(data[8:8 + hlen])
-    dtype, shape = header.get("dtype"), header.get("shape")
+    dtype, shape, masked = header.get("dtype"), header.get("shape"), header.get("masked", False)
     if dtype not in ALLOWED_DTYPES or not isinstance(shape, list) or len(shape) > 8 \
-            or not all(isinstance(d, int) and 0 <= d for d in shape):
+            or not all(isinstance(d, int) and 0 <= d for d in shape) or masked not in (True, False) \
+            or (masked and len(shape) < 2):
         raise ValueError(f"bad array header {header!r}")
-    n = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
-    payload = data[8 + hlen:]
-    if n > MAX_ARRAY_BYTES or n != len(payload):
-        raise ValueError(f"array payload is {len(payload)} bytes, header says {n}")
-    return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+    itemsize = np.dtype(dtype).itemsize
+    full = int(np.prod(shape, dtype=np.int64)) * itemsize
+    if full > MAX_ARRAY_BYTES:
+        raise ValueError(f"array payload is {len(data) - 8 - hlen} bytes, header says {full}, over the "
+                         f"{MAX_ARRAY_BYTES}-byte limit")
+    payload = memoryview(data)[8 + hlen:]
+    if not masked:
+        if full != len(payload):
+            raise ValueError(f"array payload is {len(payload)} bytes, header says {full}")
+        return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+    pixels = shape[0] * shape[1]
+    nbits = (pixels + 7) // 8
+    if len(payload) < nbits:
+        raise ValueError(f"masked array payload is {len(payload)} bytes, its mask alone needs {nbits}")
+    mask = np.unpackbits(np.frombuffer(payload[:nbits], np.uint8), count=pixels).astype(bool).reshape(shape[:2])
+    per_pixel = int(np.prod(shape[2:], dtype=np.int64))
+    n = int(mask.sum()) * per_pixel * itemsize
+    if n != len(payload) - nbits:
+        raise ValueError(f"masked array values are {len(payload) - nbits} bytes, its mask says {n}")
+    values = np.frombuffer(payload[nbits:], dtype=dtype).reshape((-1, *shape[2:]))
+    fill = np.nan if np.dtype(dtype).kind == "f" else 0
+    return header, OnMask(values, mask).grid(fill)
 
 
 class Sink:
@@ -168,10 +198,14 @@ class McapSink(Sink):
                 self._add(f"{topic}/{key}", ARRAY_SCHEMA, ARRAY_ENCODING, event,
                           encode_array(event.frame, event.iteration, arr))
             return
-        arr = dense(event.value)
-        self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, encode_array(event.frame, event.iteration, arr))
+        v = event.value
+        if isinstance(v, OnMask):  # face pixels and a 2 KiB bit mask instead of a NaN-padded grid
+            data = encode_array(event.frame, event.iteration, v.values, v.mask)
+        else:
+            data = encode_array(event.frame, event.iteration, np.asarray(v))
+        self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, data)
         if event.kind == "image":
-            img8 = (np.clip(np.nan_to_num(arr.astype(np.float32)), 0, 1) * 255 + 0.5).astype(np.uint8)
+            img8 = (_display_grey(v).clip(0, 1) * 255 + 0.5).astype(np.uint8)
             t = log_time_ns(event.frame, event.iteration)
             msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
                    "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",

@@ -224,6 +224,35 @@ def test_truncated_and_hostile_files(demo, tmp_path):
         decode_array(b"SFA1" + struct.pack("<I", 20) + b'{"dtype": "|O"}' + b" " * 5)
 
 
+def test_masked_array_messages_round_trip_and_refuse_bad_payloads():
+    """A masked message (bit mask + face values) reads back as the full grid, NaN off the mask,
+    and is a quarter of the dense one's size at a typical face coverage."""
+    import struct
+
+    from flow.recording import OnMask, decode_array
+
+    rng = np.random.default_rng(3)
+    mask = rng.random((128, 128)) < 0.26
+    values = rng.standard_normal((int(mask.sum()), 3)).astype(np.float32)
+    data = encode_array(4, 2, values, mask)
+    header, grid = decode_array(data)
+    expect = OnMask(values, mask).grid()
+    assert header["shape"] == [128, 128, 3] and grid.dtype == np.float32
+    assert np.array_equal(np.isnan(grid), np.isnan(expect)) and np.array_equal(grid[mask], values)
+    assert len(data) < 0.3 * len(encode_array(4, 2, expect))
+    _, ints = decode_array(encode_array(0, None, np.arange(mask.sum(), dtype=np.int32), mask))
+    assert ints[~mask].max() == 0 and np.array_equal(ints[mask], np.arange(mask.sum()))
+    hlen = struct.unpack("<I", data[4:8])[0]
+    head, body = data[:8 + hlen], data[8 + hlen:]
+    with pytest.raises(ValueError, match="values are"):
+        decode_array(head + body[:-12])  # a pixel short
+    with pytest.raises(ValueError, match="mask alone"):
+        decode_array(head + body[:100])  # cut inside the mask
+    flat = json.dumps({"frame": 0, "iteration": 1, "dtype": "<f4", "shape": [16], "masked": True}).encode()
+    with pytest.raises(ValueError, match="bad array header"):
+        decode_array(b"SFA1" + struct.pack("<I", len(flat)) + flat + b"\x00" * 8)
+
+
 def _golden_copies(src: Path, n: int) -> None:
     """``n`` inputs in ``src``: copies of the two golden faces (with their sidecar lights)."""
     base = golden_inputs(src)
