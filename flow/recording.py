@@ -59,9 +59,10 @@ class OnMask:
 
     def grid(self, fill: float = np.nan) -> np.ndarray:
         """(H, W, ...) of the values' dtype, ``fill`` off the mask."""
-        out = np.full(self.mask.shape + self.values.shape[1:], fill, dtype=self.values.dtype)
-        out[self.mask] = self.values
-        return out
+        rest = self.values.shape[1:]
+        out = np.full((self.mask.size, *rest), fill, dtype=self.values.dtype)
+        out[np.flatnonzero(self.mask)] = self.values  # integer rows: 3x faster than a boolean mask for (N, 3)
+        return out.reshape(self.mask.shape + rest)
 
 
 def dense(value: Any, fill: float = np.nan) -> np.ndarray:
@@ -209,8 +210,10 @@ class McapSink(Sink):
             t = log_time_ns(event.frame, event.iteration)
             msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
                    "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",
-                   "step": int(img8.shape[1]), "data": base64.b64encode(img8.tobytes()).decode()}
-            self._add(topic + "/foxglove", "foxglove.RawImage", "json", event, json.dumps(msg).encode())
+                   "step": int(img8.shape[1])}
+            # base64 needs no JSON escaping: splice it in rather than have json scan 20 KB of it
+            body = json.dumps(msg).encode()[:-1] + b', "data": "' + base64.b64encode(img8.tobytes()) + b'"}'
+            self._add(topic + "/foxglove", "foxglove.RawImage", "json", event, body)
 
     def frame_done(self, frame: int) -> None:
         self._w.flush()
@@ -350,19 +353,34 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float, np.floating, np.integer)) and not isinstance(x, bool)
 
 
+def _finite32(a: Any) -> np.ndarray:
+    """A float32 copy with NaN and inf set to 0 (one pass; ``nan_to_num`` makes four)."""
+    out = np.array(a, np.float32)
+    bad = ~np.isfinite(out)
+    if bad.any():
+        out[bad] = 0
+    return out
+
+
 def _display_grey(value: Any) -> np.ndarray:
-    """float32, 0 where the array is NaN or off its mask (Rerun shows NaN as garbage)."""
+    """float32, 0 where the array is not finite or off its mask (Rerun shows NaN as garbage)."""
     if isinstance(value, OnMask):
-        return OnMask(np.nan_to_num(value.values.astype(np.float32)), value.mask).grid(0)
-    return np.nan_to_num(np.asarray(value, np.float32))
+        return OnMask(_finite32(value.values), value.mask).grid(0)
+    return _finite32(value)
 
 
 def _display_normals(value: Any) -> np.ndarray:
-    """(H, W, 3) unit normals as RGB uint8, ``(n + 1) * 127.5``; NaN or off the mask shows as 127."""
+    """(H, W, 3) unit normals as RGB uint8, ``(n + 1) * 127.5``; non-finite or off the mask: 127."""
     if isinstance(value, OnMask):
-        rgb = ((np.nan_to_num(value.values.astype(np.float32)) + 1) * 127.5).clip(0, 255).astype(np.uint8)
-        return OnMask(rgb, value.mask).grid(127)
-    return ((np.nan_to_num(np.asarray(value, np.float32)) + 1) * 127.5).clip(0, 255).astype(np.uint8)
+        return OnMask(_normals_rgb(value.values), value.mask).grid(127)
+    return _normals_rgb(value)
+
+
+def _normals_rgb(n: Any) -> np.ndarray:
+    rgb = _finite32(n)
+    rgb += 1
+    rgb *= 127.5
+    return rgb.clip(0, 255, out=rgb).astype(np.uint8)
 
 
 @dataclass
