@@ -1,14 +1,21 @@
-"""Recording overhead per frame at 128x128: off / mcap / rerun / both, and the thinning options.
+"""Recording overhead per frame: off / mcap / rerun / both, and the thinning options, per model
+grid and mode count.
 
-    python benchmarks/bench_recording.py [--frames 6] [--repeats 3]
+    python benchmarks/bench_recording.py [--grids 64 128 256] [--modes 30 60] [--frames 12]
+                                         [--repeats 5] [--out benchmarks/results]
 
-Wall time per frame of ``run_stream`` (including the recorder thread draining to disk), the
-median of ``--repeats`` runs, as a ratio to recording off, and the bytes written per frame.
-Not part of the tests.
+Wall time per frame of ``run_stream`` (the whole chain and the recorder thread draining to
+disk), the median of ``--repeats`` runs, as a ratio to recording off, and the bytes written
+per frame. With no ``--grids``/``--modes`` it uses the shipped default model (128x128, K=60);
+otherwise a model trained on 60 procedural faces per grid, truncated to each K, as in
+``bench_speed.py``. Run it pinned (``taskset -c 0``) for the one-core figures. Not part of the
+tests.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import platform
 import statistics
 import sys
 import tempfile
@@ -16,7 +23,6 @@ import time
 from pathlib import Path
 
 from flow.recording import RecordOptions
-from nodes.default_model import default_model
 from nodes.pipeline import MethodOptions
 from nodes.runner import RunOptions, run_stream
 
@@ -30,34 +36,78 @@ CASES = [
 ]
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--frames", type=int, default=6)
-    ap.add_argument("--repeats", type=int, default=3)
-    args = ap.parse_args()
+def models(grids: list[int] | None, ks: list[int] | None):
+    """(grid, K, model) to measure: the default model, or procedural ones per grid and K."""
+    if not grids and not ks:
+        from nodes.default_model import default_model
+
+        m = default_model()
+        yield m.grid[0], m.n_modes, m
+        return
+    from nodes.shape_model import train_shape_model
+    from nodes.synth.sources import procedural
+
+    for g in grids or [128]:
+        depths, _ = procedural(60, seed=0, grid=(g, g))
+        full = train_shape_model(depths, max(ks or [60]), source="procedural")
+        for k in ks or [60]:
+            yield g, k, full.truncated(k)
+
+
+def measure(model, grid: int, frames: int, repeats: int, tmp: Path) -> list[dict]:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_stream import make_inputs
 
-    model = default_model()
-    with tempfile.TemporaryDirectory() as tmp:
-        src = Path(tmp) / "in"
+    src = tmp / f"in-{grid}"
+    if not src.exists():
         src.mkdir()
-        make_inputs(src, args.frames)
-        paths = sorted(str(p) for p in src.glob("*.png"))
-        base = None
-        print(f"{args.frames} frames, 128x128, K={model.n_modes}, median of {args.repeats} runs")
-        print("| recording | ms / frame | x off | MiB / frame |\n|---|---|---|---|")
-        for name, record, ropt in CASES:
-            times, size = [], 0
-            for r in range(args.repeats):
-                out = Path(tmp) / f"out-{name}-{r}".replace(" ", "").replace(",", "")
-                t0 = time.perf_counter()
-                run_stream(paths, out, model, MethodOptions(), RunOptions(record=record, record_options=ropt, quiet=True))
-                times.append((time.perf_counter() - t0) / args.frames)
-                size = sum(f.stat().st_size for f in out.glob("run.*")) / args.frames
-            med = statistics.median(times)
-            base = base or med
-            print(f"| {name} | {1000 * med:.0f} | {med / base:.2f} | {size / 2**20:.2f} |", flush=True)
+        make_inputs(src, frames, (grid, grid))
+    paths = sorted(str(p) for p in src.glob("*.png"))
+    # untimed: per-mask caches (integration operator, meshes) and the Rerun import are one-off
+    run_stream(paths[:2], tmp / f"warm-{grid}-{model.n_modes}", model, MethodOptions(),
+               RunOptions(record=("rerun", "mcap"), quiet=True))
+    rows, base = [], None
+    for name, record, ropt in CASES:
+        times, size = [], 0
+        for r in range(repeats):
+            out = tmp / f"out-{grid}-{model.n_modes}-{name}-{r}".replace(" ", "").replace(",", "")
+            t0 = time.perf_counter()
+            run_stream(paths, out, model, MethodOptions(), RunOptions(record=record, record_options=ropt, quiet=True))
+            times.append((time.perf_counter() - t0) / frames)
+            size = sum(f.stat().st_size for f in out.glob("run.*")) / frames
+        med = statistics.median(times)
+        base = base or med
+        rows.append({"grid": grid, "K": model.n_modes, "recording": name, "ms_per_frame": round(1000 * med, 1),
+                     "ratio_to_off": round(med / base, 3), "mib_per_frame": round(size / 2**20, 3)})
+        print(f"| {grid} | {model.n_modes} | {name} | {1000 * med:.0f} | {med / base:.2f} | {size / 2**20:.2f} |",
+              flush=True)
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--grids", type=int, nargs="*")
+    ap.add_argument("--modes", type=int, nargs="*")
+    ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--out", help="folder for recording.json and recording.md")
+    args = ap.parse_args()
+    head = (f"Machine: {platform.machine()}, {platform.python_version()}; {args.frames} frames per run, "
+            f"median of {args.repeats} runs; 'x off' is the ratio to the same chain with recording off.")
+    print(head)
+    table = ["| grid | K | recording | ms / frame | x off | MiB / frame |", "|---|---|---|---|---|---|"]
+    print("\n".join(table), flush=True)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for grid, k, model in models(args.grids, args.modes):
+            rows.extend(measure(model, grid, args.frames, args.repeats, Path(tmp)))
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "recording.json").write_text(json.dumps({"machine": head, "rows": rows}, indent=1))
+        lines = [f"| {r['grid']} | {r['K']} | {r['recording']} | {r['ms_per_frame']:.0f} | {r['ratio_to_off']:.2f} | "
+                 f"{r['mib_per_frame']:.2f} |" for r in rows]
+        (out / "recording.md").write_text(head + "\n\n" + "\n".join(table + lines) + "\n")
 
 
 if __name__ == "__main__":

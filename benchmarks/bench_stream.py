@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 
 
-def make_inputs(folder: Path, n: int) -> None:
-    """``n`` inputs: copies of 10 distinct shadowed faces (lights 30..66 degrees)."""
+def make_inputs(folder: Path, n: int, grid: tuple[int, int] = (128, 128)) -> None:
+    """``n`` inputs of ``grid`` pixels: copies of 10 distinct shadowed faces (lights 30..66 degrees)."""
     from nodes.reflectance import light_from_angles
     from nodes.synth.inputs import write_shadowed_face
 
     rng = np.random.default_rng(5)
-    base = [write_shadowed_face(folder / f"base-{i}.png", rng, light_from_angles(30 + 4 * i)) for i in range(10)]
+    base = [write_shadowed_face(folder / f"base-{i}.png", rng, light_from_angles(30 + 4 * i), grid) for i in range(10)]
     for k in range(n):
         src = base[k % 10]
         shutil.copy(src, folder / f"f{k:05d}.png")

@@ -309,21 +309,19 @@ class RerunSink(Sink):
                 self.rec.send_columns(f"{entity}/{name}", indexes=index(rs),
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
-        shown = [_display_normals(e.value) if e.kind == "normals" else _display_grey(e.value) for e in rows]
-        if shown[0].ndim == 1:
+        if _ndim(rows[0].value) == 1:
+            shown = [_display_grey(e.value) for e in rows]
             if any(a.ndim != 1 for a in shown):
                 raise ValueError(f"{entity}: iterations mix vectors and images")
             columns = rr.Scalars.columns(scalars=np.concatenate(shown).astype(np.float64))
             self.rec.send_columns(entity, indexes=index(rows), columns=columns.partition([a.size for a in shown]))
             return
-        if any(a.shape != shown[0].shape or a.dtype != shown[0].dtype for a in shown):
-            raise ValueError(f"{entity}: iterations of different image sizes")
-        h, w = shown[0].shape[:2]
-        fmt = rr.components.ImageFormat(width=w, height=h, color_model="RGB" if shown[0].ndim == 3 else "L",
-                                        channel_datatype="U8" if shown[0].dtype == np.uint8 else "F32")
-        buffers = np.stack(shown).reshape(len(shown), -1).view(np.uint8)
+        images = _display_stack(rows)
+        n, h, w = images.shape[:3]
+        fmt = rr.components.ImageFormat(width=w, height=h, color_model="RGB" if images.ndim == 4 else "L",
+                                        channel_datatype="U8" if images.dtype == np.uint8 else "F32")
         self.rec.send_columns(entity, indexes=index(rows),
-                              columns=rr.Image.columns(buffer=buffers, format=[fmt] * len(rows)))
+                              columns=rr.Image.columns(buffer=images.reshape(n, -1).view(np.uint8), format=[fmt] * n))
 
     def _send_frame(self, frame: int | None) -> None:
         for f, path in [k for k in self._pending if frame is None or k[0] == frame]:
@@ -374,6 +372,24 @@ def _display_normals(value: Any) -> np.ndarray:
     if isinstance(value, OnMask):
         return OnMask(_normals_rgb(value.values), value.mask).grid(127)
     return _normals_rgb(value)
+
+
+def _display_stack(rows: list[Event]) -> np.ndarray:
+    """(n, H, W) float32 or (n, H, W, 3) uint8: the rows' display images, stacked. Rows on one
+    mask are converted and scattered in one pass (one indexed assignment for the whole batch)."""
+    first = rows[0].value
+    normals = rows[0].kind == "normals"
+    if isinstance(first, OnMask) and all(isinstance(e.value, OnMask) and e.kind == rows[0].kind
+                                         and e.value.mask is first.mask for e in rows):
+        values = np.stack([e.value.values for e in rows])
+        shown = _normals_rgb(values) if normals else _finite32(values)
+        out = np.full((len(rows), first.mask.size, *shown.shape[2:]), 127 if normals else 0, shown.dtype)
+        out[:, np.flatnonzero(first.mask)] = shown
+        return out.reshape((len(rows), *first.mask.shape, *shown.shape[2:]))
+    shown = [_display_normals(e.value) if e.kind == "normals" else _display_grey(e.value) for e in rows]
+    if any(a.shape != shown[0].shape or a.dtype != shown[0].dtype for a in shown):
+        raise ValueError(f"{_entity(rows[0])}: iterations of different image sizes")
+    return np.stack(shown)
 
 
 def _normals_rgb(n: Any) -> np.ndarray:
