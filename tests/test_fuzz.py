@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flow.recording import Event, McapSink, Recorder, RecordingError, read_mcap
+from flow.recording import Event, McapSink, OnMask, Recorder, RecordingError, read_mcap
 from nodes.loader import IMAGE_SUFFIXES, InputError, load_image
 
 FUZZ = settings(max_examples=120, deadline=None, derandomize=True,
@@ -103,6 +103,8 @@ def _recording_seed() -> bytes:
         for it in (1, 2):
             rec.emit(Event(frame, "fit/weights", "image", rng.random((8, 8)).astype(np.float32), it))
             rec.emit(Event(frame, "fit/convergence", "scalars", {"sigma": 0.1 / it}, it))
+            mask = rng.random((8, 8)) < 0.5  # a masked array message: bit mask + values
+            rec.emit(Event(frame, "fit/residuals", "array", OnMask(rng.random(int(mask.sum())).astype(np.float32), mask), it))
         rec.emit(Event(frame, "fit/normals", "normals", rng.random((8, 8, 3)).astype(np.float32)))
         rec.frame_done(frame, {"source": f"f{frame}", "status": "ok"})
     rec.close()
