@@ -65,11 +65,6 @@ class OnMask:
         return out.reshape(self.mask.shape + rest)
 
 
-def dense(value: Any, fill: float = np.nan) -> np.ndarray:
-    """An event's array value as a full array (``OnMask`` put on its grid with ``fill``)."""
-    return value.grid(fill) if isinstance(value, OnMask) else np.asarray(value)
-
-
 def log_time_ns(frame: int, iteration: int | None) -> int:
     """Deterministic MCAP time: 1 s per frame, 1 ms per iteration (no wall clock)."""
     return int(frame) * 1_000_000_000 + (0 if iteration is None else int(iteration) + 1) * 1_000_000
