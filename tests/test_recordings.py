@@ -108,6 +108,32 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
         assert sigma[it] == [pytest.approx(fr.scalars["robust_fit/convergence"][it]["sigma"], rel=1e-12)]
 
 
+def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
+    """More iterations than one batch holds, of a face-pixel image and of a dense one (as
+    ``replay --rrd`` sends them), and a frame closed by ``close`` alone: every row reaches the
+    .rrd at its iteration with its own values."""
+    from flow.recording import OnMask, RerunSink
+
+    rng = np.random.default_rng(4)
+    mask = rng.random((6, 5)) < 0.6
+    faces = {it: rng.random(int(mask.sum())).astype(np.float32) for it in range(1, 8)}
+    grids = {it: rng.random((6, 5)).astype(np.float32) for it in range(1, 8)}
+    sink = RerunSink(tmp_path / "b.rrd", batch=3)
+    for it in range(1, 8):
+        sink.write(Event(0, "fit/weights", "image", OnMask(faces[it], mask), it))
+        sink.write(Event(0, "fit/residuals", "array", grids[it], it))
+        sink.write(Event(1, "fit/weights", "image", OnMask(faces[it], mask), it))
+    sink.frame_done(0)
+    sink.close()  # frame 1 was never closed: its held rows are written at close
+    for frame, path, expect in ((0, "weights", lambda it: OnMask(faces[it], mask).grid(0)),
+                                (0, "residuals", lambda it: grids[it]),
+                                (1, "weights", lambda it: OnMask(faces[it], mask).grid(0))):
+        rows = _rrd_rows(tmp_path / "b.rrd", f"/frames/{frame:05d}/fit/{path}", "Image:buffer")
+        assert sorted(rows) == list(range(1, 8)), (frame, path)
+        for it, buf in rows.items():
+            assert np.array_equal(np.frombuffer(bytes(buf[0]), np.float32).reshape(6, 5), expect(it)), (frame, path, it)
+
+
 def test_foxglove_copies_show_the_recorded_images(demo):
     """Each image's foxglove.RawImage copy is valid JSON whose mono8 pixels are the exact array
     (0 off the face), at every iteration of the weights."""
