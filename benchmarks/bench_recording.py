@@ -22,9 +22,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from flow.recording import RecordOptions
-from nodes.pipeline import MethodOptions
-from nodes.runner import RunOptions, run_stream
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_stream import make_inputs  # noqa: E402
+
+from flow.recording import RecordOptions  # noqa: E402
+from nodes.pipeline import MethodOptions  # noqa: E402
+from nodes.runner import RunOptions, run_stream  # noqa: E402
 
 CASES = [
     ("off", (), RecordOptions()),
@@ -55,9 +58,6 @@ def models(grids: list[int] | None, ks: list[int] | None):
 
 
 def measure(model, grid: int, frames: int, repeats: int, tmp: Path) -> list[dict]:
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_stream import make_inputs
-
     src = tmp / f"in-{grid}"
     if not src.exists():
         src.mkdir()

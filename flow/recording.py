@@ -201,7 +201,7 @@ class McapSink(Sink):
             data = encode_array(event.frame, event.iteration, np.asarray(v))
         self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, data)
         if event.kind == "image":
-            img8 = (_display_grey(v).clip(0, 1) * 255 + 0.5).astype(np.uint8)
+            img8 = (_display(v).clip(0, 1) * 255 + 0.5).astype(np.uint8)
             t = log_time_ns(event.frame, event.iteration)
             msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
                    "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",
@@ -273,14 +273,14 @@ class RerunSink(Sink):
         elif event.kind == "frame":
             rec.log(f"frames/{event.frame:05d}/status", rr.TextLog(json.dumps(v, default=_jsonable)))
         elif event.kind == "depth":
-            rec.log(entity, rr.DepthImage(_display_grey(v)))
+            rec.log(entity, rr.DepthImage(_display(v)))
         elif event.kind == "mesh":
             rec.log(entity, rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"],
                                       vertex_colors=v["colours"]))
         elif event.kind == "normals":
-            rec.log(entity, rr.Image(_display_normals(v)))
+            rec.log(entity, rr.Image(_display(v, "normals")))
         else:
-            a = _display_grey(v)
+            a = _display(v)
             if a.ndim == 2:  # "image", and 2-D "array"s
                 rec.log(entity, rr.Image(a))
             elif a.ndim == 1:  # a vector (the fit's coefficients): one plotted series per entry,
@@ -305,7 +305,7 @@ class RerunSink(Sink):
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
         if _ndim(rows[0].value) == 1:
-            shown = [_display_grey(e.value) for e in rows]
+            shown = [_display(e.value) for e in rows]
             if any(a.ndim != 1 for a in shown):
                 raise ValueError(f"{entity}: iterations mix vectors and images")
             columns = rr.Scalars.columns(scalars=np.concatenate(shown).astype(np.float64))
@@ -355,33 +355,33 @@ def _finite32(a: Any) -> np.ndarray:
     return out
 
 
-def _display_grey(value: Any) -> np.ndarray:
-    """float32, 0 where the array is not finite or off its mask (Rerun shows NaN as garbage)."""
-    if isinstance(value, OnMask):
-        return OnMask(_finite32(value.values), value.mask).grid(0)
-    return _finite32(value)
+def _display_rule(kind: str):
+    """How Rerun shows an event kind: (conversion of values, fill off the mask). Normals as RGB
+    uint8 ``(n + 1) * 127.5`` with 127 off the face; everything else float32 with 0 there
+    (Rerun shows NaN as garbage)."""
+    return (_normals_rgb, 127) if kind == "normals" else (_finite32, 0)
 
 
-def _display_normals(value: Any) -> np.ndarray:
-    """(H, W, 3) unit normals as RGB uint8, ``(n + 1) * 127.5``; non-finite or off the mask: 127."""
+def _display(value: Any, kind: str = "image") -> np.ndarray:
+    """One event value as Rerun shows it (see ``_display_rule``)."""
+    convert, fill = _display_rule(kind)
     if isinstance(value, OnMask):
-        return OnMask(_normals_rgb(value.values), value.mask).grid(127)
-    return _normals_rgb(value)
+        return OnMask(convert(value.values), value.mask).grid(fill)
+    return convert(value)
 
 
 def _display_stack(rows: list[Event]) -> np.ndarray:
     """(n, H, W) float32 or (n, H, W, 3) uint8: the rows' display images, stacked. Rows on one
     mask are converted and scattered in one pass (one indexed assignment for the whole batch)."""
-    first = rows[0].value
-    normals = rows[0].kind == "normals"
-    if isinstance(first, OnMask) and all(isinstance(e.value, OnMask) and e.kind == rows[0].kind
+    first, kind = rows[0].value, rows[0].kind
+    if isinstance(first, OnMask) and all(isinstance(e.value, OnMask) and e.kind == kind
                                          and e.value.mask is first.mask for e in rows):
-        values = np.stack([e.value.values for e in rows])
-        shown = _normals_rgb(values) if normals else _finite32(values)
-        out = np.full((len(rows), first.mask.size, *shown.shape[2:]), 127 if normals else 0, shown.dtype)
+        convert, fill = _display_rule(kind)
+        shown = convert(np.stack([e.value.values for e in rows]))
+        out = np.full((len(rows), first.mask.size, *shown.shape[2:]), fill, shown.dtype)
         out[:, np.flatnonzero(first.mask)] = shown
         return out.reshape((len(rows), *first.mask.shape, *shown.shape[2:]))
-    shown = [_display_normals(e.value) if e.kind == "normals" else _display_grey(e.value) for e in rows]
+    shown = [_display(e.value, e.kind) for e in rows]
     if any(a.shape != shown[0].shape or a.dtype != shown[0].dtype for a in shown):
         raise ValueError(f"{_entity(rows[0])}: iterations of different image sizes")
     return np.stack(shown)

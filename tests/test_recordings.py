@@ -144,7 +144,7 @@ def test_foxglove_copies_show_the_recorded_images(demo):
     rec = read_mcap(demo / "run.mcap")
     seen = 0
     with open(demo / "run.mcap", "rb") as fh:
-        for _, channel, msg in make_reader(fh).iter_messages(topics=["/robust_fit/weights/foxglove"]):
+        for _, _, msg in make_reader(fh).iter_messages(topics=["/robust_fit/weights/foxglove"]):
             body = json.loads(msg.data)
             frame, it = divmod(msg.log_time, 1_000_000_000)
             exact = rec.frames[frame].arrays["robust_fit/weights"][it // 1_000_000 - 1]
