@@ -119,3 +119,16 @@ def normals_to_input(normals: np.ndarray, mask: np.ndarray, al: Alignment, shape
     n = al.vector_to_input(np.stack(comps, axis=-1))
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     return n.astype(np.float32)
+
+
+def normals_to_model(normals: np.ndarray, valid: np.ndarray, al: Alignment,
+                     grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Input-grid normals (H, W, 3), camera frame, known where ``valid`` (H, W) -> the model
+    grid: ``(normals (Hm, Wm, 3) rotated into the model's frame, known (Hm, Wm) bool)``; a model
+    pixel is known when every input pixel it averages is."""
+    v = np.asarray(valid, bool)
+    comps = np.stack([to_model_grid(np.where(v, normals[..., i], 0.0), al, grid) for i in range(3)], axis=-1)
+    known = (to_model_grid(v.astype(np.float32), al, grid) >= 0.999) & inside_input(al, v.shape, grid)
+    n = al.vector_to_model(comps)
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    return np.where(known[..., None], n, np.nan).astype(np.float32), known

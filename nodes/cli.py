@@ -168,7 +168,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     print(f"model: {args.model or 'built-in procedural'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
     report = evaluate_yaleb(args.data, model, options)
-    cols = [("err", "normals"), ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"),
+    cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"), ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"),
             ("psnr", "relit dB"), ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
             ("light_err_deg", "auto light"), ("iterations", "iterations")]
     print("per subject and light (errors in degrees):")

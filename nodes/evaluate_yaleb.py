@@ -6,6 +6,17 @@ against the real frontal photo (PSNR and SSIM over the face after a least-square
 with ``--light auto``, the angle between the estimated and the true light. Baselines printed
 beside them: the model's mean shape in the same alignment, the average of the OTHER subjects'
 stereo normals (the database aligns its crops), and the input photo itself as a "relighting".
+
+Two bounds split the error by cause:
+
+- *model floor*: the stereo normals' closest needle-map in the model's span
+  (``ShapeModel.closest_coefficients``), the best any fit of this model could do;
+- *clean render*: the same fit on a Lambertian rendering of the stereo normals under the true
+  light with one albedo (no albedo variation, shine, ambient light, cast shadow or noise) in the
+  photo's alignment, what the fit makes of shading alone.
+
+So ``normals - clean render`` is what real skin and the camera cost, ``clean render - model
+floor`` what one image and the fit cost, and the floor what the model cannot represent.
 """
 from __future__ import annotations
 
@@ -17,7 +28,7 @@ import numpy as np
 
 from flow.chain import Chain
 from flow.frame import Frame
-from nodes.align import normals_to_input
+from nodes.align import Alignment, normals_to_input, normals_to_model
 from nodes.geometry import angle_deg
 from nodes.outputs import input_grid_products
 from nodes.pipeline import LoadNode, MethodOptions, method_nodes
@@ -46,9 +57,35 @@ def _mean_error(a: np.ndarray, b: np.ndarray, region: np.ndarray) -> float:
     return float(np.mean(angle_deg(a[region].astype(np.float64), b[region].astype(np.float64))))
 
 
+def model_floor_normals(stereo_normals: np.ndarray, stereo_valid: np.ndarray, model: ShapeModel,
+                        al: Alignment) -> np.ndarray:
+    """The closest needle-map the model can represent to the stereo normals (H, W, 3), known
+    where ``stereo_valid``, in alignment ``al``; returned on the input grid (H, W, 3)."""
+    n, known = normals_to_model(stereo_normals, stereo_valid, al, model.grid)
+    b = model.closest_coefficients(n[model.mask], known[model.mask])
+    return normals_to_input(model.to_image(model.synthesize(b).astype(np.float32)), model.mask, al,
+                            stereo_valid.shape)
+
+
+def clean_render(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """(H, W) Lambertian image of the subject's stereo normals under ``light`` with one albedo
+    (the stereo albedo's median); the photo's own pixels where stereo has no normal."""
+    st = subject.stereo
+    rho = float(np.median(st.albedo[st.valid]))
+    shade = np.clip(np.nan_to_num(st.normals) @ np.asarray(light, np.float64), 0.0, None)
+    return np.where(st.valid, np.clip(rho * shade, 0.0, 1.0), photo).astype(np.float32)
+
+
+def _input_eyes(al: Alignment, model: ShapeModel) -> np.ndarray:
+    """The model's canonical eyes placed on the input grid by ``al``: (2, 2) pixels."""
+    return np.column_stack([model.eyes, np.ones(2)]) @ al.matrix.T
+
+
 def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOptions,
-                     others_mean: np.ndarray | None, lights=INPUT_LIGHTS, estimate_light: bool = True) -> list[dict]:
-    """One row per input light (see module docstring)."""
+                     others_mean: np.ndarray | None, lights=INPUT_LIGHTS, estimate_light: bool = True,
+                     bounds: bool = True) -> list[dict]:
+    """One row per input light (see module docstring); ``bounds``: also the model floor and
+    the clean-render fit (one more fit per row)."""
     gt = subject.stereo
     chain = Chain([LoadNode(model, options), *method_nodes(model, options)])
     auto = Chain([LoadNode(model, dataclasses.replace(options, light="auto"))])
@@ -75,6 +112,17 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         }
         row["psnr"], row["ssim"] = relight_scores(out["relit"], subject.frontal, region)
         row["psnr_input"], row["ssim_input"] = relight_scores(frame.data["image"], subject.frontal, region)
+        if bounds:
+            al = frame.data["alignment"]
+            row["err_floor"] = _mean_error(model_floor_normals(gt.normals, gt.valid, model, al), gt.normals, region)
+            clean_opts = dataclasses.replace(options, light=truth_light, eyes=_input_eyes(al, model))
+            clean_chain = Chain([LoadNode(model, clean_opts), *method_nodes(model, clean_opts, with_views=False)])
+            clean = clean_chain.process(Frame(0, str(path), data={"image": clean_render(subject, frame.data["image"],
+                                                                                          truth_light)}))
+            if not clean.ok:
+                raise RuntimeError(clean.status)
+            n_clean = normals_to_input(clean.data["normals"], model.mask, clean.data["alignment"], region.shape)
+            row["err_clean"] = _mean_error(n_clean, gt.normals, region)
         if estimate_light:
             est = auto.process(Frame(0, str(path), data={"image": frame.data["image"]}))
             row["light_err_deg"] = float(angle_deg(np.asarray(est.data["light"])[None], truth_light[None])[0])
@@ -109,7 +157,7 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Means over subjects per input light, and over (+-A, E) pairs."""
-    keys = ["err", "err_mean_shape", "err_others_mean", "psnr", "psnr_input", "ssim", "ssim_input", "light_err_deg",
+    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_input", "ssim", "ssim_input", "light_err_deg",
             "iterations", "seconds"]
     groups: dict[str, list[dict]] = {}
     for r in rows:

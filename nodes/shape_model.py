@@ -87,6 +87,21 @@ class ShapeModel:
         v = self.mean_proj + (self.modes[:, : len(b)] @ b).reshape(-1, 2)
         return self.unproject(v)
 
+    def closest_coefficients(self, normals: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
+        """Least-squares coefficients ``b`` (K,) of a needle-map in the model's AEP space.
+
+        normals: (N, 3) unit, camera frame, over the model pixels; known: (N,) bool, the pixels
+        that count (default all; the others may hold anything). ``synthesize(b)`` is then the
+        closest needle-map the model can represent: what no fit of this model can beat.
+        """
+        known = np.ones(self.n_pixels, bool) if known is None else np.asarray(known, bool)
+        if not known.any():
+            return np.zeros(self.n_modes)
+        n = np.asarray(normals, np.float64)[known]
+        v = (aep_forward(n, self.mean_normals[known], self.e1[known], self.e2[known]) - self.mean_proj[known]).reshape(-1)
+        rows = np.repeat(known, 2)
+        return np.linalg.lstsq(self.modes[rows].astype(np.float64), v, rcond=None)[0]
+
     def to_image(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
         """Scatter per-mask-pixel values (N, ...) onto the grid: (H, W, ...)."""
         out = np.full(self.grid + values.shape[1:], fill, dtype=np.result_type(values.dtype, np.float32))
