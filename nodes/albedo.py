@@ -1,5 +1,7 @@
 """Albedo from the image and the recovered shape (Smith & Hancock, section 4.1 and 5.2).
 
+``smooth_albedo``: the slowly varying part of the skin's albedo, which the fit divides out of
+the image before it fits on (``FitConfig.albedo_rounds``). ``estimate_albedo``: the output map.
 Where the surface is lit, ``albedo = I / (n . s)``. Under cast or attached shadow, or where
 ``n . s`` is too small for the division to be trusted, the value is taken from the mirror
 pixel across the face's vertical axis (the paper's "facial symmetry" fill-in) when that one
@@ -11,6 +13,32 @@ import numpy as np
 from scipy import ndimage
 
 from nodes.integrate import harmonic_fill
+
+
+def smooth_albedo(grid_mask: np.ndarray, intensity: np.ndarray, shading: np.ndarray, trusted: np.ndarray,
+                  sigma_px: float, min_cover: float = 0.05) -> np.ndarray:
+    """Smooth relative albedo over the N pixels of ``grid_mask`` (H, W): a normalised Gaussian
+    average (``sigma_px`` model pixels) of ``intensity / shading`` over the ``trusted`` (N,)
+    pixels, divided by its median there, so that 1 is the face's typical skin.
+
+    intensity, shading (N,): brightness and ``n . s`` of a fitted shape. Pixels with less
+    than ``min_cover`` of trusted weight around them (deep shadow) get 1. Returns (N,) in
+    [1/3, 3]: dividing the image by it removes slow albedo changes, not the shading they sit on
+    (the fitted shape's own shading is what the ratio divides out).
+    """
+    m = np.asarray(grid_mask, bool)
+    t = np.asarray(trusted, bool)
+    if t.sum() < 10:
+        return np.ones(t.shape)
+    ratio = np.zeros(m.shape)
+    ratio[m] = np.where(t, np.asarray(intensity, np.float64) / np.maximum(shading, 1e-6), 0.0)
+    cover = np.zeros(m.shape)
+    cover[m] = t
+    num = ndimage.gaussian_filter(ratio, sigma_px, mode="constant")[m]
+    den = ndimage.gaussian_filter(cover, sigma_px, mode="constant")[m]
+    albedo = np.where(den >= min_cover, num / np.maximum(den, 1e-12), np.nan)
+    typical = np.nanmedian(albedo[t])
+    return np.clip(np.nan_to_num(albedo / typical, nan=1.0), 1.0 / 3.0, 3.0)
 
 
 def estimate_albedo(

@@ -21,8 +21,17 @@ from nodes.robust_fit import FitConfig
 FITS = ["gauss-newton", "irls", "paper"]
 
 
-def _fit_config(name: str, modes: int | None, max_iterations: int | None = None) -> FitConfig:
+ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth albedo its shape implies and fit on, "
+                      "N times (default 0; 1 helps a model trained on real scans, see README)")
+
+
+def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,
+                albedo_rounds: int | None = None) -> FitConfig:
     cfg = FitConfig.paper() if name == "paper" else FitConfig(solver=name)
+    if albedo_rounds is not None:
+        if albedo_rounds < 0:
+            raise ValueError(f"--albedo-rounds must be 0 or more, not {albedo_rounds}")
+        cfg = dataclasses.replace(cfg, albedo_rounds=albedo_rounds)
     if modes is not None:
         cfg = dataclasses.replace(cfg, n_modes=modes)
     if max_iterations is not None:
@@ -106,7 +115,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError:
             raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations), integrator=args.integrator,
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds),
+                            integrator=args.integrator,
                             remap=args.remap, light=light, eyes=eyes, detect_eyes=args.eyes == "auto",
                             shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
@@ -162,7 +172,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes), light="yaleb", integrator=args.integrator,
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds), light="yaleb",
+                            integrator=args.integrator,
                             remap=args.remap, shadows=args.shadows)
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in procedural'}, K={args.modes or model.n_modes}; light: Yale B names; "
@@ -216,7 +227,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "iterations", "seconds_per_face"]
     print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
     for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None), integrator=args.integrator, remap=args.remap,
+        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds), integrator=args.integrator,
+                             remap=args.remap,
                              shadows=args.shadows)
         res = evaluate(model, test, albedo, angles, opts)
         report["results"][name] = res["per_angle"]
@@ -276,6 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "or by the paper's alternation; paper: the paper's one-step formula throughout")
     r.add_argument("--modes", type=int, help="use only the model's first K modes")
     r.add_argument("--max-iterations", type=int, help="cap on fit iterations (default 100)")
+    r.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     r.add_argument("--remap", choices=["ratio", "peak"], default="ratio",
                    help="brightness scale: median ratio to the mean face (default) or the brightest point "
                         "(the paper's; also what --fit paper uses)")
@@ -326,6 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--fit", choices=FITS + ["both", "all"], default="gauss-newton",
                    help="both: gauss-newton and paper; all: the three")
     e.add_argument("--remap", choices=["ratio", "peak"], default="ratio")
+    e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")

@@ -77,13 +77,17 @@ class FitConfig:
     tolerance_deg: float | None = None
     n_modes: int | None = None  # use the model's first K modes (None: all)
     saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
+    # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
+    # (nodes.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
+    albedo_rounds: int = 0
+    albedo_sigma: float = 0.08  # that albedo's smoothing, in interocular distances (2.9 px at 128^2)
 
     @staticmethod
     def paper(**overrides) -> "FitConfig":
         """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone,
         saturated pixels kept, no prior."""
         base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
-                         release_cast=False, saturation=2.0, adaptive_prior=0.0, relaxation=1.0)
+                         release_cast=False, saturation=2.0, adaptive_prior=0.0, relaxation=1.0, albedo_rounds=0)
         return replace(base, **overrides)
 
 
@@ -181,9 +185,11 @@ def fit(
         model = model.truncated(config.n_modes)
     s = np.asarray(light, np.float64)
     s = s / np.linalg.norm(s)
-    I = np.clip(np.asarray(intensity, np.float64), 0.0, 1.0)
+    I0 = np.clip(np.asarray(intensity, np.float64), 0.0, 1.0)
+    I = I0
     n_pix = model.n_pixels
     dark = (I <= config.dark_threshold) if config.attached_shadow else None
+    albedo_rounds = config.albedo_rounds
 
     P32 = model.modes_as(np.float32)  # (2N, K): Gram matrices and products in single precision, same fit
     scaled = np.empty_like(P32)  # reused: sqrt(w) P
@@ -264,10 +270,30 @@ def fit(
         if on_iteration is not None:
             on_iteration(record)
         n = n_new
+        if change < tolerance and albedo_rounds > 0:
+            albedo_rounds -= 1
+            I = _without_smooth_albedo(model, I0, n_model, s, w, released, dark, config)
+            n = irradiance_constraint(n_model, s, I, dark, fallback=model.mean_normals)
+            continue
         if change < tolerance:
             converged = True
             break
     return FitResult(n, n_model, w, eta, b, sigma, it, converged, history)
+
+
+def _without_smooth_albedo(model: ShapeModel, I0: np.ndarray, n_model: np.ndarray, s: np.ndarray, w: np.ndarray,
+                           released: np.ndarray, dark: np.ndarray | None, config: FitConfig) -> np.ndarray:
+    """The image (N,) divided by the smooth albedo the fitted shape implies, measured where the
+    fit trusts the pixel and the shading is strong enough to divide by."""
+    from nodes.albedo import smooth_albedo
+
+    shading = n_model @ s
+    trusted = (w >= 0.5) & ~released & (shading >= 0.4)
+    if dark is not None:
+        trusted &= ~dark
+    iod = float(np.linalg.norm(np.subtract(*model.eyes)))
+    albedo = smooth_albedo(model.mask, I0, shading, trusted, config.albedo_sigma * iod)
+    return np.clip(I0 / albedo, 0.0, 1.0)
 
 
 def _newton_step(modes32: np.ndarray, r: np.ndarray, eta: np.ndarray, w: np.ndarray, ridge: np.ndarray,
