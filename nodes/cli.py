@@ -116,9 +116,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds),
-                            integrator=args.integrator,
-                            remap=args.remap, light=light, eyes=eyes, detect_eyes=args.eyes == "auto",
-                            shadows=args.shadows)
+                            integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
+                            detect_eyes=args.eyes == "auto", shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
@@ -173,14 +172,14 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds), light="yaleb",
-                            integrator=args.integrator,
-                            remap=args.remap, shadows=args.shadows)
+                            integrator=args.integrator, remap=args.remap, shadows=args.shadows)
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in procedural'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
     report = evaluate_yaleb(args.data, model, options)
-    cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"), ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"),
-            ("psnr", "relit dB"), ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
+    cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
+            ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
+            ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
             ("light_err_deg", "auto light"), ("iterations", "iterations")]
     print("per subject and light (errors in degrees):")
     print(f"{'subject':8} {'A,E':>7} " + " ".join(f"{t:>12}" for _, t in cols))
@@ -190,7 +189,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     summary = summarise(report["rows"])
     for s in summary:
         print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
-    report.update(summary=summary, model=args.model or "built-in procedural", seconds=time.perf_counter() - t0)
+    report.update(summary=summary, model=args.model or "built-in procedural", albedo_rounds=options.fit.albedo_rounds,
+                  seconds=time.perf_counter() - t0)
     _write_report(args.json, report)
     return 0
 
@@ -219,7 +219,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     fits = {"both": ["gauss-newton", "paper"], "all": FITS}.get(args.fit, [args.fit])
     report = {"source": args.source, "test_faces": args.n_test, "test_seed": args.test_seed,
               "model": trained_on, "modes": model.n_modes, "grid": list(model.grid), "albedo": args.albedo,
-              "model_floor_deg": model_floor(model, test), "results": {}}
+              "albedo_rounds": args.albedo_rounds or 0, "model_floor_deg": model_floor(model, test), "results": {}}
     print(f"model: {trained_on}, K={model.n_modes}, grid {model.grid[0]}x{model.grid[1]}; "
           f"test: {args.n_test} faces of {args.source} (seed {args.test_seed}), {args.albedo} albedo")
     print(f"model floor (true normals projected on the modes): {report['model_floor_deg']:.2f} deg")
@@ -227,9 +227,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "iterations", "seconds_per_face"]
     print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
     for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds), integrator=args.integrator,
-                             remap=args.remap,
-                             shadows=args.shadows)
+        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds),
+                             integrator=args.integrator, remap=args.remap, shadows=args.shadows)
         res = evaluate(model, test, albedo, angles, opts)
         report["results"][name] = res["per_angle"]
         for angle, row in res["per_angle"].items():

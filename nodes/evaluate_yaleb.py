@@ -117,8 +117,8 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
             row["err_floor"] = _mean_error(model_floor_normals(gt.normals, gt.valid, model, al), gt.normals, region)
             clean_opts = dataclasses.replace(options, light=truth_light, eyes=_input_eyes(al, model))
             clean_chain = Chain([LoadNode(model, clean_opts), *method_nodes(model, clean_opts, with_views=False)])
-            clean = clean_chain.process(Frame(0, str(path), data={"image": clean_render(subject, frame.data["image"],
-                                                                                          truth_light)}))
+            image = clean_render(subject, frame.data["image"], truth_light)
+            clean = clean_chain.process(Frame(0, str(path), data={"image": image}))
             if not clean.ok:
                 raise RuntimeError(clean.status)
             n_clean = normals_to_input(clean.data["normals"], model.mask, clean.data["alignment"], region.shape)
@@ -157,8 +157,8 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Means over subjects per input light, and over (+-A, E) pairs."""
-    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_input", "ssim", "ssim_input", "light_err_deg",
-            "iterations", "seconds"]
+    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_input", "ssim",
+            "ssim_input", "light_err_deg", "iterations", "seconds"]
     groups: dict[str, list[dict]] = {}
     for r in rows:
         az, el = (int(t) for t in r["light"].split(","))

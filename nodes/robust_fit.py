@@ -39,6 +39,7 @@ import numpy as np
 from scipy import sparse
 from scipy.linalg import blas, lapack
 
+from nodes.albedo import smooth_albedo
 from nodes.geometry import angle_deg
 from nodes.integrate import masked_least_squares
 from nodes.reflectance import irradiance_constraint
@@ -285,8 +286,6 @@ def _without_smooth_albedo(model: ShapeModel, I0: np.ndarray, n_model: np.ndarra
                            released: np.ndarray, dark: np.ndarray | None, config: FitConfig) -> np.ndarray:
     """The image (N,) divided by the smooth albedo the fitted shape implies, measured where the
     fit trusts the pixel and the shading is strong enough to divide by."""
-    from nodes.albedo import smooth_albedo
-
     shading = n_model @ s
     trusted = (w >= 0.5) & ~released & (shading >= 0.4)
     if dark is not None:

@@ -98,9 +98,9 @@ class ShapeModel:
         if not known.any():
             return np.zeros(self.n_modes)
         n = np.asarray(normals, np.float64)[known]
-        v = (aep_forward(n, self.mean_normals[known], self.e1[known], self.e2[known]) - self.mean_proj[known]).reshape(-1)
+        v = aep_forward(n, self.mean_normals[known], self.e1[known], self.e2[known]) - self.mean_proj[known]
         rows = np.repeat(known, 2)
-        return np.linalg.lstsq(self.modes[rows].astype(np.float64), v, rcond=None)[0]
+        return np.linalg.lstsq(self.modes[rows].astype(np.float64), v.reshape(-1), rcond=None)[0]
 
     def to_image(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
         """Scatter per-mask-pixel values (N, ...) onto the grid: (H, W, ...)."""
