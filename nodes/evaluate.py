@@ -119,12 +119,9 @@ def model_floor(model: ShapeModel, depths: np.ndarray) -> float:
     """Mean angle (degrees) between true normals and their least-squares projection on the
     model: the best any fit with this model can do."""
     errs = []
-    P = model.modes.astype(np.float64)
     for d in depths:
         n = normals_from_depth(fill_holes(d, model.mask))[model.mask].astype(np.float64)
         ok = np.all(np.isfinite(n), axis=1)
-        v = model.project(np.where(ok[:, None], n, model.mean_normals))
-        b = P.T @ (v - model.mean_proj).reshape(-1)
-        fit_n = model.synthesize(b)
+        fit_n = model.synthesize(model.closest_coefficients(np.where(ok[:, None], n, model.mean_normals), ok))
         errs.append(np.mean(angle_deg(fit_n[ok], n[ok])))
     return float(np.mean(errs))

@@ -97,6 +97,9 @@ class ShapeModel:
         known = np.ones(self.n_pixels, bool) if known is None else np.asarray(known, bool)
         if not known.any():
             return np.zeros(self.n_modes)
+        if known.all():  # the modes are orthonormal over the whole face: a plain projection
+            v = self.project(np.asarray(normals, np.float64)) - self.mean_proj
+            return self.modes.astype(np.float64).T @ v.reshape(-1)
         n = np.asarray(normals, np.float64)[known]
         v = aep_forward(n, self.mean_normals[known], self.e1[known], self.e2[known]) - self.mean_proj[known]
         rows = np.repeat(known, 2)
