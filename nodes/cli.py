@@ -16,18 +16,27 @@ from flow.files import atomic_write_bytes
 from nodes.loader import IMAGE_SUFFIXES, parse_light
 from nodes.pipeline import MethodOptions
 from nodes.robust_fit import FitConfig
+from nodes.synth.sources import SOURCES_HELP
 
 
 FITS = ["gauss-newton", "irls", "paper"]
+MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
+              "the project's anthropometric generator) | a model .npz written by 'shadowflow train'")
 
 
 ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth albedo its shape implies and fit on, "
-                      "N times (default 0; 1 helps a model trained on real scans, see README)")
+                      "N times (default 1; 0 is the paper's one albedo everywhere, see README)")
+CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 1, the paper's "
+                   "blend; 0: the model's normals)")
 
 
 def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,
-                albedo_rounds: int | None = None) -> FitConfig:
+                albedo_rounds: int | None = None, cone_trust: float | None = None) -> FitConfig:
     cfg = FitConfig.paper() if name == "paper" else FitConfig(solver=name)
+    if cone_trust is not None:
+        if not 0.0 <= cone_trust <= 1.0:
+            raise ValueError(f"--cone-trust is a fraction in [0, 1], not {cone_trust}")
+        cfg = dataclasses.replace(cfg, cone_trust=cone_trust)
     if albedo_rounds is not None:
         if albedo_rounds < 0:
             raise ValueError(f"--albedo-rounds must be 0 or more, not {albedo_rounds}")
@@ -39,11 +48,10 @@ def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,
     return cfg
 
 
-def _load_model(path: str | None):
-    from nodes.default_model import default_model
-    from nodes.shape_model import load_model
+def _load_model(spec: str | None):
+    from nodes.default_model import resolve_model
 
-    return default_model() if path is None else load_model(path)
+    return resolve_model(spec)
 
 
 def expand_inputs(items: list[str], note=print) -> list[str]:
@@ -70,7 +78,8 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
 
 
 def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
-    """Synthetic shadowed faces (held-out procedural faces) with sidecar lights, as PNGs."""
+    """Synthetic shadowed faces with sidecar lights, as PNGs: random ICT-FaceKit identities (drawn
+    apart from the default model's training faces, seed 2024 vs 0) under side lights."""
     from nodes.reflectance import light_from_angles
     from nodes.synth.inputs import write_shadowed_face
 
@@ -81,7 +90,7 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
     for i in range(count):
         az, el = lights[i % len(lights)]
         path = folder / f"demo-{i + 1}_A{az:+04d}E{el:+03d}.png"
-        paths.append(str(write_shadowed_face(path, rng, light_from_angles(az, el))))
+        paths.append(str(write_shadowed_face(path, rng, light_from_angles(az, el), source="ict")))
     return paths
 
 
@@ -115,7 +124,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         except ValueError:
             raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds),
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
+                                            args.cone_trust),
                             integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
                             detect_eyes=args.eyes == "auto", shadows=args.shadows)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
@@ -150,6 +160,10 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     size = [int(t) for t in args.size.split(",")]
     recipe = {"source": args.source, "n": args.n, "seed": args.seed, "modes": args.modes, "size": size}
+    if args.expressions:
+        if not 0.0 < args.expressions <= 1.0:
+            raise ValueError(f"--expressions is a probability in (0, 1], not {args.expressions}")
+        recipe["expressions"] = args.expressions
     t0 = time.perf_counter()
     model = train_from_recipe(recipe)
     save_model(model, args.out)
@@ -171,10 +185,11 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds), light="yaleb",
+    options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
+                                            cone_trust=args.cone_trust), light="yaleb",
                             integrator=args.integrator, remap=args.remap, shadows=args.shadows)
     t0 = time.perf_counter()
-    print(f"model: {args.model or 'built-in procedural'}, K={args.modes or model.n_modes}; light: Yale B names; "
+    print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
     report = evaluate_yaleb(args.data, model, options)
     cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
@@ -189,7 +204,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     summary = summarise(report["rows"])
     for s in summary:
         print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
-    report.update(summary=summary, model=args.model or "built-in procedural", albedo_rounds=options.fit.albedo_rounds,
+    report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
                   seconds=time.perf_counter() - t0)
     _write_report(args.json, report)
     return 0
@@ -199,14 +214,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
     from nodes.evaluate import evaluate, model_floor
-    from nodes.shape_model import load_model, train_shape_model
+    from nodes.shape_model import train_shape_model
     from nodes.synth.sources import load_source
 
     size = tuple(int(t) for t in args.size.split(","))
     t0 = time.perf_counter()
     if args.model:
-        model = load_model(args.model)
-        trained_on = f"model file {args.model}"
+        model = _load_model(args.model)
+        trained_on = f"model {args.model}"
     else:
         train_src = args.train_source or args.source
         tr, _ = load_source(train_src, args.n_train, args.train_seed, size)
@@ -227,7 +242,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "iterations", "seconds_per_face"]
     print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
     for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds),
+        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds, cone_trust=args.cone_trust),
                              integrator=args.integrator, remap=args.remap, shadows=args.shadows)
         res = evaluate(model, test, albedo, angles, opts)
         report["results"][name] = res["per_angle"]
@@ -280,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("inputs", nargs="*", metavar="INPUT", help="image files, folders or glob patterns")
     r.add_argument("--out", required=True, help="output folder (OUT/<stem>/..., OUT/summary.json)")
     r.add_argument("--demo", action="store_true", help="also run on built-in synthetic shadowed faces")
-    r.add_argument("--model", help="model .npz (default: the built-in procedural model)")
+    r.add_argument("--model", help=MODEL_HELP)
     r.add_argument("--light", default="auto", help="auto | yaleb | X,Y,Z (camera frame); a sidecar light wins")
     r.add_argument("--fit", choices=FITS, default="gauss-newton",
                    help="gauss-newton (default) or irls: the same robust fit, reached by Gauss-Newton steps "
@@ -288,6 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--modes", type=int, help="use only the model's first K modes")
     r.add_argument("--max-iterations", type=int, help="cap on fit iterations (default 100)")
     r.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
+    r.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     r.add_argument("--remap", choices=["ratio", "peak"], default="ratio",
                    help="brightness scale: median ratio to the mean face (default) or the brightest point "
                         "(the paper's; also what --fit paper uses)")
@@ -312,8 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=cmd_run)
 
     t = sub.add_parser("train", help="train a needle-map model")
-    t.add_argument("--source", default="procedural", help="procedural | eos:PATH | meshes:DIR")
-    t.add_argument("--n", type=int, default=100)
+    t.add_argument("--source", default="ict", help=SOURCES_HELP + " (default: ict)")
+    t.add_argument("--expressions", type=float, metavar="P",
+                   help="ICT only: give each face each of the 53 expression blendshapes with chance P (needs ict:PATH)")
+    t.add_argument("--n", type=int, default=200)
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--modes", type=int, default=60)
     t.add_argument("--size", default="128,128", help="H,W of the model grid")
@@ -325,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="synthetic (default): rendered faces of --source; yaleb: real photos in --data")
     e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders")
     e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
-    e.add_argument("--model", help="model .npz (default: train one, see --train-source)")
+    e.add_argument("--model", help="ict | procedural | a model .npz (synthetic default: train one from "
+                   "--train-source; yaleb default: ict)")
     e.add_argument("--train-source", help="training faces (default: --source)")
     e.add_argument("--n-train", type=int, default=100)
     e.add_argument("--n-test", type=int, default=20)
@@ -339,6 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="both: gauss-newton and paper; all: the three")
     e.add_argument("--remap", choices=["ratio", "peak"], default="ratio")
     e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
+    e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")

@@ -44,14 +44,14 @@ def test_sfm_source(sfm_faces):
 
 
 @pytest.mark.slow
-def test_default_procedural_model_on_sfm_faces(sfm_faces):
-    """Cross-source: the shipped model (procedural faces only) on real-scan faces. The issue
-    asks to report it and aim for 6 degrees at 45; the generator's shape space is narrower than
-    real faces (floor 9.8). The misfit-scaled prior (for real photos, README) pulls such fits
-    toward the procedural mean: 10.8 -> 13.8 deg on these 8 faces, while on Yale B photos it
-    takes the same model from 28.5 to 22.7 deg. This guards the level with the prior on."""
-    from nodes.default_model import default_model
+def test_built_in_models_on_sfm_faces(sfm_faces):
+    """Cross-source: the two built-in models on faces of another real-scan model (SFM). The
+    default, trained on ICT-FaceKit's real scans, does better than the procedural one although
+    its floor on these faces is no lower (10.1 vs 9.3 deg): its mean face is closer to real ones.
+    Measured on these 8 faces at 45 deg: ICT 12.4, procedural 14.7 deg."""
+    from nodes.default_model import built_in_model
 
     _, test = sfm_faces
-    report = evaluate(default_model(), test, None, [45])
-    assert report["per_angle"]["45"]["err_all"] <= 14.5
+    err = {name: evaluate(built_in_model(name), test, None, [45])["per_angle"]["45"]["err_all"]
+           for name in ("ict", "procedural")}
+    assert err["ict"] <= 13.5 and err["ict"] < err["procedural"] - 1.0, err

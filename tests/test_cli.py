@@ -50,23 +50,26 @@ def test_run_recovers_the_demo_faces(demo_run):
     from nodes.evaluate import render_scene
     from nodes.geometry import angle_deg
     from nodes.reflectance import light_from_angles
-    from nodes.synth.facegen import render_face, sample_face
+    from nodes.synth.inputs import draw_face
 
     rng = np.random.default_rng(2024)  # the demo's generator
     summary = json.loads((demo_run / "summary.json").read_text())
     for rec, (az, el) in zip(summary, [(45, 0), (-60, 0), (30, 25)]):
-        depth, mask, albedo = render_face(sample_face(rng))
+        depth, mask, albedo = draw_face(rng, source="ict")
         s = light_from_angles(az, el)
         scene = render_scene(depth, albedo, s, mask)
         folder = demo_run / rec["stem"]
         n = np.load(folder / "normals.npy")
         ok = np.isfinite(n[..., 0]) & scene.valid
-        assert np.mean(angle_deg(n[ok], scene.normals[ok])) < 6.0  # varied albedo, default model
+        err = np.mean(angle_deg(n[ok], scene.normals[ok]))
         relit = cv2.imread(str(folder / "relit.png"), 0) / 255.0
         truth = albedo * np.clip(scene.normals[..., 2], 0, 1)
-        assert np.mean(np.abs(relit[ok] - truth[ok])) < 0.06
+        relit_err = np.mean(np.abs(relit[ok] - truth[ok]))
         shadow = cv2.imread(str(folder / "shadow.png"), 0) == 255
-        assert np.mean(shadow[ok] == scene.shadows.lit[ok]) > 0.95
+        agree = np.mean(shadow[ok] == scene.shadows.lit[ok])
+        # held-out ICT identities, default (ICT) model: its floor on such faces is 5.6 deg (`shadowflow eval
+        # --source ict --model ict`), the ears and nostrils it cannot represent at K = 60
+        assert err < 8.0 and relit_err < 0.06 and agree > 0.95, (err, relit_err, agree)
 
 
 def test_bad_inputs_fail_alone_and_inputs_are_never_overwritten(tmp_path, demo_run):
@@ -97,7 +100,8 @@ def test_bad_inputs_fail_alone_and_inputs_are_never_overwritten(tmp_path, demo_r
 
 def test_train_and_eval_commands(tmp_path, capsys):
     model = tmp_path / "small.npz"
-    assert main(["train", "--n", "30", "--modes", "20", "--size", "64,64", "--out", str(model)]) == 0
+    assert main(["train", "--source", "procedural", "--n", "30", "--modes", "20", "--size", "64,64",
+                 "--out", str(model)]) == 0
     report = tmp_path / "r.json"
     assert main(["eval", "--model", str(model), "--n-test", "2", "--angles", "30", "--fit", "all",
                  "--json", str(report)]) == 0

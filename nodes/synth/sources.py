@@ -30,7 +30,7 @@ def procedural(n: int, seed: int = 0, grid: tuple[int, int] = (128, 128)) -> tup
 
 def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndarray,
                   grid: tuple[int, int]) -> np.ndarray:
-    """Similarity-map mesh vertices (mm, x right, y up, z toward viewer) to pixel coordinates.
+    """Similarity-map mesh vertices (any unit, x right, y up, z toward viewer) to pixel coordinates.
 
     The image-left and image-right eye centres (3,) land on the canonical eye pixels of
     ``grid``; heights scale with the same factor. Returns (V, 3): column, row, height (px).
@@ -133,17 +133,28 @@ def mesh_folder(folder: str | os.PathLike, grid: tuple[int, int] = (128, 128)) -
     return d, np.where(np.isfinite(d), 1.0, np.nan).astype(np.float32)
 
 
+SOURCES_HELP = "ict (the shipped real-scan model) | ict:PATH | procedural | eos:PATH | meshes:DIR"
+
+
 def parse_source(spec: str) -> tuple[str, str | None]:
-    """``procedural`` | ``eos:PATH`` | ``meshes:DIR`` -> (kind, argument)."""
-    m = re.fullmatch(r"(procedural)|(eos|meshes):(.+)", spec)
+    """``ict`` | ``ict:PATH`` | ``procedural`` | ``eos:PATH`` | ``meshes:DIR`` -> (kind, argument)."""
+    m = re.fullmatch(r"(procedural|ict)|(eos|meshes|ict):(.+)", spec)
     if not m:
-        raise ValueError(f"unknown source {spec!r}: use procedural, eos:PATH or meshes:DIR")
+        raise ValueError(f"unknown source {spec!r}: use {SOURCES_HELP}")
     return (m.group(1), None) if m.group(1) else (m.group(2), m.group(3))
 
 
-def load_source(spec: str, n: int, seed: int, grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Faces from a source spec (see ``parse_source``)."""
+def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
+                expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Faces from a source spec (see ``parse_source``); ``expressions``: ICT only, the chance of
+    each expression blendshape per face (``nodes.synth.ict.ict_faces``)."""
     kind, arg = parse_source(spec)
+    if expressions and kind != "ict":
+        raise ValueError(f"expressions are a variation of the ICT source, not of {spec!r}")
+    if kind == "ict":
+        from nodes.synth.ict import ict_faces, read_ict, shipped_basis
+
+        return ict_faces(shipped_basis() if arg is None else read_ict(arg), n, seed, grid, expressions)
     if kind == "procedural":
         return procedural(n, seed, grid)
     if kind == "eos":
