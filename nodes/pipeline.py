@@ -194,14 +194,17 @@ class RobustFitNode:
 
 
 class CombineNode:
+    """Output normals: the on-cone and model normals blended by ``cone_trust`` x the weights."""
+
     name = "combine"
 
-    def __init__(self, model: ShapeModel):
-        self.model = model
+    def __init__(self, model: ShapeModel, cone_trust: float = 1.0):
+        self.model, self.cone_trust = model, cone_trust
 
     def __call__(self, frame: Frame) -> Frame:
         r = frame.data["fit"]
-        frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
+        w = r.weights if self.cone_trust == 1.0 else self.cone_trust * r.weights
+        frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, w).astype(np.float32))
         return frame
 
 
@@ -272,7 +275,7 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_
                   scale="peak" if options.fit.solver == "paper" else options.remap),  # the paper's remap
         SfsInitNode(model, options.fit),
         RobustFitNode(model, options.fit, observer),
-        CombineNode(model),
+        CombineNode(model, options.fit.cone_trust),
         IntegrateNode(model, options.integrator),
         ShadowNode(options.shadows, options.fit.dark_threshold),
         AlbedoNode(model),

@@ -90,7 +90,7 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
     occluded[60:80, 70:90] = True
     img[occluded] = 0.0
     I = img[m.mask]
-    res = fit(m, I, s, FitConfig())
+    res = fit(m, I, s, FitConfig(albedo_rounds=0))  # one albedo: the lit pixels' cones are the image's own
     n = combine(res.normals, res.model_normals, res.weights)
     occ = occluded[m.mask]
     assert res.converged
@@ -122,15 +122,16 @@ def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(proced
     """The Gauss-Newton steps and the paper's alternation have the same fixed point (equal
     gradient); the steps that ignore motion along the cones get there in far fewer iterations,
     while the alternation creeps and stops (change < 0.01 deg per iteration) short of it.
-    Measured on these faces: 45 deg: errors 0.28 vs 0.34 deg, 10 vs 30 iterations;
-    70 deg: 0.39 vs 0.84 deg, 12 vs 80 iterations."""
+    Measured on these faces with the defaults tuned for photos (prior 300, Huber 1.0, one albedo
+    round): 45 deg: errors 0.37 vs 0.43 deg, 10 vs 36 iterations; 70 deg: 0.55 vs 1.00 deg, 14 vs
+    85 iterations (before that tuning: 0.28 / 0.39 deg in 10 / 12 iterations)."""
     depths, _ = procedural(4, seed=7)
     for angle in (45, 70):
         res = _fit_errors(procedural_model, depths, light_from_angles(angle),
                           {"gn": FitConfig(), "irls": FitConfig(solver="irls")})
         gn, alt = res["gn"], res["irls"]
         assert np.all(np.subtract(gn["err"], alt["err"]) < 0.02), (angle, res)  # as good on every face
-        assert np.mean(gn["err"]) < 0.5, (angle, res)
+        assert np.mean(gn["err"]) < 0.7, (angle, res)
         assert np.mean(gn["iterations"]) < 0.5 * np.mean(alt["iterations"]), (angle, res)
 
 
