@@ -4,8 +4,8 @@ naive reference. Not part of the tests (no pass/fail thresholds).
 Usage (from the repository root; one core, as the issue asks):
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_speed.py --out benchmarks/results
 
-For each grid (64, 128, 256) and K (30, 60): a model trained on 60 procedural faces, ``--frames``
-held-out faces lit from 45 degrees; medians of each node's time, the iterations, the time per
+For each grid (64, 128, 256) and K (30, 60): a model trained on 60 faces of ``--source`` (``ict``,
+the default model's source, or ``procedural``), ``--frames`` held-out faces lit from 45 degrees; medians of each node's time, the iterations, the time per
 iteration, and the FLOOR per iteration measured in the same run on the same shapes: the
 weighted K x K Gram matrix, two matrix-vector products with the (2N, K) modes and a K x K
 solve, float64 (the linear algebra one IRLS step cannot avoid). The naive reference
@@ -35,7 +35,7 @@ from nodes.pipeline import MethodOptions, method_nodes  # noqa: E402
 from nodes.reflectance import light_from_angles  # noqa: E402
 from nodes.robust_fit import FitConfig, fit  # noqa: E402
 from nodes.shape_model import train_shape_model  # noqa: E402
-from nodes.synth.sources import procedural  # noqa: E402
+from nodes.synth.sources import load_source  # noqa: E402
 
 
 def floor_per_iteration(modes: np.ndarray, repeats: int = 30) -> float:
@@ -52,10 +52,10 @@ def floor_per_iteration(modes: np.ndarray, repeats: int = 30) -> float:
     return statistics.median(times)
 
 
-def run(grid: int, ks: list[int], frames: int, repeats: int, naive_max_grid: int) -> list[dict]:
-    depths, _ = procedural(60, seed=0, grid=(grid, grid))
-    full = train_shape_model(depths, max(ks), source="procedural")
-    tests, albedos = procedural(frames, seed=99, grid=(grid, grid))
+def run(grid: int, ks: list[int], frames: int, repeats: int, naive_max_grid: int, source: str = "ict") -> list[dict]:
+    depths, _ = load_source(source, 60, 0, (grid, grid))
+    full = train_shape_model(depths, max(ks), source=source)
+    tests, albedos = load_source(source, frames, 99, (grid, grid))
     s = light_from_angles(45.0)
     rows = []
     for k in ks:
@@ -150,11 +150,12 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--naive-max-grid", type=int, default=64)
     ap.add_argument("--out", default="benchmarks/results")
+    ap.add_argument("--source", default="ict", help="training and test faces: ict (the default model's) or procedural")
     args = ap.parse_args()
     ks = [int(k) for k in args.modes.split(",")]
     rows = []
     for g in (int(x) for x in args.grids.split(",")):
-        rows.extend(run(g, ks, args.frames, args.repeats, args.naive_max_grid))
+        rows.extend(run(g, ks, args.frames, args.repeats, args.naive_max_grid, args.source))
     exponent = {}
     for k in ks:
         rs = [r for r in rows if r["K"] == k]
@@ -164,7 +165,8 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "speed.json").write_text(json.dumps({"machine": machine, "rows": rows, "exponent": exponent}, indent=2) + "\n")
-    md = f"Machine: {machine}; medians over {args.frames} frames lit from 45° of {args.repeats} runs each.\n\n" + markdown(rows, exponent)
+    md = (f"Machine: {machine}; {args.source} faces; medians over {args.frames} frames lit from 45° of {args.repeats} "
+          "runs each.\n\n") + markdown(rows, exponent)
     (out / "speed.md").write_text(md)
     print(md)
 

@@ -56,8 +56,8 @@ class FitConfig:
 
     solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"  # see the module docstring
     scale: Literal["rayleigh", "mad"] = "rayleigh"
-    # Huber threshold in units of sigma: 1.0 on real photos (Yale B, ICT model) beat 1.5 by 0.1-0.4 deg at
-    # +-50..70 with the stronger prior below; clean renders lose 0.1-0.3 deg (README, "Real photographs")
+    # Huber threshold in units of sigma: 1.0 on real photos (Yale B, ICT model) beat 1.5 by up to 0.4 deg at
+    # +-70 with the stronger prior below; clean renders lose 0.1-0.3 deg (README, "Real photographs")
     huber_k: float = 1.0
     init: Literal["mean", "gradient"] = "mean"
     attached_shadow: bool = True  # I <= dark_threshold: n.s <= 0 instead of the 90-degree cone
@@ -67,9 +67,9 @@ class FitConfig:
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
-    # 300 with the ICT model: the photo's fit at +-25 went 16.4 -> 15.8 deg (100 was the choice for the
-    # procedural model, whose mean face was further from real ones)
-    adaptive_prior: float = 300.0
+    # 200 with the ICT model: on Yale B photos 100 / 200 / 300 gave 16.5 / 15.8 / 15.8 deg at +-25 and
+    # 15.7 / 15.7 / 15.8 at +-50 (100 was the procedural model's choice); 300 cost clean SFM renders 0.2 deg more
+    adaptive_prior: float = 200.0
     # irls: over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
     # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
     # a residual scale that jumps switches it off for the rest of the fit)
