@@ -15,23 +15,36 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Alignment:
-    """``matrix``: (2, 3) float64 model pixel -> input pixel; ``how``: how it was found."""
+    """``matrix``: (2, 3) float64 model pixel -> input pixel; ``how``: how it was found.
+
+    A similarity, or a similarity composed with a small vertical stretch (``stretch_vertically``:
+    a face longer or shorter than the model's). Vectors (normals, light) follow its rotation only:
+    the fit explains the shading the photo shows, so its normals are already the photo's."""
 
     matrix: np.ndarray
     how: str
 
     @property
     def scale(self) -> float:
-        """Input pixels per model pixel."""
+        """Input pixels per model pixel (the geometric mean of the two axes' scales)."""
         return float(np.sqrt(abs(np.linalg.det(self.matrix[:, :2]))))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """(2, 2) rotation part, pixel axes: ``matrix / scale`` for a similarity, else the polar factor."""
+        lin = self.matrix[:, :2]
+        if abs(lin[0, 0] - lin[1, 1]) + abs(lin[0, 1] + lin[1, 0]) < 1e-12 * max(self.scale, 1e-12):
+            return lin / self.scale
+        u, _, vt = np.linalg.svd(lin)
+        return u @ vt
 
     def vector_to_input(self, v: np.ndarray) -> np.ndarray:
         """Rotate camera-frame vectors (..., 3) from the model's frame to the input's."""
-        return _rotate_xy(v, self.matrix[:, :2] / self.scale)
+        return _rotate_xy(v, self.rotation)
 
     def vector_to_model(self, v: np.ndarray) -> np.ndarray:
         """Rotate camera-frame vectors (..., 3) from the input's frame to the model's."""
-        return _rotate_xy(v, (self.matrix[:, :2] / self.scale).T)
+        return _rotate_xy(v, self.rotation.T)
 
 
 def _rotate_xy(v: np.ndarray, rot_pix: np.ndarray) -> np.ndarray:
@@ -71,6 +84,16 @@ def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray, how: str = "e
     lin = s * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
     t = dst[0] - lin @ src[0]
     return Alignment(np.column_stack([lin, t]), how)
+
+
+def stretch_vertically(al: Alignment, factor: float, about_row: float, how: str) -> Alignment:
+    """``al`` after stretching the model grid by ``factor`` along its rows about ``about_row``
+    (model pixels): a face whose features below (and above) that row lie ``factor`` times as far
+    from it as the model's. ``factor`` 1 returns ``al`` unchanged."""
+    if factor == 1.0:
+        return al
+    stretch = np.array([[1.0, 0.0, 0.0], [0.0, factor, about_row * (1.0 - factor)], [0.0, 0.0, 1.0]])
+    return Alignment((np.vstack([al.matrix, [0.0, 0.0, 1.0]]) @ stretch)[:2], how)
 
 
 def inside_input(al: Alignment, input_shape: tuple[int, int], grid: tuple[int, int]) -> np.ndarray:

@@ -41,9 +41,12 @@ def train_from_recipe(recipe: dict) -> ShapeModel:
     optionally ``expressions``: an ICT face's chance of each expression blendshape)."""
     from nodes.synth.sources import load_source
 
+    from nodes.synth.sources import source_mouth
+
     grid = tuple(recipe["size"])
     depths, _ = load_source(recipe["source"], recipe["n"], recipe["seed"], grid, recipe.get("expressions", 0.0))
-    return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True))
+    return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True),
+                             mouth=source_mouth(recipe["source"], grid))
 
 
 def _cache_key(recipe: dict) -> str:

@@ -76,11 +76,6 @@ def clean_render(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> 
     return np.where(st.valid, np.clip(rho * shade, 0.0, 1.0), photo).astype(np.float32)
 
 
-def _input_eyes(al: Alignment, model: ShapeModel) -> np.ndarray:
-    """The model's canonical eyes placed on the input grid by ``al``: (2, 2) pixels."""
-    return np.column_stack([model.eyes, np.ones(2)]) @ al.matrix.T
-
-
 def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOptions,
                      others_mean: np.ndarray | None, lights=INPUT_LIGHTS, estimate_light: bool = True,
                      bounds: bool = True) -> list[dict]:
@@ -115,10 +110,10 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         if bounds:
             al = frame.data["alignment"]
             row["err_floor"] = _mean_error(model_floor_normals(gt.normals, gt.valid, model, al), gt.normals, region)
-            clean_opts = dataclasses.replace(options, light=truth_light, eyes=_input_eyes(al, model))
+            clean_opts = dataclasses.replace(options, light=truth_light)
             clean_chain = Chain([LoadNode(model, clean_opts), *method_nodes(model, clean_opts, with_views=False)])
             image = clean_render(subject, frame.data["image"], truth_light)
-            clean = clean_chain.process(Frame(0, str(path), data={"image": image}))
+            clean = clean_chain.process(Frame(0, str(path), data={"image": image, "alignment": al}))
             if not clean.ok:
                 raise RuntimeError(clean.status)
             n_clean = normals_to_input(clean.data["normals"], model.mask, clean.data["alignment"], region.shape)

@@ -30,7 +30,9 @@ class ShapeModel:
     mask: (H, W) bool model region; mean_normals: (N, 3) unit, camera frame, over the N mask
     pixels in row-major order; mean_proj: (N, 2) mean AEP coordinates (radians);
     modes: (2N, K) orthonormal columns, rows ordered (pixel, tangent axis);
-    eigenvalues: (K,) variance of each mode (radians squared); source: provenance text.
+    eigenvalues: (K,) variance of each mode (radians squared); source: provenance text;
+    mouth: (2,) the mean face's mouth centre ``[x, y]`` (lips' parting line, pixels) if the training
+    source knows it (photos are then aligned by their mouth line too, ``nodes.mouth``), else None.
     """
 
     grid: tuple[int, int]
@@ -41,6 +43,7 @@ class ShapeModel:
     modes: np.ndarray
     eigenvalues: np.ndarray
     source: str
+    mouth: np.ndarray | None = None
     e1: np.ndarray = field(init=False, repr=False)
     e2: np.ndarray = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False, compare=False, default_factory=dict)
@@ -48,6 +51,7 @@ class ShapeModel:
     def __post_init__(self) -> None:
         self.grid = (int(self.grid[0]), int(self.grid[1]))
         self.mask = np.asarray(self.mask, bool)
+        self.mouth = None if self.mouth is None else np.asarray(self.mouth, np.float64).reshape(2)
         self.e1, self.e2 = tangent_basis(self.mean_normals.astype(np.float64))
 
     def modes_as(self, dtype) -> np.ndarray:
@@ -71,7 +75,7 @@ class ShapeModel:
         key = ("truncated", k)
         if key not in self._derived:  # kept: a stream asks for the same one every frame
             self._derived[key] = ShapeModel(self.grid, self.eyes, self.mask, self.mean_normals, self.mean_proj,
-                                            self.modes[:, :k], self.eigenvalues[:k], self.source)
+                                            self.modes[:, :k], self.eigenvalues[:k], self.source, self.mouth)
         return self._derived[key]
 
     def project(self, normals: np.ndarray) -> np.ndarray:
@@ -118,13 +122,14 @@ def train_shape_model(
     eyes: np.ndarray | None = None,
     source: str = "",
     min_coverage: float = 1.0,
+    mouth: np.ndarray | None = None,
 ) -> ShapeModel:
     """Train a needle-map model from aligned height fields.
 
     depths: (M, H, W) heights in pixel units on the canonical grid, NaN off each face.
     The model region is the pixels covered by at least ``min_coverage`` of the faces, with
     interior holes filled, eroded by one pixel so every normal there has a full stencil.
-    n_modes: K, at most M - 1. Returns the model.
+    n_modes: K, at most M - 1. mouth: (2,) the faces' mean mouth centre, if known. Returns the model.
     """
     depths = np.asarray(depths, np.float64)
     m, h, w = depths.shape
@@ -138,11 +143,12 @@ def train_shape_model(
         normals[i] = normals_from_depth(d)[region]
     if not np.all(np.isfinite(normals)):
         raise ValueError("training faces do not cover the model region")
-    return train_from_normals(normals, region, n_modes, eyes, source)
+    return train_from_normals(normals, region, n_modes, eyes, source, mouth)
 
 
 def train_from_normals(
-    normals: np.ndarray, mask: np.ndarray, n_modes: int, eyes: np.ndarray | None, source: str
+    normals: np.ndarray, mask: np.ndarray, n_modes: int, eyes: np.ndarray | None, source: str,
+    mouth: np.ndarray | None = None,
 ) -> ShapeModel:
     """Model from (M, N, 3) unit needle-maps over the N pixels of ``mask`` (H, W)."""
     m = normals.shape[0]
@@ -163,6 +169,7 @@ def train_from_normals(
         modes=vt[:k].T.astype(np.float32),
         eigenvalues=(sing[:k] ** 2 / max(m - 1, 1)).astype(np.float32),
         source=source,
+        mouth=mouth,
     )
 
 
@@ -197,6 +204,7 @@ def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
         modes=model.modes,
         eigenvalues=model.eigenvalues,
         source=np.array(model.source),
+        **({} if model.mouth is None else {"mouth": np.asarray(model.mouth, np.float64)}),
     )
     return atomic_write_bytes(path, buf.getvalue())
 
@@ -219,6 +227,9 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
     n = int(mask.sum())
     if data["mean_normals"].shape != (n, 3) or data["modes"].shape[0] != 2 * n:
         raise ValueError(f"{path}: model arrays do not match its mask ({n} pixels)")
+    mouth = data.get("mouth")
+    if mouth is not None and (mouth.shape != (2,) or not np.all(np.isfinite(mouth))):
+        raise ValueError(f"{path}: 'mouth' must be two finite numbers [x, y]")
     return ShapeModel(
         grid=tuple(int(x) for x in data["grid"]),
         eyes=data["eyes"].astype(float),
@@ -228,4 +239,5 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
         modes=data["modes"].astype(np.float32),
         eigenvalues=data["eigenvalues"].astype(np.float32),
         source=str(data.get("source", "")),
+        mouth=None if mouth is None else mouth.astype(np.float64),
     )

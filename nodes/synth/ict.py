@@ -30,6 +30,9 @@ FACE_VERTICES = 9409  # upstream vertex ranges: 0-9408 is the full face area
 IRIS_RIGHT = (23791, 24591)  # the subject's right iris: the image's left eye
 IRIS_LEFT = (22221, 23021)  # the subject's left iris: the image's right eye
 UPSTREAM_VERTICES = 26719
+# the lips' parting line at the midline: Multi-PIE landmarks 62 and 66 (inner lips, upper and lower),
+# upstream vertex_indices.json "idx_to_landmark_verts"; both inside the face area
+STOMION = (5533, 5517)
 COMPACT_FORMAT = "shadowflow-ict-face-basis-1"
 SHIPPED = Path(__file__).resolve().parents[1] / "data" / "ict_face_basis.npz"
 
@@ -121,6 +124,15 @@ def ict_faces(basis: IctBasis, n: int, seed: int = 0, grid: tuple[int, int] = (1
         depths.append(render_identity(basis, w, grid, we))
     d = np.stack(depths).astype(np.float32)
     return d, np.where(np.isfinite(d), 1.0, np.nan).astype(np.float32)
+
+
+def canonical_mouth(basis: IctBasis, grid: tuple[int, int] = (128, 128)) -> np.ndarray:
+    """(2,) ``[x, y]`` pixels: the mean face's mouth centre (stomion) with its irises on the
+    canonical eye pixels of ``grid``."""
+    from nodes.synth.sources import align_to_eyes
+
+    verts, eyes = basis.face(np.zeros(basis.n_identity))
+    return align_to_eyes(verts[list(STOMION)].mean(axis=0, keepdims=True), eyes[0], eyes[1], grid)[0, :2]
 
 
 def render_identity(basis: IctBasis, w_identity: np.ndarray, grid: tuple[int, int] = (128, 128),

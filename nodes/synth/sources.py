@@ -6,6 +6,7 @@ eye pixels, seen by an orthographic camera looking down -z.
 """
 from __future__ import annotations
 
+import functools
 import os
 import re
 import tomllib
@@ -144,6 +145,37 @@ def parse_source(spec: str) -> tuple[str, str | None]:
     return (m.group(1), None) if m.group(1) else (m.group(2), m.group(3))
 
 
+def source_mouth(spec: str, grid: tuple[int, int]) -> np.ndarray | None:
+    """(2,) the mean face's mouth centre on ``grid`` where the source knows it (ICT), else None."""
+    kind, arg = parse_source(spec)
+    if kind != "ict":
+        return None
+    from nodes.synth.ict import canonical_mouth
+
+    return canonical_mouth(_ict_basis(arg), grid)
+
+
+def _ict_basis(path: str | None):
+    """The shipped ICT basis (``path`` None) or the one at ``path``, read once per file version."""
+    from nodes.synth.ict import read_ict, shipped_basis
+
+    if path is None:
+        return shipped_basis()
+    try:
+        st = os.stat(path)
+        key = (os.path.realpath(path), st.st_mtime_ns, st.st_size)
+    except OSError:
+        return read_ict(path)  # says what is wrong with it
+    return _read_ict_version(*key)
+
+
+@functools.lru_cache(maxsize=2)
+def _read_ict_version(path: str, mtime_ns: int, size: int):
+    from nodes.synth.ict import read_ict
+
+    return read_ict(path)
+
+
 def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
                 expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Faces from a source spec (see ``parse_source``); ``expressions``: ICT only, the chance of
@@ -152,9 +184,9 @@ def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
     if expressions and kind != "ict":
         raise ValueError(f"expressions are a variation of the ICT source, not of {spec!r}")
     if kind == "ict":
-        from nodes.synth.ict import ict_faces, read_ict, shipped_basis
+        from nodes.synth.ict import ict_faces
 
-        return ict_faces(shipped_basis() if arg is None else read_ict(arg), n, seed, grid, expressions)
+        return ict_faces(_ict_basis(arg), n, seed, grid, expressions)
     if kind == "procedural":
         return procedural(n, seed, grid)
     if kind == "eos":
