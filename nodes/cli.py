@@ -26,6 +26,8 @@ MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan iden
 
 ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth albedo its shape implies and fit on, "
                       "N times (default 1; 0 is the paper's one albedo everywhere, see README)")
+FACE_LENGTH_HELP = ("auto (default): with detected eyes, also align the face's length by its mouth line; off: the "
+                    "eyes' similarity only; a number: stretch the model's face by it (eyes to mouth)")
 CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 1, the paper's "
                    "blend; 0: the model's normals)")
 
@@ -46,6 +48,19 @@ def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,
     if max_iterations is not None:
         cfg = dataclasses.replace(cfg, max_iterations=max_iterations)
     return cfg
+
+
+def _face_length(text: str) -> str | float:
+    """``--face-length``: auto, off or a stretch factor in [0.5, 2]."""
+    if text in ("auto", "off"):
+        return text
+    try:
+        f = float(text)
+    except ValueError:
+        f = float("nan")
+    if not 0.5 <= f <= 2.0:
+        raise ValueError(f"--face-length takes auto, off or a factor between 0.5 and 2, not {text!r}")
+    return f
 
 
 def _load_model(spec: str | None):
@@ -127,7 +142,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
                                             args.cone_trust),
                             integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
-                            detect_eyes=args.eyes == "auto", shadows=args.shadows)
+                            detect_eyes=args.eyes == "auto", shadows=args.shadows,
+                            face_length=_face_length(args.face_length))
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
@@ -187,7 +203,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
                                             cone_trust=args.cone_trust), light="yaleb",
-                            integrator=args.integrator, remap=args.remap, shadows=args.shadows)
+                            integrator=args.integrator, remap=args.remap, shadows=args.shadows,
+                            face_length=_face_length(args.face_length))
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
@@ -304,6 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-iterations", type=int, help="cap on fit iterations (default 100)")
     r.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     r.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
+    r.add_argument("--face-length", default="auto", metavar="auto|off|F", help=FACE_LENGTH_HELP)
     r.add_argument("--remap", choices=["ratio", "peak"], default="ratio",
                    help="brightness scale: median ratio to the mean face (default) or the brightest point "
                         "(the paper's; also what --fit paper uses)")
@@ -359,6 +377,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--remap", choices=["ratio", "peak"], default="ratio")
     e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
+    e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")
