@@ -28,8 +28,8 @@ ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth
                       "N times (default 1; 0 is the paper's one albedo everywhere, see README)")
 FACE_LENGTH_HELP = ("auto (default): with detected eyes, also align the face's length by its mouth line; off: the "
                     "eyes' similarity only; a number: stretch the model's face by it (eyes to mouth)")
-CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 1, the paper's "
-                   "blend; 0: the model's normals)")
+CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 0.5; 1: the paper's "
+                   "blend; 0: the model's normals; albedo and relighting always use the paper's blend)")
 
 
 def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,

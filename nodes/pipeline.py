@@ -15,6 +15,7 @@ remapped           (Hm, Wm) Lambertian-remapped brightness                 remap
 initial            (N, 3) starting normals                                 sfs_init
 fit                ``FitResult`` (on-cone / model normals, weights, ...)   robust_fit
 normals            (Hm, Wm, 3) combined normals, NaN off the face          combine
+shading_normals    (Hm, Wm, 3) the paper's blend, if ``normals`` is not it  combine
 depth              (Hm, Wm) heights, model pixels, NaN off the face        integrate
 shadow             ``ShadowMaps`` (cast, attached) for the input light     shadow
 albedo             (Hm, Wm) albedo, NaN off the face                       albedo
@@ -76,6 +77,12 @@ def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
     model grid without ``LoadNode``'s ``grid_valid``, e.g. a render)."""
     valid = frame.data.get("grid_valid")
     return np.ones(model.n_pixels, bool) if valid is None else valid[model.mask]
+
+
+def shading_normals(frame: Frame) -> np.ndarray:
+    """(Hm, Wm, 3) the normals that explain the photo's shading (``CombineNode``): the albedo divides
+    them out and the relighting puts them back; the output ``normals`` where the two are one."""
+    return frame.data.get("shading_normals", frame.data["normals"])
 
 
 class LoadNode:
@@ -223,7 +230,10 @@ class RobustFitNode:
 
 
 class CombineNode:
-    """Output normals: the on-cone and model normals blended by ``cone_trust`` x the weights."""
+    """Output normals: the on-cone and model normals blended by ``cone_trust`` x the weights
+    (``normals``: the shape, integrated to depth). With ``cone_trust`` < 1 the paper's blend is
+    kept as well (``shading_normals``) for the albedo and the relighting: the on-cone normals
+    reproduce the photo's shading, which is what those divide out and put back."""
 
     name = "combine"
 
@@ -232,8 +242,13 @@ class CombineNode:
 
     def __call__(self, frame: Frame) -> Frame:
         r = frame.data["fit"]
-        w = r.weights if self.cone_trust == 1.0 else self.cone_trust * r.weights
-        frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, w).astype(np.float32))
+        paper = self.model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
+        if self.cone_trust == 1.0:
+            frame.data["normals"] = paper
+        else:
+            w = self.cone_trust * r.weights
+            frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, w).astype(np.float32))
+            frame.data["shading_normals"] = paper
         return frame
 
 
@@ -277,7 +292,7 @@ class AlbedoNode:
 
     def __call__(self, frame: Frame) -> Frame:
         frame.data["albedo"], frame.data["albedo_source"] = estimate_albedo(
-            frame.data["grid_image"], frame.data["normals"], frame.data["grid_light"],
+            frame.data["grid_image"], shading_normals(frame), frame.data["grid_light"],
             frame.data["shadow"].lit, self.model.mask, self.axis_col)
         return frame
 
@@ -291,7 +306,7 @@ class RelightNode:
     def __call__(self, frame: Frame) -> Frame:
         al: Alignment = frame.data["alignment"]
         light = al.vector_to_model(self.options.relight_light)
-        frame.data["relit"] = relight(frame.data["albedo"], np.nan_to_num(frame.data["normals"]), light,
+        frame.data["relit"] = relight(frame.data["albedo"], np.nan_to_num(shading_normals(frame)), light,
                                       frame.data["depth"])
         frame.data["novel_view"] = novel_view(frame.data["depth"], frame.data["albedo"], self.options.novel_yaw_deg)
         return frame
