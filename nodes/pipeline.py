@@ -36,7 +36,7 @@ from nodes.eyes import detect_eyes
 from nodes.align import (Alignment, centred_alignment, eyes_alignment, inside_input, stretch_vertically,
                          to_model_grid)
 from nodes.integrate import frankot_chellappa, masked_least_squares
-from nodes.light import estimate_light
+from nodes.light import estimate_light, mean_face_weights
 from nodes.mouth import face_length_factor
 from nodes.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
 from nodes.relight import FRONTAL, novel_view, relight
@@ -156,7 +156,8 @@ class LoadNode:
             return opt, "given"
         if opt == "yaleb":
             return yaleb_light(source), "yaleb name"
-        grid_light = estimate_light(grid_image[self.model.mask][seen], self.model.mean_normals[seen])
+        weights = mean_face_weights(self.model.normal_variance[seen])
+        grid_light = estimate_light(grid_image[self.model.mask][seen], self.model.mean_normals[seen], weights=weights)
         return al.vector_to_input(grid_light), "estimated"
 
 

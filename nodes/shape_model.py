@@ -62,6 +62,14 @@ class ShapeModel:
         return self._derived[key]
 
     @property
+    def normal_variance(self) -> np.ndarray:
+        """(N,) variance of each pixel's normal over the modes (AEP radians squared, both axes)."""
+        if "normal_variance" not in self._derived:
+            p = self.modes.astype(np.float64).reshape(self.n_pixels, 2, -1)
+            self._derived["normal_variance"] = np.einsum("nak,k->n", p**2, self.eigenvalues.astype(np.float64))
+        return self._derived["normal_variance"]
+
+    @property
     def n_pixels(self) -> int:
         return int(self.mean_normals.shape[0])
 
