@@ -50,7 +50,7 @@ def test_shipped_basis_holds_the_face_area_and_its_eyes(basis):
 
 def test_a_drawn_face_lands_upright_with_its_irises_on_the_canonical_eye_pixels(basis):
     from nodes.raster import rasterize
-    from nodes.synth.sources import align_to_eyes
+    from nodes.synth.placement import align_to_eyes
 
     grid = (128, 128)
     w = np.random.default_rng(3).standard_normal(basis.n_identity)

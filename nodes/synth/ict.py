@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from flow.files import atomic_write_bytes
+from nodes.synth.placement import align_to_eyes, render_mesh
 
 FACE_VERTICES = 9409  # upstream vertex ranges: 0-9408 is the full face area
 IRIS_RIGHT = (23791, 24591)  # the subject's right iris: the image's left eye
@@ -129,8 +130,6 @@ def ict_faces(basis: IctBasis, n: int, seed: int = 0, grid: tuple[int, int] = (1
 def canonical_mouth(basis: IctBasis, grid: tuple[int, int] = (128, 128)) -> np.ndarray:
     """(2,) ``[x, y]`` pixels: the mean face's mouth centre (stomion) with its irises on the
     canonical eye pixels of ``grid``."""
-    from nodes.synth.sources import align_to_eyes
-
     verts, eyes = basis.face(np.zeros(basis.n_identity))
     return align_to_eyes(verts[list(STOMION)].mean(axis=0, keepdims=True), eyes[0], eyes[1], grid)[0, :2]
 
@@ -139,8 +138,6 @@ def render_identity(basis: IctBasis, w_identity: np.ndarray, grid: tuple[int, in
                     w_expression: np.ndarray | None = None) -> np.ndarray:
     """Height field (H, W) float32 px, NaN off the face, of one face with its iris centres on the
     canonical eye pixels of ``grid`` (interior holes, the eyes and mouth, filled smoothly)."""
-    from nodes.synth.sources import align_to_eyes, render_mesh
-
     verts, eyes = basis.face(w_identity, w_expression)
     return render_mesh(align_to_eyes(verts, eyes[0], eyes[1], grid), basis.triangles, grid)
 
