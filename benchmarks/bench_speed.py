@@ -5,7 +5,8 @@ Usage (from the repository root; one core, as the issue asks):
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_speed.py --out benchmarks/results
 
 For each grid (64, 128, 256) and K (30, 60): a model trained on 60 faces of ``--source`` (``ict``,
-the default model's source, or ``procedural``), ``--frames`` held-out faces lit from 45 degrees; medians of each node's time, the iterations, the time per
+the default model's source, or ``procedural``), ``--frames`` held-out faces lit from 45 degrees;
+medians of each node's time, the iterations, the time per
 iteration, and the FLOOR per iteration measured in the same run on the same shapes: the
 weighted K x K Gram matrix, two matrix-vector products with the (2N, K) modes and a K x K
 solve, float64 (the linear algebra one IRLS step cannot avoid). The naive reference

@@ -40,12 +40,11 @@ def cache_dir() -> Path:
 def train_from_recipe(recipe: dict) -> ShapeModel:
     """Train the model a recipe describes (``source``, ``n``, ``seed``, ``modes``, ``size``, and
     optionally ``expressions``: an ICT face's chance of each expression blendshape)."""
-    from nodes.synth.sources import load_source, source_mouth
+    from nodes.synth.sources import training_faces
 
     grid = tuple(recipe["size"])
-    depths, _ = load_source(recipe["source"], recipe["n"], recipe["seed"], grid, recipe.get("expressions", 0.0))
-    return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True),
-                             mouth=source_mouth(recipe["source"], grid))
+    depths, mouth = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid, recipe.get("expressions", 0.0))
+    return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True), mouth=mouth)
 
 
 def _cache_key(recipe: dict) -> str:

@@ -67,8 +67,9 @@ class FitConfig:
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
-    # 200 with the ICT model: on Yale B photos 100 / 200 / 300 gave 16.5 / 15.8 / 15.8 deg at +-25 and
-    # 15.7 / 15.7 / 15.8 at +-50 (100 was the procedural model's choice); 300 cost clean SFM renders 0.2 deg more
+    # 200 with the ICT model (100 was the procedural model's choice): on Yale B photos with Huber 1.5, 100 and 300
+    # gave 16.5 and 15.8 deg at +-25; with Huber 1.0, 200 was as good as 300 or better at every light (within
+    # 0.02 deg at +-25) and 0.2 deg better on clean SFM renders
     adaptive_prior: float = 200.0
     # irls: over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
     # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
@@ -84,7 +85,8 @@ class FitConfig:
     saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
     # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
     # (nodes.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
-    # (on by default: with the ICT model it takes Yale B normals 0.4-1.9 deg lower at every light)
+    # (on by default: with the ICT model and today's other defaults it takes Yale B normals 0.1-0.4 deg lower at
+    # +-25 / +-50 / +-35+15 and leaves +-70 as it was; 0.7-1.8 deg lower before the mouth line and cone trust)
     albedo_rounds: int = 1
     albedo_sigma: float = 0.08  # that albedo's smoothing, in interocular distances (2.9 px at 128^2)
     # output blend normalize(c w n'' + (1 - c w) n') (``combine``): how far the on-cone normals are trusted

@@ -6,7 +6,6 @@ eye pixels, seen by an orthographic camera looking down -z.
 """
 from __future__ import annotations
 
-import functools
 import os
 import re
 import tomllib
@@ -115,35 +114,24 @@ def parse_source(spec: str) -> tuple[str, str | None]:
     return (m.group(1), None) if m.group(1) else (m.group(2), m.group(3))
 
 
-def source_mouth(spec: str, grid: tuple[int, int]) -> np.ndarray | None:
-    """(2,) the mean face's mouth centre on ``grid`` where the source knows it (ICT), else None."""
+def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
+                   expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
+    """Faces to train a model on (``load_source``) and their mean face's mouth centre (2,) on
+    ``grid`` where the source knows it (ICT; else None), the ICT model read once for both."""
     kind, arg = parse_source(spec)
     if kind != "ict":
-        return None
-    from nodes.synth.ict import canonical_mouth
+        return load_source(spec, n, seed, grid, expressions)[0], None
+    from nodes.synth.ict import canonical_mouth, ict_faces
 
-    return canonical_mouth(_ict_basis(arg), grid)
+    basis = _ict_basis(arg)
+    return ict_faces(basis, n, seed, grid, expressions)[0], canonical_mouth(basis, grid)
 
 
 def _ict_basis(path: str | None):
-    """The shipped ICT basis (``path`` None) or the one at ``path``, read once per file version."""
+    """The shipped ICT basis (``path`` None) or the one at ``path``."""
     from nodes.synth.ict import read_ict, shipped_basis
 
-    if path is None:
-        return shipped_basis()
-    try:
-        st = os.stat(path)
-        key = (os.path.realpath(path), st.st_mtime_ns, st.st_size)
-    except OSError:
-        return read_ict(path)  # says what is wrong with it
-    return _read_ict_version(*key)
-
-
-@functools.lru_cache(maxsize=2)
-def _read_ict_version(path: str, mtime_ns: int, size: int):
-    from nodes.synth.ict import read_ict
-
-    return read_ict(path)
+    return shipped_basis() if path is None else read_ict(path)
 
 
 def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
