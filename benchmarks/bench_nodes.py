@@ -11,12 +11,12 @@ import platform
 import statistics
 
 
-from flow import Chain, Frame
-from nodes.default_model import default_model
-from nodes.evaluate import IDENTITY, render_scene
-from nodes.pipeline import MethodOptions, method_nodes
-from nodes.reflectance import light_from_angles
-from nodes.synth.sources import procedural
+from shadowflow.flow import Chain, Frame
+from shadowflow.nodes.model.default_model import default_model
+from shadowflow.nodes.evaluation.synthetic import IDENTITY, render_scene
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.model.sources import procedural
 
 
 def main() -> None:

@@ -25,9 +25,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_stream import make_inputs  # noqa: E402
 
-from flow.recording import RecordOptions  # noqa: E402
-from nodes.pipeline import MethodOptions  # noqa: E402
-from nodes.runner import RunOptions, run_stream  # noqa: E402
+from shadowflow.flow.recording import RecordOptions  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions  # noqa: E402
+from shadowflow.nodes.app.runner import RunOptions, run_stream  # noqa: E402
 
 CASES = [
     ("off", (), RecordOptions()),
@@ -42,13 +42,13 @@ CASES = [
 def models(grids: list[int] | None, ks: list[int] | None):
     """(grid, K, model) to measure: the default model, or procedural ones per grid and K."""
     if not grids and not ks:
-        from nodes.default_model import default_model
+        from shadowflow.nodes.model.default_model import default_model
 
         m = default_model()
         yield m.grid[0], m.n_modes, m
         return
-    from nodes.shape_model import train_shape_model
-    from nodes.synth.sources import procedural
+    from shadowflow.nodes.model.shape_model import train_shape_model
+    from shadowflow.nodes.model.sources import procedural
 
     for g in grids or [128]:
         depths, _ = procedural(60, seed=0, grid=(g, g))

@@ -29,14 +29,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from naive_fit import naive_fit  # noqa: E402
 
-from flow import Chain, Frame  # noqa: E402
-from nodes.evaluate import IDENTITY, render_scene  # noqa: E402
-from nodes.geometry import angle_deg  # noqa: E402
-from nodes.pipeline import MethodOptions, method_nodes  # noqa: E402
-from nodes.reflectance import light_from_angles  # noqa: E402
-from nodes.robust_fit import FitConfig, fit  # noqa: E402
-from nodes.shape_model import train_shape_model  # noqa: E402
-from nodes.synth.sources import load_source  # noqa: E402
+from shadowflow.flow import Chain, Frame  # noqa: E402
+from shadowflow.nodes.evaluation.synthetic import IDENTITY, render_scene  # noqa: E402
+from shadowflow.nodes.geometry.normals import angle_deg  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes  # noqa: E402
+from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
+from shadowflow.nodes.method.robust_fit import FitConfig, fit  # noqa: E402
+from shadowflow.nodes.model.shape_model import train_shape_model  # noqa: E402
+from shadowflow.nodes.model.sources import load_source  # noqa: E402
 
 
 def floor_per_iteration(modes: np.ndarray, repeats: int = 30) -> float:

@@ -22,8 +22,8 @@ import numpy as np
 
 def make_inputs(folder: Path, n: int, grid: tuple[int, int] = (128, 128)) -> None:
     """``n`` inputs of ``grid`` pixels: copies of 10 distinct shadowed faces (lights 30..66 degrees)."""
-    from nodes.reflectance import light_from_angles
-    from nodes.synth.inputs import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 
     rng = np.random.default_rng(5)
     base = [write_shadowed_face(folder / f"base-{i}.png", rng, light_from_angles(30 + 4 * i), grid) for i in range(10)]
@@ -45,7 +45,7 @@ def run(n: int, record: str, workers: int) -> dict:
         src = Path(tmp) / "in"
         src.mkdir()
         make_inputs(src, n)
-        cmd = [sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(Path(tmp) / "out"),
+        cmd = [sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(src), "--out", str(Path(tmp) / "out"),
                "--quiet", "--record", record, "--workers", str(workers)]
         t0 = time.perf_counter()
         # through a fresh parent: RUSAGE_CHILDREN keeps the largest child ever waited for, so a

@@ -2,8 +2,8 @@
 
 Knows nothing about faces: a node is any callable ``Frame -> Frame`` with a ``name``.
 """
-from flow.frame import Frame, FrameFailed
-from flow.chain import Chain
-from flow.pipeline import Pipeline, Stage, run_node
+from .frame import Frame, FrameFailed
+from .chain import Chain
+from .pipeline import Pipeline, Stage, run_node
 
 __all__ = ["Frame", "FrameFailed", "Chain", "Pipeline", "Stage", "run_node"]

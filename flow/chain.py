@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from typing import Callable, Iterable, Iterator, Protocol
 
-from flow.frame import Frame
-from flow.pipeline import run_node
+from .frame import Frame
+from .pipeline import run_node
 
 
 class Node(Protocol):

@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator
 
-from flow.frame import Frame
+from .frame import Frame
 
 _DONE = object()  # end-of-stream marker, one per worker of the next stage
 

@@ -21,16 +21,16 @@ GRID = (64, 64)
 
 
 def golden_model():
-    from nodes.shape_model import train_shape_model
-    from nodes.synth.sources import procedural
+    from shadowflow.nodes.model.shape_model import train_shape_model
+    from shadowflow.nodes.model.sources import procedural
 
     depths, _ = procedural(30, seed=0, grid=GRID)
     return train_shape_model(depths, 12, source="golden")
 
 
 def golden_inputs(folder: Path) -> list[str]:
-    from nodes.reflectance import light_from_angles
-    from nodes.synth.inputs import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 
     rng = np.random.default_rng(77)
     return [str(write_shadowed_face(folder / f"golden-{i}.png", rng, light_from_angles(az), GRID))
@@ -39,9 +39,9 @@ def golden_inputs(folder: Path) -> list[str]:
 
 def golden_run(out: Path, fit_workers: int = 1) -> Path:
     """Run the golden inputs into ``out``; returns the MCAP recording's path."""
-    from nodes.pipeline import MethodOptions
-    from nodes.robust_fit import FitConfig
-    from nodes.runner import RunOptions, run_stream
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.robust_fit import FitConfig
+    from shadowflow.nodes.app.runner import RunOptions, run_stream
 
     inputs = out / "inputs"
     inputs.mkdir(parents=True, exist_ok=True)

@@ -35,8 +35,8 @@ def sfm_path() -> Path:
 @pytest.fixture(scope="session")
 def procedural_model():
     """A model trained on 100 procedural faces (seed 0), as in the accuracy criteria."""
-    from nodes.shape_model import train_shape_model
-    from nodes.synth.sources import procedural
+    from shadowflow.nodes.model.shape_model import train_shape_model
+    from shadowflow.nodes.model.sources import procedural
 
     depths, _ = procedural(100, seed=0)
     return train_shape_model(depths, 60, source="procedural")

@@ -2,9 +2,9 @@
 test faces (the full 20-face tables come from ``shadowflow eval``, see README)."""
 import pytest
 
-from nodes.evaluate import evaluate
-from nodes.shape_model import train_shape_model
-from nodes.synth.sources import eos_model, procedural
+from shadowflow.nodes.evaluation.synthetic import evaluate
+from shadowflow.nodes.model.shape_model import train_shape_model
+from shadowflow.nodes.model.sources import eos_model, procedural
 
 N_TEST = 8
 # issue 2: mean angular error of the final normals, degrees, by light angle
@@ -49,7 +49,7 @@ def test_built_in_models_on_sfm_faces(sfm_faces):
     default, trained on ICT-FaceKit's real scans, does better than the procedural one although
     its floor on these faces is no lower (10.1 vs 9.3 deg): its mean face is closer to real ones.
     Measured on these 8 faces at 45 deg: ICT 12.4, procedural 14.7 deg."""
-    from nodes.default_model import built_in_model
+    from shadowflow.nodes.model.default_model import built_in_model
 
     _, test = sfm_faces
     err = {name: evaluate(built_in_model(name), test, None, [45])["per_angle"]["45"]["err_all"]

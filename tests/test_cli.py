@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from nodes.cli import main
+from shadowflow.nodes.app.cli import main
 
 LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png",
           "novel_view.png", "mesh.ply"}
@@ -47,10 +47,10 @@ def test_run_writes_the_conventions_layout(demo_run):
 
 def test_run_recovers_the_demo_faces(demo_run):
     """The demo inputs are rendered from known faces; the outputs must match them."""
-    from nodes.evaluate import render_scene
-    from nodes.geometry import angle_deg
-    from nodes.reflectance import light_from_angles
-    from nodes.synth.inputs import draw_face
+    from shadowflow.nodes.evaluation.synthetic import render_scene
+    from shadowflow.nodes.geometry.normals import angle_deg
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.evaluation.scenes import draw_face
 
     rng = np.random.default_rng(2024)  # the demo's generator
     summary = json.loads((demo_run / "summary.json").read_text())
@@ -86,7 +86,7 @@ def test_bad_inputs_fail_alone_and_inputs_are_never_overwritten(tmp_path, demo_r
     shutil.copy(good.with_suffix(".json"), sub / "a face.json")
     before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "nodes.cli", "run", str(folder), str(sub / "a face.png"),
+    proc = subprocess.run([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(folder), str(sub / "a face.png"),
                            "--out", str(out)], capture_output=True, text=True)
     assert proc.returncode == 1  # one frame failed
     errors = [line for line in proc.stderr.splitlines() if line.startswith("error:")]

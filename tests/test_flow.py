@@ -4,7 +4,7 @@ import time
 
 import pytest
 
-from flow import Chain, Frame, Pipeline, Stage
+from shadowflow.flow import Chain, Frame, Pipeline, Stage
 
 
 class Sleepy:

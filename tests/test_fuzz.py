@@ -11,8 +11,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flow.recording import Event, McapSink, OnMask, Recorder, RecordingError, read_mcap
-from nodes.loader import IMAGE_SUFFIXES, InputError, load_image
+from shadowflow.flow.recording import Event, McapSink, OnMask, Recorder, RecordingError, read_mcap
+from shadowflow.nodes.photo.loader import IMAGE_SUFFIXES, InputError, load_image
 
 FUZZ = settings(max_examples=120, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

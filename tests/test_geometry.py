@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from conftest import random_unit
-from nodes.geometry import aep_forward, aep_inverse, angle_deg, normals_from_depth, tangent_basis
+from shadowflow.nodes.geometry.normals import aep_forward, aep_inverse, angle_deg, normals_from_depth, tangent_basis
 
 
 def test_tangent_basis_is_orthonormal_and_frontal_is_image_axes():

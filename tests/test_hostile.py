@@ -19,13 +19,13 @@ import cv2
 import numpy as np
 import pytest
 
-from flow.frame import Frame
-from flow.pipeline import Pipeline
-from nodes.geometry import angle_deg
-from nodes.reflectance import light_from_angles
-from nodes.synth.inputs import write_shadowed_face
+from shadowflow.flow.frame import Frame
+from shadowflow.flow.pipeline import Pipeline
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 
-CLI = [sys.executable, "-m", "nodes.cli"]
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -270,7 +270,7 @@ def test_frame_timeout_abandons_a_slow_fit_and_the_run_goes_on(tmp_path):
     assert len(summary) == 2
     assert all("timed out after 0.01 s" in r["status"] for r in summary)
     assert not any((out / r["stem"] / "normals.npy").exists() for r in summary)
-    from flow.replay import open_recording
+    from shadowflow.flow.replay import open_recording
 
     rec = open_recording(out / "run.mcap")
     assert [f.record["status"] for f in rec.finished_frames()] == [r["status"] for r in summary]
@@ -338,7 +338,7 @@ def _mcap_with(path: Path, encoding: str, data: bytes) -> None:
 def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
     import struct
 
-    from flow.recording import ARRAY_ENCODING, Event, McapSink
+    from shadowflow.flow.recording import ARRAY_ENCODING, Event, McapSink
 
     good = tmp_path / "good.mcap"
     sink = McapSink(good)

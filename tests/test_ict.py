@@ -3,9 +3,9 @@ default model built from the shipped basis."""
 import numpy as np
 import pytest
 
-from nodes.cli import main
-from nodes.synth import ict
-from nodes.synth.facegen import canonical_eyes
+from shadowflow.nodes.app.cli import main
+from shadowflow.nodes.model.faces import ict
+from shadowflow.nodes.model.faces.facegen import canonical_eyes
 
 from conftest import SHARED
 
@@ -49,8 +49,8 @@ def test_shipped_basis_holds_the_face_area_and_its_eyes(basis):
 
 
 def test_a_drawn_face_lands_upright_with_its_irises_on_the_canonical_eye_pixels(basis):
-    from nodes.raster import rasterize
-    from nodes.synth.placement import align_to_eyes
+    from shadowflow.nodes.geometry.raster import rasterize
+    from shadowflow.nodes.model.faces.placement import align_to_eyes
 
     grid = (128, 128)
     w = np.random.default_rng(3).standard_normal(basis.n_identity)
@@ -143,7 +143,7 @@ def test_bad_ict_files_get_one_line_naming_the_file_and_exit_2(tmp_path, basis, 
 
 
 def test_train_from_the_shipped_basis_at_another_grid_and_k(tmp_path, capsys):
-    from nodes.shape_model import load_model
+    from shadowflow.nodes.model.shape_model import load_model
 
     out = tmp_path / "ict64.npz"
     assert main(["train", "--source", "ict", "--n", "30", "--modes", "12", "--size", "64,64", "--out", str(out)]) == 0
@@ -156,7 +156,7 @@ def test_train_from_the_shipped_basis_at_another_grid_and_k(tmp_path, capsys):
 
 
 def test_default_model_is_ict_built_deterministically_and_procedural_stays_selectable():
-    from nodes.default_model import RECIPES, default_model, resolve_model, train_from_recipe
+    from shadowflow.nodes.model.default_model import RECIPES, default_model, resolve_model, train_from_recipe
 
     model = default_model()
     assert '"source": "ict"' in model.source and model.grid == (128, 128) and model.n_modes == 60

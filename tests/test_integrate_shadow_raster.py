@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from nodes.geometry import normals_from_depth
-from nodes.integrate import frankot_chellappa, harmonic_fill, masked_least_squares
-from nodes.raster import grid_mesh, grid_row_edges, rasterize, rasterize_row_edges
-from nodes.reflectance import light_from_angles
-from nodes.shadow import cast_shadow, confirm_with_image, shadow_maps
+from shadowflow.nodes.geometry.normals import normals_from_depth
+from shadowflow.nodes.geometry.integrate import frankot_chellappa, harmonic_fill, masked_least_squares
+from shadowflow.nodes.geometry.raster import grid_mesh, grid_row_edges, rasterize, rasterize_row_edges
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.shadow import cast_shadow, confirm_with_image, shadow_maps
 
 
 def _bump(h=96, w=96):
@@ -80,7 +80,7 @@ def test_frontal_light_casts_no_shadow_and_attached_is_n_dot_s():
 
 
 def test_confirmation_removes_lit_pixels_and_grows_into_connected_dark_ones():
-    from nodes.shadow import ShadowMaps
+    from shadowflow.nodes.method.shadow import ShadowMaps
 
     traced = np.zeros((10, 10), bool)
     traced[2:5, 2:5] = True
@@ -122,7 +122,7 @@ def test_grid_mesh_covers_the_mask():
 
 
 def test_remap_ignores_hot_pixels_and_uses_the_peak_shading():
-    from nodes.remap import expected_peak_shading, lambertian_remap
+    from shadowflow.nodes.method.remap import expected_peak_shading, lambertian_remap
 
     rng = np.random.default_rng(0)
     img = rng.uniform(0.1, 0.6, (50, 50))
@@ -144,7 +144,7 @@ def test_remap_ignores_hot_pixels_and_uses_the_peak_shading():
 def test_row_edge_rasterizer_matches_the_general_one_on_a_turned_face():
     """The novel view's fast path: a grid mesh turned about the vertical axis, rendered by 1-D
     interpolation along its horizontal edges, equals the general triangle rasterizer."""
-    from nodes.synth.sources import procedural
+    from shadowflow.nodes.model.sources import procedural
 
     depths, albedos = procedural(2, seed=5)
     for d, albedo in zip(depths, albedos):

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from nodes.loader import InputError, load_image, parse_light, read_sidecar, yaleb_light
+from shadowflow.nodes.photo.loader import InputError, load_image, parse_light, read_sidecar, yaleb_light
 
 
 @pytest.fixture

@@ -3,8 +3,8 @@ alignment, the model's mouth, and (with ../shared) the real photos it is for."""
 import numpy as np
 import pytest
 
-from nodes.align import Alignment, eyes_alignment, normals_to_input, stretch_vertically
-from nodes.mouth import face_length_factor, mouth_row
+from shadowflow.nodes.photo.align import Alignment, eyes_alignment, normals_to_input, stretch_vertically
+from shadowflow.nodes.photo.mouth import face_length_factor, mouth_row
 
 from conftest import SHARED
 
@@ -67,8 +67,8 @@ def test_a_stretched_alignment_keeps_the_eyes_moves_the_mouth_and_turns_vectors_
 
 
 def test_the_ict_models_know_their_mouth_and_keep_it_in_the_file(tmp_path):
-    from nodes.default_model import default_model
-    from nodes.shape_model import load_model, save_model
+    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.model.shape_model import load_model, save_model
 
     model = default_model()
     assert model.mouth is not None
@@ -93,10 +93,10 @@ def test_yaleb_the_mouth_line_corrects_a_short_face(tmp_path):
         pytest.skip(f"evaluation data absent: {folder} (needs ../shared beside the repo)")
     import dataclasses
 
-    from nodes.default_model import default_model
-    from nodes.evaluate_yaleb import evaluate_subject
-    from nodes.pipeline import MethodOptions
-    from nodes.yaleb import build_ground_truth
+    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.evaluation.yaleb import build_ground_truth
 
     subject = build_ground_truth(folder)
     lights = [(50, 0), (-50, 0), (70, 0), (-70, 0)]

@@ -3,12 +3,12 @@ Yale B benchmark (skipped when ../shared is absent; nothing from it is written a
 import numpy as np
 import pytest
 
-from nodes.evaluate import render_scene
-from nodes.eyes import merge_overlapping, pick_eyes
-from nodes.geometry import angle_deg
-from nodes.photometric_stereo import photometric_stereo, register_translation
-from nodes.reflectance import light_from_angles
-from nodes.synth.facegen import render_face, sample_face
+from shadowflow.nodes.evaluation.synthetic import render_scene
+from shadowflow.nodes.photo.eyes import merge_overlapping, pick_eyes
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.evaluation.photometric_stereo import photometric_stereo, register_translation
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.model.faces.facegen import render_face, sample_face
 
 from conftest import SHARED
 
@@ -61,9 +61,9 @@ def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_mod
     eyes given: the normals on the photo's grid must match the rendered truth there."""
     import cv2
 
-    from nodes.align import eyes_alignment
-    from nodes.cli import main
-    from nodes.synth.facegen import canonical_eyes
+    from shadowflow.nodes.photo.align import eyes_alignment
+    from shadowflow.nodes.app.cli import main
+    from shadowflow.nodes.model.faces.facegen import canonical_eyes
 
     rng = np.random.default_rng(11)
     depth, mask, albedo = render_face(sample_face(rng))
@@ -91,7 +91,7 @@ def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_mod
 
 
 def _save(model, folder):
-    from nodes.shape_model import save_model
+    from shadowflow.nodes.model.shape_model import save_model
 
     return save_model(model, folder / "model.npz")
 
@@ -101,14 +101,14 @@ def yaleb_subject():
     folder = YALEB / "yaleB01"
     if not folder.is_dir():
         pytest.skip(f"evaluation data absent: {folder} (needs ../shared beside the repo)")
-    from nodes.yaleb import build_ground_truth
+    from shadowflow.nodes.evaluation.yaleb import build_ground_truth
 
     return build_ground_truth(folder)
 
 
 def test_yaleb_ground_truth_explains_the_real_frontal_photo(yaleb_subject):
-    from nodes.evaluate_yaleb import relight_scores
-    from nodes.photometric_stereo import render
+    from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
+    from shadowflow.nodes.evaluation.photometric_stereo import render
 
     st = yaleb_subject.stereo
     assert st.valid.mean() > 0.9
@@ -118,8 +118,8 @@ def test_yaleb_ground_truth_explains_the_real_frontal_photo(yaleb_subject):
 
 
 def test_yaleb_eyes_are_found_under_side_light(yaleb_subject):
-    from nodes.eyes import detect_eyes
-    from nodes.loader import load_image
+    from shadowflow.nodes.photo.eyes import detect_eyes
+    from shadowflow.nodes.photo.loader import load_image
 
     found = []
     for az in (-70, -50, -25, 0, 25, 50, 70):
@@ -134,9 +134,9 @@ def test_yaleb_eyes_are_found_under_side_light(yaleb_subject):
 
 def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb_subject):
     """Subject 01 at (+-50, 0) and (+-70, 0) with the default (ICT) model and the Yale light."""
-    from nodes.default_model import default_model
-    from nodes.evaluate_yaleb import evaluate_subject
-    from nodes.pipeline import MethodOptions
+    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
+    from shadowflow.nodes.method.nodes import MethodOptions
 
     rows = evaluate_subject(yaleb_subject, default_model(), MethodOptions(light="yaleb"), None,
                             lights=[(50, 0), (-50, 0), (70, 0), (-70, 0)])
@@ -155,10 +155,10 @@ def test_yaleb_dividing_out_the_smooth_albedo_helps_the_default_model(yaleb_subj
     everywhere (``--albedo-rounds 0``), subject 01, default (ICT) model."""
     import dataclasses
 
-    from nodes.default_model import default_model
-    from nodes.evaluate_yaleb import evaluate_subject
-    from nodes.pipeline import MethodOptions
-    from nodes.robust_fit import FitConfig
+    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.robust_fit import FitConfig
 
     lights = [(25, 0), (-25, 0), (50, 0), (-50, 0)]  # at +-70 one round and none tie (README)
     options = MethodOptions(light="yaleb")

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
-from flow.replay import diff_recordings
-from nodes.outputs import OUTPUT_FILES
+from shadowflow.flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
+from shadowflow.flow.replay import diff_recordings
+from shadowflow.nodes.app.outputs import OUTPUT_FILES
 
 REPO = Path(__file__).resolve().parents[1]
-CLI = [sys.executable, "-m", "nodes.cli"]
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 sys.path.insert(0, str(REPO / "recordings"))
 from make_golden import GOLDEN, golden_inputs, golden_model, golden_run  # noqa: E402
 
@@ -24,7 +24,7 @@ from make_golden import GOLDEN, golden_inputs, golden_model, golden_run  # noqa:
 def demo(tmp_path_factory):
     """A recorded run of the built-in demo (3 faces), both formats."""
     out = tmp_path_factory.mktemp("rec")
-    proc = subprocess.run([sys.executable, "-m", "nodes.cli", "run", "--demo", "--out", str(out), "--quiet"],
+    proc = subprocess.run([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", "--demo", "--out", str(out), "--quiet"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return out
@@ -112,7 +112,7 @@ def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
     """More iterations than one batch holds, of a face-pixel image and of a dense one (as
     ``replay --rrd`` sends them), and a frame closed by ``close`` alone: every row reaches the
     .rrd at its iteration with its own values."""
-    from flow.recording import OnMask, RerunSink
+    from shadowflow.flow.recording import OnMask, RerunSink
 
     rng = np.random.default_rng(4)
     mask = rng.random((6, 5)) < 0.6
@@ -156,7 +156,7 @@ def test_foxglove_copies_show_the_recorded_images(demo):
 
 
 def test_replay_and_diff_commands(demo, tmp_path):
-    cli = [sys.executable, "-m", "nodes.cli"]
+    cli = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
     out = subprocess.run(cli + ["replay", str(demo / "run.mcap"), "--plot", str(tmp_path / "c.png"),
                                 "--rrd", str(tmp_path / "re.rrd")], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
@@ -174,7 +174,7 @@ def _rewrite(src: Path, dst: Path, change) -> None:
     """Copy a recording, applying ``change(topic, header, array) -> array | None`` to arrays."""
     from mcap.reader import make_reader
 
-    from flow.recording import decode_array
+    from shadowflow.flow.recording import decode_array
 
     sink = McapSink(dst)
     with open(src, "rb") as f:
@@ -224,9 +224,9 @@ def test_golden_recording_is_reproduced_whatever_the_thread_count(tmp_path):
 
 def test_record_every_and_float16(tmp_path):
     model = golden_model()
-    from nodes.pipeline import MethodOptions
-    from nodes.robust_fit import FitConfig
-    from nodes.runner import RunOptions, run_stream
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.robust_fit import FitConfig
+    from shadowflow.nodes.app.runner import RunOptions, run_stream
 
     paths = golden_inputs(tmp_path)
     opts = MethodOptions(fit=FitConfig(max_iterations=11, tolerance_deg=0.0))
@@ -263,7 +263,7 @@ def test_truncated_and_hostile_files(demo, tmp_path):
     _rewrite(demo / "run.mcap", huge, lambda *_: None)
     import struct
 
-    from flow.recording import decode_array
+    from shadowflow.flow.recording import decode_array
     header = json.dumps({"frame": 0, "iteration": 1, "dtype": "<f8", "shape": [1 << 20, 1 << 20]}).encode()
     with pytest.raises(ValueError, match="payload"):
         decode_array(b"SFA1" + struct.pack("<I", len(header)) + header + b"\x00" * 16)
@@ -276,7 +276,7 @@ def test_masked_array_messages_round_trip_and_refuse_bad_payloads():
     and is a quarter of the dense one's size at a typical face coverage."""
     import struct
 
-    from flow.recording import OnMask, decode_array
+    from shadowflow.flow.recording import OnMask, decode_array
 
     rng = np.random.default_rng(3)
     mask = rng.random((128, 128)) < 0.26
@@ -331,7 +331,7 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     src.mkdir()
     _golden_copies(src, 16)  # enough that the kill lands mid-stream
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(out), "--quiet"]
+    cmd = [sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(src), "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _wait_for_records(out, 2)
     proc.send_signal(signal.SIGKILL)
@@ -373,7 +373,7 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     src.mkdir()
     _golden_copies(src, 12)
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "nodes.cli", "run", str(src), "--out", str(out), "--quiet"],
+    proc = subprocess.Popen([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(src), "--out", str(out), "--quiet"],
                             stderr=subprocess.PIPE, text=True)
     _wait_for_records(out, 2)
     proc.send_signal(signal.SIGTERM)

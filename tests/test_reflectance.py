@@ -1,9 +1,9 @@
 import numpy as np
 
 from conftest import random_unit
-from nodes.geometry import angle_deg
-from nodes.loader import yaleb_light
-from nodes.reflectance import light_from_angles, project_to_cone, project_to_halfspace
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.photo.loader import yaleb_light
+from shadowflow.nodes.geometry.reflectance import light_from_angles, project_to_cone, project_to_halfspace
 
 
 def test_cone_projection_satisfies_lambert_and_is_closest():
@@ -45,7 +45,7 @@ def test_yaleb_convention_positive_azimuth_lights_image_left():
 def test_smooth_albedo_recovers_slow_skin_changes_and_leaves_shadow_alone():
     """``I / shading`` averaged over trusted pixels: a slow albedo ramp comes back relative to its
     median; a pixel far from any trusted one (deep shadow) gets 1; a dark speck does not move it."""
-    from nodes.albedo import smooth_albedo
+    from shadowflow.nodes.method.albedo import smooth_albedo
 
     h = w = 64
     yy, xx = np.mgrid[:h, :w]

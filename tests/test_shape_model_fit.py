@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from nodes.geometry import angle_deg
-from nodes.reflectance import lambertian, light_from_angles
-from nodes.robust_fit import FitConfig, combine, fit, huber_weights, residual_scale
-from nodes.shape_model import load_model, save_model
-from nodes.synth.sources import procedural
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.geometry.reflectance import lambertian, light_from_angles
+from shadowflow.nodes.method.robust_fit import FitConfig, combine, fit, huber_weights, residual_scale
+from shadowflow.nodes.model.shape_model import load_model, save_model
+from shadowflow.nodes.model.sources import procedural
 
 
 def test_model_save_load_round_trip_without_pickles(tmp_path, procedural_model):
@@ -37,7 +37,7 @@ def test_model_modes_are_orthonormal_and_reconstruct_training_faces(procedural_m
     np.testing.assert_allclose(m.modes.T @ m.modes, np.eye(m.n_modes), atol=1e-4)
     assert np.all(np.diff(m.eigenvalues) <= 1e-6)
     depths, _ = procedural(3, seed=0)  # the first training faces
-    from nodes.geometry import normals_from_depth
+    from shadowflow.nodes.geometry.normals import normals_from_depth
 
     for d in depths:
         n = normals_from_depth(d)[m.mask].astype(np.float64)
@@ -57,7 +57,7 @@ def test_closest_coefficients_recover_a_needle_map_from_the_pixels_that_are_know
     garbage = np.where(known[:, None], n, -n)
     np.testing.assert_allclose(m.closest_coefficients(garbage, known), b, atol=1e-3 * np.abs(b).max())
     np.testing.assert_allclose(m.closest_coefficients(m.synthesize(np.zeros(m.n_modes))), 0.0, atol=1e-4)
-    from nodes.geometry import normals_from_depth
+    from shadowflow.nodes.geometry.normals import normals_from_depth
 
     depths, _ = procedural(1, seed=999)  # a face the model was not trained on
     unseen = normals_from_depth(depths[0])[m.mask].astype(np.float64)
@@ -103,8 +103,8 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
 
 def _fit_errors(model, depths, light, configs: dict) -> dict:
     """Mean angular error (degrees) of the combined normals and the iterations, per config name."""
-    from nodes.evaluate import render_scene
-    from nodes.robust_fit import initial_normals
+    from shadowflow.nodes.evaluation.synthetic import render_scene
+    from shadowflow.nodes.method.robust_fit import initial_normals
 
     out = {name: {"err": [], "iterations": []} for name in configs}
     for d in depths:
@@ -171,10 +171,10 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
     no constraint from clipped ones (2.1 deg) must beat taking them at face value (16.4 deg)."""
     import dataclasses
 
-    from flow.chain import Chain
-    from flow.frame import Frame
-    from nodes.evaluate import IDENTITY, render_scene, score
-    from nodes.pipeline import MethodOptions, method_nodes
+    from shadowflow.flow.chain import Chain
+    from shadowflow.flow.frame import Frame
+    from shadowflow.nodes.evaluation.synthetic import IDENTITY, render_scene, score
+    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
 
     depths, _ = procedural(4, seed=21)
     s = light_from_angles(30, 0)
@@ -198,7 +198,7 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
 def test_first_pass_shortcut_equals_the_weighted_solve(procedural_model):
     """With unit weights the Gram matrix of orthonormal modes is I minus the released rows'
     part: the shortcut must give the weighted least squares' coefficients."""
-    from nodes.robust_fit import _unit_weight_solve, _weighted_solve
+    from shadowflow.nodes.method.robust_fit import _unit_weight_solve, _weighted_solve
 
     m = procedural_model
     P32 = m.modes_as(np.float32)

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from nodes.loader import load_image, yaleb_angles
-from nodes.photometric_stereo import StereoResult, photometric_stereo, register_translation, render
-from nodes.reflectance import light_from_angles
+from ..photo.loader import load_image, yaleb_angles
+from .photometric_stereo import StereoResult, photometric_stereo, register_translation, render
+from ..geometry.reflectance import light_from_angles
 
 FRONTAL = "P00A+000E+00"
 

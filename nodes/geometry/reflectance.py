@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nodes.geometry import normalize
+from .normals import normalize
 
 
 def lambertian(normals: np.ndarray, light: np.ndarray, albedo: np.ndarray | float = 1.0) -> np.ndarray:

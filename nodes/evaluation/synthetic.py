@@ -12,14 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flow.chain import Chain
-from flow.frame import Frame
-from nodes.align import Alignment
-from nodes.geometry import angle_deg, normals_from_depth
-from nodes.pipeline import MethodOptions, method_nodes
-from nodes.reflectance import lambertian, light_from_angles
-from nodes.shadow import ShadowMaps, shadow_maps
-from nodes.shape_model import ShapeModel, fill_holes
+from ...flow.chain import Chain
+from ...flow.frame import Frame
+from ..photo.align import Alignment
+from ..geometry.normals import angle_deg, normals_from_depth
+from ..method.nodes import MethodOptions, method_nodes
+from ..geometry.reflectance import lambertian, light_from_angles
+from ..method.shadow import ShadowMaps, shadow_maps
+from ..model.shape_model import ShapeModel, fill_holes
 
 IDENTITY = Alignment(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), "identity")
 

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 from PIL import Image
 
-from nodes.reflectance import light_from_angles
+from ..geometry.reflectance import light_from_angles
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".npy"}
 _YALEB = re.compile(r"_P\d+A([+-]\d{3})E([+-]\d{2})")

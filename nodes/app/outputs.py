@@ -12,11 +12,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from flow.files import atomic_write_bytes
-from flow.frame import Frame
-from nodes.align import mask_to_input, normals_to_input, scalar_to_input
-from nodes.relight import mesh_ply_bytes
-from nodes.shape_model import ShapeModel
+from ...flow.files import atomic_write_bytes
+from ...flow.frame import Frame
+from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
+from ..method.relight import mesh_ply_bytes
+from ..model.shape_model import ShapeModel
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
                 "relit.png", "novel_view.png", "mesh.ply")

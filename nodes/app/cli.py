@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from flow.files import atomic_write_bytes
-from nodes.loader import IMAGE_SUFFIXES, parse_light
-from nodes.pipeline import MethodOptions
-from nodes.robust_fit import FitConfig
-from nodes.synth.sources import SOURCES_HELP
+from ...flow.files import atomic_write_bytes
+from ..photo.loader import IMAGE_SUFFIXES, parse_light
+from ..method.nodes import MethodOptions
+from ..method.robust_fit import FitConfig
+from ..model.sources import SOURCES_HELP
 
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -64,7 +64,7 @@ def _face_length(text: str) -> str | float:
 
 
 def _load_model(spec: str | None):
-    from nodes.default_model import resolve_model
+    from ..model.default_model import resolve_model
 
     return resolve_model(spec)
 
@@ -95,8 +95,8 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
 def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
     """Synthetic shadowed faces with sidecar lights, as PNGs: random ICT-FaceKit identities (drawn
     apart from the default model's training faces, seed 2024 vs 0) under side lights."""
-    from nodes.reflectance import light_from_angles
-    from nodes.synth.inputs import write_shadowed_face
+    from ..geometry.reflectance import light_from_angles
+    from ..evaluation.scenes import write_shadowed_face
 
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(2024)
@@ -110,9 +110,9 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from flow.recording import RecordOptions
-    from flow.pipeline import wait_for_abandoned
-    from nodes.runner import RunOptions, check_writable, run_stream, watch_folder
+    from ...flow.recording import RecordOptions
+    from ...flow.pipeline import wait_for_abandoned
+    from .runner import RunOptions, check_writable, run_stream, watch_folder
 
     out = Path(args.out)
     if args.frame_timeout is not None and not args.frame_timeout > 0:
@@ -171,8 +171,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from nodes.default_model import train_from_recipe
-    from nodes.shape_model import save_model
+    from ..model.default_model import train_from_recipe
+    from ..model.shape_model import save_model
 
     size = [int(t) for t in args.size.split(",")]
     recipe = {"source": args.source, "n": args.n, "seed": args.seed, "modes": args.modes, "size": size}
@@ -196,7 +196,7 @@ def _write_report(path: str | None, report: dict) -> None:
 
 
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
-    from nodes.evaluate_yaleb import evaluate_yaleb, summarise
+    from ..evaluation.yaleb_benchmark import evaluate_yaleb, summarise
 
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
@@ -230,9 +230,9 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
-    from nodes.evaluate import evaluate, model_floor
-    from nodes.shape_model import train_shape_model
-    from nodes.synth.sources import load_source
+    from ..evaluation.synthetic import evaluate, model_floor
+    from ..model.shape_model import train_shape_model
+    from ..model.sources import load_source
 
     size = tuple(int(t) for t in args.size.split(","))
     t0 = time.perf_counter()
@@ -271,8 +271,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from flow.replay import convergence_table, format_table, open_recording, plot_convergence, relog_to_rerun
-    from nodes.record import default_blueprint
+    from ...flow.replay import convergence_table, format_table, open_recording, plot_convergence, relog_to_rerun
+    from .record import default_blueprint
 
     rec = open_recording(args.recording)
     print(format_table(convergence_table(rec)))
@@ -286,7 +286,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
-    from flow.replay import diff_recordings, open_recording
+    from ...flow.replay import diff_recordings, open_recording
 
     a, b = open_recording(args.a), open_recording(args.b)
     diffs = diff_recordings(a, b, args.atol, args.rtol)

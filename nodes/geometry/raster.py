@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nodes.mask_cache import per_mask
+from .mask_cache import per_mask
 
 
 def rasterize(

@@ -39,13 +39,13 @@ import numpy as np
 from scipy import sparse
 from scipy.linalg import blas, lapack
 
-from nodes.albedo import smooth_albedo
-from nodes.geometry import angle_deg
-from nodes.integrate import masked_least_squares
-from nodes.reflectance import irradiance_constraint
-from nodes.shape_model import ShapeModel
-from nodes.sfs_init import gradient_init, mean_init
-from nodes.shadow import cast_shadow
+from .albedo import smooth_albedo
+from ..geometry.normals import angle_deg
+from ..geometry.integrate import masked_least_squares
+from ..geometry.reflectance import irradiance_constraint
+from ..model.shape_model import ShapeModel
+from .sfs_init import gradient_init, mean_init
+from .shadow import cast_shadow
 
 RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))  # median of a unit Rayleigh variable
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from nodes.synth.facegen import render_face, sample_face
-from nodes.synth.placement import align_to_eyes, render_mesh
+from .faces.facegen import render_face, sample_face
+from .faces.placement import align_to_eyes, render_mesh
 
 
 def procedural(n: int, seed: int = 0, grid: tuple[int, int] = (128, 128)) -> tuple[np.ndarray, np.ndarray]:
@@ -121,7 +121,7 @@ def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
     kind, arg = parse_source(spec)
     if kind != "ict":
         return load_source(spec, n, seed, grid, expressions)[0], None
-    from nodes.synth.ict import canonical_mouth, ict_faces
+    from .faces.ict import canonical_mouth, ict_faces
 
     basis = _ict_basis(arg)
     return ict_faces(basis, n, seed, grid, expressions)[0], canonical_mouth(basis, grid)
@@ -129,7 +129,7 @@ def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
 
 def _ict_basis(path: str | None):
     """The shipped ICT basis (``path`` None) or the one at ``path``."""
-    from nodes.synth.ict import read_ict, shipped_basis
+    from .faces.ict import read_ict, shipped_basis
 
     return shipped_basis() if path is None else read_ict(path)
 
@@ -142,7 +142,7 @@ def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
     if expressions and kind != "ict":
         raise ValueError(f"expressions are a variation of the ICT source, not of {spec!r}")
     if kind == "ict":
-        from nodes.synth.ict import ict_faces
+        from .faces.ict import ict_faces
 
         return ict_faces(_ict_basis(arg), n, seed, grid, expressions)
     if kind == "procedural":

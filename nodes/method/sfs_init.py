@@ -9,8 +9,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from nodes.geometry import normalize
-from nodes.reflectance import irradiance_constraint
+from ..geometry.normals import normalize
+from ..geometry.reflectance import irradiance_constraint
 
 
 def gradient_init(image: np.ndarray, mask: np.ndarray, light: np.ndarray, dark_threshold: float = 0.0) -> np.ndarray:

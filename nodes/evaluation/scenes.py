@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from nodes.synth.facegen import canonical_eyes, render_face, sample_face
+from ..model.faces.facegen import canonical_eyes, render_face, sample_face
 
 
 def draw_face(rng: np.random.Generator, grid: tuple[int, int] = (128, 128),
@@ -20,7 +20,7 @@ def draw_face(rng: np.random.Generator, grid: tuple[int, int] = (128, 128),
         return render_face(sample_face(rng), grid)
     if source != "ict":
         raise ValueError(f"unknown face source {source!r}: procedural or ict")
-    from nodes.synth.ict import render_identity, shipped_basis
+    from ..model.faces.ict import render_identity, shipped_basis
 
     basis = shipped_basis()
     depth = render_identity(basis, rng.standard_normal(basis.n_identity), grid)
@@ -34,7 +34,7 @@ def write_shadowed_face(path: str | Path, rng: np.random.Generator, light: np.nd
     """Draw a face from ``rng`` (``draw_face``), render it under ``light`` (3,) with its cast and
     attached shadows and its albedo, and write ``path`` (8-bit PNG) with ``<stem>.json``
     holding ``{"light": [x, y, z], "eyes": [[x1, y1], [x2, y2]]}``."""
-    from nodes.evaluate import render_scene
+    from .synthetic import render_scene
 
     depth, mask, albedo = draw_face(rng, grid, source)
     image = render_scene(depth, albedo, light, mask).image

@@ -11,7 +11,7 @@ import numpy as np
 from scipy import ndimage, sparse
 from scipy.sparse.linalg import factorized, splu
 
-from nodes.mask_cache import per_mask
+from .mask_cache import per_mask
 
 MAX_SLOPE = 10.0  # |dz/dx| clamp for normals near the silhouette (84 degrees)
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from nodes.raster import rasterize
-from nodes.synth.facegen import canonical_eyes
+from ...geometry.raster import rasterize
+from .facegen import canonical_eyes
 
 
 def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndarray,
@@ -30,7 +30,7 @@ def render_mesh(vertices_px: np.ndarray, triangles: np.ndarray, grid: tuple[int,
     """Height field (H, W) of a mesh already in pixel coordinates; interior holes filled."""
     from scipy import ndimage
 
-    from nodes.shape_model import fill_holes
+    from ..shape_model import fill_holes
 
     depth, _ = rasterize(vertices_px, triangles, grid)
     covered = np.isfinite(depth)

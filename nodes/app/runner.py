@@ -10,14 +10,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from flow.files import atomic_write_bytes
-from flow.frame import Frame
-from flow.pipeline import Pipeline, Stage
-from flow.recording import McapSink, RecordOptions, Recorder, RerunSink
-from nodes.outputs import OUTPUT_FILES, WriteNode, real_path, safe_stem, summary_record, write_summary
-from nodes.pipeline import LoadNode, MethodOptions, RobustFitNode, method_nodes
-from nodes.record import FitObserver, RecordNode, default_blueprint
-from nodes.shape_model import ShapeModel
+from ...flow.files import atomic_write_bytes
+from ...flow.frame import Frame
+from ...flow.pipeline import Pipeline, Stage
+from ...flow.recording import McapSink, RecordOptions, Recorder, RerunSink
+from .outputs import OUTPUT_FILES, WriteNode, real_path, safe_stem, summary_record, write_summary
+from ..method.nodes import LoadNode, MethodOptions, RobustFitNode, method_nodes
+from .record import FitObserver, RecordNode, default_blueprint
+from ..model.shape_model import ShapeModel
 
 
 @dataclass

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from nodes.geometry import normals_from_depth
-from nodes.raster import grid_mesh, grid_row_edges, rasterize_row_edges
-from nodes.shadow import cast_shadow
+from ..geometry.normals import normals_from_depth
+from ..geometry.raster import grid_mesh, grid_row_edges, rasterize_row_edges
+from .shadow import cast_shadow
 
 FRONTAL = np.array([0.0, 0.0, 1.0])
 

@@ -26,15 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from flow.chain import Chain
-from flow.frame import Frame
-from nodes.align import Alignment, normals_to_input, normals_to_model
-from nodes.geometry import angle_deg
-from nodes.outputs import input_grid_products
-from nodes.pipeline import LoadNode, MethodOptions, method_nodes
-from nodes.reflectance import light_from_angles
-from nodes.shape_model import ShapeModel
-from nodes.yaleb import YaleSubject, build_ground_truth
+from ...flow.chain import Chain
+from ...flow.frame import Frame
+from ..photo.align import Alignment, normals_to_input, normals_to_model
+from ..geometry.normals import angle_deg
+from ..app.outputs import input_grid_products
+from ..method.nodes import LoadNode, MethodOptions, method_nodes
+from ..geometry.reflectance import light_from_angles
+from ..model.shape_model import ShapeModel
+from .yaleb import YaleSubject, build_ground_truth
 
 INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15), (-35, 15)]
 

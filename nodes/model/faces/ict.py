@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flow.files import atomic_write_bytes
-from nodes.synth.placement import align_to_eyes, render_mesh
+from ....flow.files import atomic_write_bytes
+from .placement import align_to_eyes, render_mesh
 
 FACE_VERTICES = 9409  # upstream vertex ranges: 0-9408 is the full face area
 IRIS_RIGHT = (23791, 24591)  # the subject's right iris: the image's left eye

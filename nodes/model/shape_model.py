@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from flow.files import atomic_write_bytes
-from nodes.geometry import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
-from nodes.integrate import harmonic_fill
-from nodes.synth.facegen import canonical_eyes
+from ...flow.files import atomic_write_bytes
+from ..geometry.normals import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
+from ..geometry.integrate import harmonic_fill
+from .faces.facegen import canonical_eyes
 
 MODEL_FORMAT_VERSION = 1
 

@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from flow.frame import Frame
-from flow.recording import Event, OnMask, Recorder
-from nodes.relight import surface_mesh
-from nodes.robust_fit import FitIteration
-from nodes.shape_model import ShapeModel
+from ...flow.frame import Frame
+from ...flow.recording import Event, OnMask, Recorder
+from ..method.relight import surface_mesh
+from ..method.robust_fit import FitIteration
+from ..model.shape_model import ShapeModel
 
 
 class FitObserver:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from nodes.integrate import harmonic_fill
+from ..geometry.integrate import harmonic_fill
 
 
 def smooth_albedo(grid_mask: np.ndarray, intensity: np.ndarray, shading: np.ndarray, trusted: np.ndarray,
