@@ -2,8 +2,8 @@
 
 Knows nothing about faces: a node is any callable ``Frame -> Frame`` with a ``name``.
 """
-from .frame import Frame, FrameFailed
 from .chain import Chain
+from .frame import Frame, FrameFailed
 from .pipeline import Pipeline, Stage, run_node
 
 __all__ = ["Frame", "FrameFailed", "Chain", "Pipeline", "Stage", "run_node"]

@@ -10,7 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import Event, FrameRecording, Recording, RecordingError, read_mcap
+from .recording import (
+    Event,
+    FrameRecording,
+    Recording,
+    RecordingError,
+    RerunSink,
+    read_mcap,
+)
 
 
 def _part_number(path: Path) -> int:
@@ -132,7 +139,6 @@ def plot_convergence(rec: Recording, path: str | Path, keys=("sigma", "change_de
 
 def relog_to_rerun(rec: Recording, rrd_path: str | Path, blueprint=None) -> Path:
     """Write a recording's frames and iterations into a Rerun ``.rrd`` file."""
-    from .recording import RerunSink
 
     kinds = {"normals": "normals", "model_normals": "normals", "depth": "depth"}
     sink = RerunSink(rrd_path, blueprint=blueprint)

@@ -47,7 +47,7 @@ def test_run_writes_the_conventions_layout(demo_run):
 
 def test_run_recovers_the_demo_faces(demo_run):
     """The demo inputs are rendered from known faces; the outputs must match them."""
-    from shadowflow.nodes.evaluation.synthetic import render_scene
+    from shadowflow.nodes.evaluation.scenes import render_scene
     from shadowflow.nodes.geometry.normals import angle_deg
     from shadowflow.nodes.geometry.reflectance import light_from_angles
     from shadowflow.nodes.evaluation.scenes import draw_face

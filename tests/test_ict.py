@@ -5,7 +5,7 @@ import pytest
 
 from shadowflow.nodes.app.cli import main
 from shadowflow.nodes.model.faces import ict
-from shadowflow.nodes.model.faces.facegen import canonical_eyes
+from shadowflow.nodes.model.canonical import canonical_eyes
 
 from conftest import SHARED
 

@@ -3,7 +3,7 @@ Yale B benchmark (skipped when ../shared is absent; nothing from it is written a
 import numpy as np
 import pytest
 
-from shadowflow.nodes.evaluation.synthetic import render_scene
+from shadowflow.nodes.evaluation.scenes import render_scene
 from shadowflow.nodes.photo.eyes import merge_overlapping, pick_eyes
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.evaluation.photometric_stereo import photometric_stereo, register_translation
@@ -63,7 +63,7 @@ def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_mod
 
     from shadowflow.nodes.photo.align import eyes_alignment
     from shadowflow.nodes.app.cli import main
-    from shadowflow.nodes.model.faces.facegen import canonical_eyes
+    from shadowflow.nodes.model.canonical import canonical_eyes
 
     rng = np.random.default_rng(11)
     depth, mask, albedo = render_face(sample_face(rng))

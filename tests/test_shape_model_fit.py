@@ -103,7 +103,7 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
 
 def _fit_errors(model, depths, light, configs: dict) -> dict:
     """Mean angular error (degrees) of the combined normals and the iterations, per config name."""
-    from shadowflow.nodes.evaluation.synthetic import render_scene
+    from shadowflow.nodes.evaluation.scenes import render_scene
     from shadowflow.nodes.method.robust_fit import initial_normals
 
     out = {name: {"err": [], "iterations": []} for name in configs}
@@ -173,7 +173,8 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
 
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
-    from shadowflow.nodes.evaluation.synthetic import IDENTITY, render_scene, score
+    from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene
+    from shadowflow.nodes.evaluation.synthetic import score
     from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
 
     depths, _ = procedural(4, seed=21)

@@ -13,11 +13,28 @@ from pathlib import Path
 import numpy as np
 
 from ...flow.files import atomic_write_bytes
-from ..photo.loader import IMAGE_SUFFIXES, parse_light
+from ...flow.pipeline import wait_for_abandoned
+from ...flow.recording import RecordOptions
+from ...flow.replay import (
+    convergence_table,
+    diff_recordings,
+    format_table,
+    open_recording,
+    plot_convergence,
+    relog_to_rerun,
+)
+from ..evaluation.scenes import write_shadowed_face
+from ..evaluation.synthetic import evaluate, model_floor
+from ..evaluation.yaleb_benchmark import evaluate_yaleb, summarise
+from ..geometry.reflectance import light_from_angles
 from ..method.nodes import MethodOptions
 from ..method.robust_fit import FitConfig
-from ..model.sources import SOURCES_HELP
-
+from ..model.default_model import resolve_model, train_from_recipe
+from ..model.shape_model import save_model, train_shape_model
+from ..model.sources import SOURCES_HELP, load_source
+from ..photo.loader import IMAGE_SUFFIXES, parse_light
+from .record import default_blueprint
+from .runner import RunOptions, check_writable, run_stream, watch_folder
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -64,7 +81,6 @@ def _face_length(text: str) -> str | float:
 
 
 def _load_model(spec: str | None):
-    from ..model.default_model import resolve_model
 
     return resolve_model(spec)
 
@@ -95,8 +111,6 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
 def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
     """Synthetic shadowed faces with sidecar lights, as PNGs: random ICT-FaceKit identities (drawn
     apart from the default model's training faces, seed 2024 vs 0) under side lights."""
-    from ..geometry.reflectance import light_from_angles
-    from ..evaluation.scenes import write_shadowed_face
 
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(2024)
@@ -110,9 +124,6 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from ...flow.recording import RecordOptions
-    from ...flow.pipeline import wait_for_abandoned
-    from .runner import RunOptions, check_writable, run_stream, watch_folder
 
     out = Path(args.out)
     if args.frame_timeout is not None and not args.frame_timeout > 0:
@@ -171,8 +182,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from ..model.default_model import train_from_recipe
-    from ..model.shape_model import save_model
 
     size = [int(t) for t in args.size.split(",")]
     recipe = {"source": args.source, "n": args.n, "seed": args.seed, "modes": args.modes, "size": size}
@@ -196,7 +205,6 @@ def _write_report(path: str | None, report: dict) -> None:
 
 
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
-    from ..evaluation.yaleb_benchmark import evaluate_yaleb, summarise
 
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
@@ -230,9 +238,6 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
-    from ..evaluation.synthetic import evaluate, model_floor
-    from ..model.shape_model import train_shape_model
-    from ..model.sources import load_source
 
     size = tuple(int(t) for t in args.size.split(","))
     t0 = time.perf_counter()
@@ -271,8 +276,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from ...flow.replay import convergence_table, format_table, open_recording, plot_convergence, relog_to_rerun
-    from .record import default_blueprint
 
     rec = open_recording(args.recording)
     print(format_table(convergence_table(rec)))
@@ -286,7 +289,6 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
-    from ...flow.replay import diff_recordings, open_recording
 
     a, b = open_recording(args.a), open_recording(args.b)
     diffs = diff_recordings(a, b, args.atol, args.rtol)

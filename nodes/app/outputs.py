@@ -14,7 +14,7 @@ import numpy as np
 
 from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
-from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
+from ..method.products import input_grid_products
 from ..method.relight import mesh_ply_bytes
 from ..model.shape_model import ShapeModel
 
@@ -64,28 +64,6 @@ def _png_bytes(img8: np.ndarray) -> bytes:
 def to_8bit(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """[0, 1] floats -> uint8, 0 off the mask."""
     return np.where(mask, np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255), 0).astype(np.uint8)
-
-
-def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
-    """The frame's results on the INPUT image's pixel grid (see ``conventions.md``)."""
-    d = frame.data
-    al = d["alignment"]
-    shape = d["image"].shape[:2]
-    m = model.mask
-    mask = mask_to_input(m, al, shape)
-    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, shape)
-    depth = scalar_to_input(d["depth"], m, al, shape) * al.scale
-    lit = scalar_to_input(d["shadow"].lit.astype(np.float32), m, al, shape, nearest=True)
-    out = {
-        "mask": mask,
-        "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
-        "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
-        "depth": np.where(mask, depth, np.nan).astype(np.float32),
-        "albedo": np.where(mask, scalar_to_input(d["albedo"], m, al, shape), np.nan),
-        "lit": mask & (np.nan_to_num(lit) >= 0.5),
-        "relit": np.where(mask, scalar_to_input(d["relit"], m, al, shape), np.nan),
-    }
-    return out
 
 
 def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:

@@ -13,11 +13,18 @@ from typing import Iterable, Iterator
 from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
 from ...flow.pipeline import Pipeline, Stage
-from ...flow.recording import McapSink, RecordOptions, Recorder, RerunSink
-from .outputs import OUTPUT_FILES, WriteNode, real_path, safe_stem, summary_record, write_summary
+from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, RobustFitNode, method_nodes
-from .record import FitObserver, RecordNode, default_blueprint
 from ..model.shape_model import ShapeModel
+from .outputs import (
+    OUTPUT_FILES,
+    WriteNode,
+    real_path,
+    safe_stem,
+    summary_record,
+    write_summary,
+)
+from .record import FitObserver, RecordNode, default_blueprint
 
 
 @dataclass

@@ -8,47 +8,17 @@ from the same nodes ``shadowflow run`` uses.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from ...flow.chain import Chain
 from ...flow.frame import Frame
-from ..photo.align import Alignment
+from ..geometry.integrate import fill_holes
 from ..geometry.normals import angle_deg, normals_from_depth
+from ..geometry.reflectance import light_from_angles
 from ..method.nodes import MethodOptions, method_nodes
-from ..geometry.reflectance import lambertian, light_from_angles
-from ..method.shadow import ShadowMaps, shadow_maps
-from ..model.shape_model import ShapeModel, fill_holes
-
-IDENTITY = Alignment(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), "identity")
-
-
-@dataclass
-class Scene:
-    """A rendered test face on the model grid: image (H, W), true normals (H, W, 3),
-    true depth (H, W), true shadows, light (3,), valid (H, W) pixels with ground truth."""
-
-    image: np.ndarray
-    normals: np.ndarray
-    depth: np.ndarray
-    shadows: ShadowMaps
-    light: np.ndarray
-    valid: np.ndarray
-
-
-def render_scene(depth: np.ndarray, albedo: np.ndarray | float, light: np.ndarray, region: np.ndarray) -> Scene:
-    """Render a face (heights in pixels, NaN off it) under ``light`` with its shadows.
-
-    Interior holes inside ``region`` are filled first; pixels of ``region`` the face does
-    not cover are black and excluded from the metrics.
-    """
-    d = fill_holes(depth, region)
-    n = normals_from_depth(d)
-    sh = shadow_maps(d, n, light)
-    img = lambertian(np.nan_to_num(n), light, np.nan_to_num(albedo)) * sh.lit
-    valid = region & np.isfinite(d)
-    return Scene(np.where(valid, img, 0.0).astype(np.float32), n, d.astype(np.float32), sh, light, valid)
+from ..model.shape_model import ShapeModel
+from .scenes import IDENTITY, Scene, render_scene
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:

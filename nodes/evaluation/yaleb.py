@@ -13,9 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..photo.loader import load_image, yaleb_angles
-from .photometric_stereo import StereoResult, photometric_stereo, register_translation, render
 from ..geometry.reflectance import light_from_angles
+from ..photo.loader import load_image, yaleb_angles
+from .photometric_stereo import (
+    StereoResult,
+    photometric_stereo,
+    register_translation,
+    render,
+)
 
 FRONTAL = "P00A+000E+00"
 

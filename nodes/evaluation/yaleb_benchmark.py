@@ -28,12 +28,12 @@ import numpy as np
 
 from ...flow.chain import Chain
 from ...flow.frame import Frame
-from ..photo.align import Alignment, normals_to_input, normals_to_model
 from ..geometry.normals import angle_deg
-from ..app.outputs import input_grid_products
-from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..geometry.reflectance import light_from_angles
+from ..method.nodes import LoadNode, MethodOptions, method_nodes
+from ..method.products import input_grid_products
 from ..model.shape_model import ShapeModel
+from ..photo.align import Alignment, normals_to_input, normals_to_model
 from .yaleb import YaleSubject, build_ground_truth
 
 INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15), (-35, 15)]

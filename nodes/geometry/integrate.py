@@ -151,3 +151,12 @@ def _build_operator(mask: np.ndarray) -> tuple:
     # the default column ordering, and each solve is that much faster
     solve = splu((d.T @ d + anchor).tocsc(), permc_spec="MMD_AT_PLUS_A").solve
     return solve, d, pairs_h, pairs_v, index
+
+
+def fill_holes(depth: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """Heights with NaN pixels inside ``region`` filled by harmonic (Laplace) interpolation."""
+    d = np.array(depth, np.float64)
+    holes = region & ~np.isfinite(d)
+    if not holes.any():
+        return d
+    return harmonic_fill(d, holes)

@@ -31,19 +31,25 @@ from typing import Callable
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
-from .albedo import estimate_albedo
-from ..photo.eyes import detect_eyes
-from ..photo.align import (Alignment, centred_alignment, eyes_alignment, inside_input, stretch_vertically,
-                         to_model_grid)
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
-from .light import estimate_light, mean_face_weights
-from ..photo.mouth import face_length_factor
+from ..model.shape_model import ShapeModel
+from ..photo.align import (
+    Alignment,
+    centred_alignment,
+    eyes_alignment,
+    inside_input,
+    stretch_vertically,
+    to_model_grid,
+)
+from ..photo.eyes import detect_eyes
 from ..photo.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
+from ..photo.mouth import face_length_factor
+from .albedo import estimate_albedo
+from .light import estimate_light, mean_face_weights
 from .relight import FRONTAL, novel_view, relight
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import confirm_with_image, shadow_maps
-from ..model.shape_model import ShapeModel
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 

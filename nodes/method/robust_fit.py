@@ -39,11 +39,11 @@ import numpy as np
 from scipy import sparse
 from scipy.linalg import blas, lapack
 
-from .albedo import smooth_albedo
-from ..geometry.normals import angle_deg
 from ..geometry.integrate import masked_least_squares
+from ..geometry.normals import angle_deg
 from ..geometry.reflectance import irradiance_constraint
 from ..model.shape_model import ShapeModel
+from .albedo import smooth_albedo
 from .sfs_init import gradient_init, mean_init
 from .shadow import cast_shadow
 

@@ -15,7 +15,9 @@ import json
 import os
 from pathlib import Path
 
+from .faces.ict import SHIPPED
 from .shape_model import ShapeModel, load_model, save_model, train_shape_model
+from .sources import training_faces
 
 GENERATOR_VERSION = 2  # bump when nodes/synth/facegen.py changes the faces it makes
 # 200 identities, K = 60: K = 20..60 agree to 0.1 deg on Yale B, 400 identities with K = 99 moved it by at most
@@ -40,7 +42,6 @@ def cache_dir() -> Path:
 def train_from_recipe(recipe: dict) -> ShapeModel:
     """Train the model a recipe describes (``source``, ``n``, ``seed``, ``modes``, ``size``, and
     optionally ``expressions``: an ICT face's chance of each expression blendshape)."""
-    from .sources import training_faces
 
     grid = tuple(recipe["size"])
     depths, mouth = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid, recipe.get("expressions", 0.0))
@@ -50,7 +51,6 @@ def train_from_recipe(recipe: dict) -> ShapeModel:
 def _cache_key(recipe: dict) -> str:
     h = hashlib.sha1(json.dumps(recipe, sort_keys=True).encode())
     if recipe["source"] == "ict":
-        from .faces.ict import SHIPPED
 
         h.update(SHIPPED.read_bytes())
     return h.hexdigest()[:12]

@@ -15,9 +15,15 @@ import numpy as np
 from scipy import ndimage
 
 from ...flow.files import atomic_write_bytes
-from ..geometry.normals import aep_forward, aep_inverse, normalize, normals_from_depth, tangent_basis
-from ..geometry.integrate import harmonic_fill
-from .faces.facegen import canonical_eyes
+from ..geometry.integrate import fill_holes
+from ..geometry.normals import (
+    aep_forward,
+    aep_inverse,
+    normalize,
+    normals_from_depth,
+    tangent_basis,
+)
+from .canonical import canonical_eyes
 
 MODEL_FORMAT_VERSION = 1
 
@@ -179,15 +185,6 @@ def train_from_normals(
         source=source,
         mouth=mouth,
     )
-
-
-def fill_holes(depth: np.ndarray, region: np.ndarray) -> np.ndarray:
-    """Heights with NaN pixels inside ``region`` filled by harmonic (Laplace) interpolation."""
-    d = np.array(depth, np.float64)
-    holes = region & ~np.isfinite(d)
-    if not holes.any():
-        return d
-    return harmonic_fill(d, holes)
 
 
 def _largest_component(mask: np.ndarray) -> np.ndarray:

@@ -6,6 +6,7 @@ eye pixels, seen by an orthographic camera looking down -z.
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import tomllib
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .faces.facegen import render_face, sample_face
+from .faces.ict import canonical_mouth, ict_faces, read_ict, shipped_basis
 from .faces.placement import align_to_eyes, render_mesh
 
 
@@ -77,7 +79,6 @@ def mesh_folder(folder: str | os.PathLike, grid: tuple[int, int] = (128, 128)) -
     sidecar ``<stem>.json`` with ``{"eyes3d": [[x, y, z], [x, y, z]]}`` (image-left eye first).
     Depth maps (H, W) float are taken as already aligned to ``grid`` (NaN off the face).
     """
-    import json
 
     import trimesh
 
@@ -121,7 +122,6 @@ def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
     kind, arg = parse_source(spec)
     if kind != "ict":
         return load_source(spec, n, seed, grid, expressions)[0], None
-    from .faces.ict import canonical_mouth, ict_faces
 
     basis = _ict_basis(arg)
     return ict_faces(basis, n, seed, grid, expressions)[0], canonical_mouth(basis, grid)
@@ -129,7 +129,6 @@ def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
 
 def _ict_basis(path: str | None):
     """The shipped ICT basis (``path`` None) or the one at ``path``."""
-    from .faces.ict import read_ict, shipped_basis
 
     return shipped_basis() if path is None else read_ict(path)
 
@@ -142,7 +141,6 @@ def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
     if expressions and kind != "ict":
         raise ValueError(f"expressions are a variation of the ICT source, not of {spec!r}")
     if kind == "ict":
-        from .faces.ict import ict_faces
 
         return ict_faces(_ict_basis(arg), n, seed, grid, expressions)
     if kind == "procedural":

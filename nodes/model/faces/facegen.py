@@ -17,6 +17,8 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from ..canonical import canonical_eyes
+
 # (male mean, female mean, standard deviation), millimetres.
 ANTHROPOMETRY = {
     "ipd": (64.0, 61.7, 3.6),  # interpupillary distance (Dodgson 2004)
@@ -83,16 +85,6 @@ def sample_face(rng: np.random.Generator) -> FaceParams:
     vals["nose_tip_round"] = float(np.clip(rng.normal(0.5, 0.18), 0.05, 0.95))
     vals["skin_albedo"] = float(np.clip(rng.normal(0.8, 0.06), 0.55, 0.95))
     return FaceParams(**{k.name: float(vals[k.name]) for k in fields(FaceParams)})
-
-
-def canonical_eyes(grid: tuple[int, int]) -> np.ndarray:
-    """Canonical eye centres for a grid: ``[[x_left, y], [x_right, y]]`` in pixels (x = column).
-
-    At 128x128: (46, 48) and (82, 48); the interocular distance is 0.28 of the width, which
-    leaves the whole face from brow-top to chin inside the grid.
-    """
-    h, w = grid
-    return np.array([[0.359375 * w, 0.375 * h], [0.640625 * w, 0.375 * h]])
 
 
 def _g(x: np.ndarray, y: np.ndarray, cx: float, cy: float, sx: float, sy: float) -> np.ndarray:

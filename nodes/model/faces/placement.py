@@ -3,9 +3,11 @@ then rendered as a height field. Shared by the mesh sources (eos models, mesh fo
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
+from ...geometry.integrate import fill_holes
 from ...geometry.raster import rasterize
-from .facegen import canonical_eyes
+from ..canonical import canonical_eyes
 
 
 def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndarray,
@@ -28,10 +30,6 @@ def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndar
 
 def render_mesh(vertices_px: np.ndarray, triangles: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
     """Height field (H, W) of a mesh already in pixel coordinates; interior holes filled."""
-    from scipy import ndimage
-
-    from ..shape_model import fill_holes
-
     depth, _ = rasterize(vertices_px, triangles, grid)
     covered = np.isfinite(depth)
     region = ndimage.binary_fill_holes(covered)
