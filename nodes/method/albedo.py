@@ -14,6 +14,11 @@ from scipy import ndimage
 
 from ..geometry.integrate import harmonic_fill
 
+# Shading ``n . s`` below which dividing by it is not trusted: it amplifies errors of the normals and of
+# the ambient light (0.15 -> 0.4 took the frontal relighting of Yale B subjects 02 and 04 at +-50 deg from
+# 18.8 to 20.7 dB). Shared by the output albedo and the fit's smooth-albedo rounds.
+MIN_SHADING = 0.4
+
 
 def smooth_albedo(grid_mask: np.ndarray, intensity: np.ndarray, shading: np.ndarray, trusted: np.ndarray,
                   sigma_px: float, min_cover: float = 0.05) -> np.ndarray:
@@ -48,7 +53,7 @@ def estimate_albedo(
     lit: np.ndarray,
     mask: np.ndarray,
     axis_col: float,
-    min_shading: float = 0.4,
+    min_shading: float = MIN_SHADING,
     symmetric_fill: bool = True,
     boundary_px: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -58,9 +63,7 @@ def estimate_albedo(
     lit (H, W) bool (not in cast or attached shadow); mask (H, W) bool face;
     axis_col: column of the face's vertical symmetry axis (model grid). boundary_px: pixels
     this close to a predicted shadow are not trusted either (a shadow edge a pixel off
-    would otherwise leave a black seam of albedo near 0). min_shading: below it the division
-    amplifies errors of the normals and ambient light (0.15 -> 0.4 took the frontal relighting
-    of Yale B subjects 02 and 04 at +-50 deg from 18.8 to 20.7 dB).
+    would otherwise leave a black seam of albedo near 0). min_shading: see ``MIN_SHADING``.
     Returns ``(albedo (H, W) float32, NaN off the mask; source (H, W) uint8:
     0 off-face, 1 measured, 2 mirrored, 3 smoothly filled)``.
     """

@@ -1,0 +1,128 @@
+"""``FitConfig``: every option of the robust fit, checked where it is built, and the fit's
+named constants."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Literal
+
+SOLVERS = ("gauss-newton", "irls", "paper")
+
+# Stopping rules (mean normal change per iteration, degrees), when ``FitConfig.tolerance_deg`` is None:
+# Gauss-Newton's changes shrink by half or more per step, so the rest of the way is below 0.05 too (same
+# errors to 0.005 deg as 0.01, a third fewer iterations); the alternation creeps and needs 0.01.
+NEWTON_TOLERANCE_DEG = 0.05
+ALTERNATION_TOLERANCE_DEG = 0.01
+
+# A step is judged to have overshot when the residual scale grows by more than this factor in one
+# iteration: Gauss-Newton then falls back to the alternation, and over-relaxed IRLS to plain steps.
+OVERSHOOT_FACTOR = 1.5
+# ... but not in the first iterations, while the weights settle from their unit start: Gauss-Newton's
+# residual scale may grow up to iteration 3 (its first steps move the shape most), the relaxed
+# alternation's up to iteration 2.
+NEWTON_WARMUP = 3
+RELAXATION_WARMUP = 2
+
+# The smooth-albedo round (``albedo_rounds``): the albedo is measured where the fit trusts the pixel
+# (Huber weight at least this) and the model's shading is strong enough to divide by (``albedo.MIN_SHADING``).
+ALBEDO_MIN_WEIGHT = 0.5
+
+# Floors that keep a division or a direction defined.
+MIN_SIGMA = 1e-9  # residual scale (radians) under the Huber threshold
+MIN_CONE_DISTANCE = 1e-6  # AEP round-off: a model normal this close to its cone has no residual direction
+MIN_EIGENVALUE = 1e-12  # under the prior's 1 / eigenvalue
+
+
+def _one_of(name: str, value, allowed) -> None:
+    if value not in allowed:
+        raise ValueError(f"FitConfig.{name} must be one of {', '.join(allowed)}, not {value!r}")
+
+
+def _at_least(name: str, value, low: int) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise ValueError(f"FitConfig.{name} must be an integer of at least {low}, not {value!r}")
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """Options of the robust fit; ``FitConfig.paper()`` is the paper's variant throughout."""
+
+    solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"  # see the module docstring
+    scale: Literal["rayleigh", "mad"] = "rayleigh"
+    # Huber threshold in units of sigma: 1.0 on real photos (Yale B, ICT model) beat 1.5 by up to 0.4 deg at
+    # +-70 with the stronger prior below; clean renders lose 0.1-0.3 deg (README, "Real photographs")
+    huber_k: float = 1.0
+    init: Literal["mean", "gradient"] = "mean"
+    attached_shadow: bool = True  # I <= dark_threshold: n.s <= 0 instead of the 90-degree cone
+    dark_threshold: float = 0.02
+    release_cast: bool = True  # dark pixels the current shape casts a shadow on: no constraint
+    cast_every: int = 5  # re-trace cast shadows every this many iterations
+    prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
+    # weight of the same prior in units of the current residual variance sigma^2 (MAP with
+    # correlated residuals): strong when the image fits badly (real skin), nil on clean input
+    # 200 with the ICT model (100 was the procedural model's choice): on Yale B photos with Huber 1.5, 100 and 300
+    # gave 16.5 and 15.8 deg at +-25; with Huber 1.0, 200 was as good as 300 or better at every light (within
+    # 0.02 deg at +-25) and 0.2 deg better on clean SFM renders
+    adaptive_prior: float = 200.0
+    # irls: over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
+    # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
+    # a residual scale that jumps switches it off for the rest of the fit)
+    relaxation: float = 1.8
+    damping: float = 1e-3  # gauss-newton: Levenberg term added to the K x K system (modes are orthonormal)
+    max_iterations: int = 100
+    # stop when the mean normal change falls below this (degrees). None: 0.05 for gauss-newton, whose
+    # changes shrink by half or more per step so the rest of the way is below it too (same errors to
+    # 0.005 deg as 0.01, a third fewer iterations); 0.01 for the alternation, which creeps
+    tolerance_deg: float | None = None
+    n_modes: int | None = None  # use the model's first K modes (None: all)
+    saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
+    # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
+    # (nodes.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
+    # (on by default: with the ICT model and today's other defaults it takes Yale B normals 0.1-0.4 deg lower at
+    # +-25 / +-50 / +-35+15 and leaves +-70 as it was; 0.7-1.8 deg lower before the mouth line and cone trust)
+    albedo_rounds: int = 1
+    albedo_sigma: float = 0.08  # that albedo's smoothing, in interocular distances (2.9 px at 128^2)
+    # output blend normalize(c w n'' + (1 - c w) n') (``combine``): how far the on-cone normals are trusted
+    # where the weights trust their pixel; 1 is the paper's blend. On photos the cones carry the skin's albedo
+    # errors: on Yale B 0.5 is 0.1-0.2 deg better than 1 at +-50 and +-70. The albedo and the relighting keep
+    # the paper's blend, which relit 0.5 dB better (README, "Real photographs")
+    cone_trust: float = 0.5
+
+    def __post_init__(self) -> None:
+        """Every option checked here, where the configuration is built (``ValueError`` naming it)."""
+        _one_of("solver", self.solver, SOLVERS)
+        _one_of("scale", self.scale, ("rayleigh", "mad"))
+        _one_of("init", self.init, ("mean", "gradient"))
+        _at_least("max_iterations", self.max_iterations, 1)
+        _at_least("cast_every", self.cast_every, 1)
+        _at_least("albedo_rounds", self.albedo_rounds, 0)
+        if self.n_modes is not None:
+            _at_least("n_modes", self.n_modes, 1)
+        for name in ("huber_k", "albedo_sigma"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"FitConfig.{name} must be positive, not {getattr(self, name)}")
+        for name in ("prior", "adaptive_prior", "damping", "dark_threshold"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"FitConfig.{name} must be 0 or more, not {getattr(self, name)}")
+        if not 0.0 < self.relaxation < 2.0:
+            raise ValueError(f"FitConfig.relaxation must be in (0, 2) (over-relaxation diverges at 2), "
+                             f"not {self.relaxation}")
+        if not 0.0 <= self.cone_trust <= 1.0:
+            raise ValueError(f"FitConfig.cone_trust is a fraction in [0, 1], not {self.cone_trust}")
+        if self.tolerance_deg is not None and not self.tolerance_deg >= 0:  # 0: always max_iterations
+            raise ValueError(f"FitConfig.tolerance_deg must be 0 or more, not {self.tolerance_deg}")
+
+    @property
+    def stop_tolerance_deg(self) -> float:
+        """The stopping rule in use: ``tolerance_deg`` if given, else the solver's own."""
+        if self.tolerance_deg is not None:
+            return self.tolerance_deg
+        return NEWTON_TOLERANCE_DEG if self.solver == "gauss-newton" else ALTERNATION_TOLERANCE_DEG
+
+    @staticmethod
+    def paper(**overrides) -> "FitConfig":
+        """The paper's choices: one-step formula, MAD scale, gradient start, 90-degree cone,
+        saturated pixels kept, no prior."""
+        base = FitConfig(solver="paper", scale="mad", huber_k=1.0, init="gradient", attached_shadow=False,
+                         release_cast=False, saturation=2.0, adaptive_prior=0.0, relaxation=1.0, albedo_rounds=0,
+                         cone_trust=1.0)
+        return replace(base, **overrides)
