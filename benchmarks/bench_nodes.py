@@ -10,12 +10,11 @@ import json
 import platform
 import statistics
 
-
 from shadowflow.flow import Chain, Frame
-from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
 from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.sources import procedural
 
 

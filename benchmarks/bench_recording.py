@@ -24,10 +24,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_stream import make_inputs  # noqa: E402
-
 from shadowflow.flow.recording import RecordOptions  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions  # noqa: E402
 from shadowflow.nodes.app.runner import RunOptions, run_stream  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions  # noqa: E402
 
 CASES = [
     ("off", (), RecordOptions()),

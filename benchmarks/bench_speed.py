@@ -28,12 +28,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from naive_fit import naive_fit  # noqa: E402
-
 from shadowflow.flow import Chain, Frame  # noqa: E402
 from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene  # noqa: E402
 from shadowflow.nodes.geometry.normals import angle_deg  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes  # noqa: E402
 from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes  # noqa: E402
 from shadowflow.nodes.method.robust_fit import FitConfig, fit  # noqa: E402
 from shadowflow.nodes.model.shape_model import train_shape_model  # noqa: E402
 from shadowflow.nodes.model.sources import load_source  # noqa: E402

@@ -22,8 +22,8 @@ import numpy as np
 
 def make_inputs(folder: Path, n: int, grid: tuple[int, int] = (128, 128)) -> None:
     """``n`` inputs of ``grid`` pixels: copies of 10 distinct shadowed faces (lights 30..66 degrees)."""
-    from shadowflow.nodes.geometry.reflectance import light_from_angles
     from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
 
     rng = np.random.default_rng(5)
     base = [write_shadowed_face(folder / f"base-{i}.png", rng, light_from_angles(30 + 4 * i), grid) for i in range(10)]

@@ -1,23 +1,18 @@
 """Replay and diff of recordings: convergence tables and plots, re-logging, comparison.
 
-Face-agnostic: a "convergence" channel is any scalars channel with per-iteration values.
+Face-agnostic: a "convergence" channel is any scalars channel with per-iteration values; the
+caller names it (and how re-logged arrays are shown), e.g. ``nodes/app/record.py``.
 """
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
-from .recording import (
-    Event,
-    FrameRecording,
-    Recording,
-    RecordingError,
-    RerunSink,
-    read_mcap,
-)
+from .recording import Event, FrameRecording, Kind, Recording, RecordingError, RerunSink, read_mcap
 
 
 def _part_number(path: Path) -> int:
@@ -70,8 +65,9 @@ class ConvergenceRow:
     converged: bool | None
 
 
-def convergence_table(rec: Recording, channel: str = "robust_fit/convergence") -> list[ConvergenceRow]:
-    """One row per recorded frame: iterations, final sigma, mean residual first -> last."""
+def convergence_table(rec: Recording, channel: str) -> list[ConvergenceRow]:
+    """One row per recorded frame: iterations, final ``sigma``, ``residual_mean`` first -> last, from
+    the per-iteration scalars of ``channel``."""
     rows = []
     for fid, fr in sorted(rec.frames.items()):
         series = fr.scalars.get(channel, {})
@@ -100,9 +96,10 @@ def format_table(rows: list[ConvergenceRow]) -> str:
     return "\n".join(lines)
 
 
-def plot_convergence(rec: Recording, path: str | Path, keys=("sigma", "change_deg", "residual_mean"),
-                     channel: str = "robust_fit/convergence", size=(900, 300)) -> Path:
-    """PNG with one panel per scalar (log scale), one line per frame, against iteration."""
+def plot_convergence(rec: Recording, path: str | Path, channel: str, keys: tuple[str, ...],
+                     size=(900, 300)) -> Path:
+    """PNG with one panel per scalar ``keys`` of ``channel`` (log scale), one line per frame, against
+    iteration."""
     import cv2
 
     w, h = size
@@ -137,10 +134,12 @@ def plot_convergence(rec: Recording, path: str | Path, keys=("sigma", "change_de
     return path
 
 
-def relog_to_rerun(rec: Recording, rrd_path: str | Path, blueprint=None) -> Path:
-    """Write a recording's frames and iterations into a Rerun ``.rrd`` file."""
-
-    kinds = {"normals": "normals", "model_normals": "normals", "depth": "depth"}
+def relog_to_rerun(rec: Recording, rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,
+                   blueprint=None) -> Path:
+    """Write a recording's frames and iterations into a Rerun ``.rrd`` file. kinds: how to show an
+    array by the last part of its path (e.g. ``{"depth": Kind.DEPTH}``); others are images when
+    2-D, arrays otherwise."""
+    kinds = kinds or {}
     sink = RerunSink(rrd_path, blueprint=blueprint)
     for fid, fr in sorted(rec.frames.items()):
         for path, by_it in fr.arrays.items():
@@ -148,13 +147,13 @@ def relog_to_rerun(rec: Recording, rrd_path: str | Path, blueprint=None) -> Path
             if "/mesh/" in f"/{path}":
                 continue
             for it, arr in sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
-                kind = kinds.get(name, "image" if arr.ndim == 2 else "array")
+                kind = kinds.get(name, Kind.IMAGE if arr.ndim == 2 else Kind.ARRAY)
                 sink.write(Event(fid, path, kind, arr, it))
         for path, by_it in fr.scalars.items():
             for it, vals in sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
-                sink.write(Event(fid, path, "scalars", vals, it))
+                sink.write(Event(fid, path, Kind.SCALARS, vals, it))
         if fr.record is not None:
-            sink.write(Event(fid, "frames", "frame", fr.record))
+            sink.write(Event(fid, "frames", Kind.FRAME, fr.record))
         sink.frame_done(fid)
     sink.close()
     return Path(rrd_path)

@@ -29,8 +29,8 @@ def golden_model():
 
 
 def golden_inputs(folder: Path) -> list[str]:
-    from shadowflow.nodes.geometry.reflectance import light_from_angles
     from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
 
     rng = np.random.default_rng(77)
     return [str(write_shadowed_face(folder / f"golden-{i}.png", rng, light_from_angles(az), GRID))
@@ -39,9 +39,9 @@ def golden_inputs(folder: Path) -> list[str]:
 
 def golden_run(out: Path, fit_workers: int = 1) -> Path:
     """Run the golden inputs into ``out``; returns the MCAP recording's path."""
+    from shadowflow.nodes.app.runner import RunOptions, run_stream
     from shadowflow.nodes.method.nodes import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
-    from shadowflow.nodes.app.runner import RunOptions, run_stream
 
     inputs = out / "inputs"
     inputs.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,6 @@
 """The method's accuracy criteria (issue 2) on a CI-sized subset: 100 training faces, 8 held-out
 test faces (the full 20-face tables come from ``shadowflow eval``, see README)."""
 import pytest
-
 from shadowflow.nodes.evaluation.synthetic import evaluate
 from shadowflow.nodes.model.shape_model import train_shape_model
 from shadowflow.nodes.model.sources import eos_model, procedural

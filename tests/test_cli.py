@@ -7,7 +7,6 @@ import sys
 import cv2
 import numpy as np
 import pytest
-
 from shadowflow.nodes.app.cli import main
 
 LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png",
@@ -47,10 +46,9 @@ def test_run_writes_the_conventions_layout(demo_run):
 
 def test_run_recovers_the_demo_faces(demo_run):
     """The demo inputs are rendered from known faces; the outputs must match them."""
-    from shadowflow.nodes.evaluation.scenes import render_scene
+    from shadowflow.nodes.evaluation.scenes import draw_face, render_scene
     from shadowflow.nodes.geometry.normals import angle_deg
     from shadowflow.nodes.geometry.reflectance import light_from_angles
-    from shadowflow.nodes.evaluation.scenes import draw_face
 
     rng = np.random.default_rng(2024)  # the demo's generator
     summary = json.loads((demo_run / "summary.json").read_text())

@@ -3,7 +3,6 @@ import threading
 import time
 
 import pytest
-
 from shadowflow.flow import Chain, Frame, Pipeline, Stage
 
 

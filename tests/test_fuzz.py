@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from shadowflow.flow.recording import Event, McapSink, OnMask, Recorder, RecordingError, read_mcap
 from shadowflow.nodes.photo.loader import IMAGE_SUFFIXES, InputError, load_image
 

@@ -1,6 +1,5 @@
 import numpy as np
 import pytest
-
 from conftest import random_unit
 from shadowflow.nodes.geometry.normals import aep_forward, aep_inverse, angle_deg, normals_from_depth, tangent_basis
 

@@ -18,12 +18,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from shadowflow.flow.frame import Frame
 from shadowflow.flow.pipeline import Pipeline
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 REPO = Path(__file__).resolve().parents[1]
@@ -338,7 +337,8 @@ def _mcap_with(path: Path, encoding: str, data: bytes) -> None:
 def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
     import struct
 
-    from shadowflow.flow.recording import ARRAY_ENCODING, Event, McapSink
+    from shadowflow.flow.recording import Event, McapSink
+    from shadowflow.flow.recording.codec import ARRAY_ENCODING
 
     good = tmp_path / "good.mcap"
     sink = McapSink(good)

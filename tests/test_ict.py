@@ -2,12 +2,10 @@
 default model built from the shipped basis."""
 import numpy as np
 import pytest
-
-from shadowflow.nodes.app.cli import main
-from shadowflow.nodes.model.faces import ict
-from shadowflow.nodes.model.canonical import canonical_eyes
-
 from conftest import SHARED
+from shadowflow.nodes.app.cli import main
+from shadowflow.nodes.model.canonical import canonical_eyes
+from shadowflow.nodes.model.faces import ict
 
 ICT_NPZ = SHARED / "data" / "ict" / "ict_face_model.npz"
 

@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
-
-from shadowflow.nodes.geometry.normals import normals_from_depth
 from shadowflow.nodes.geometry.integrate import frankot_chellappa, harmonic_fill, masked_least_squares
+from shadowflow.nodes.geometry.normals import normals_from_depth
 from shadowflow.nodes.geometry.raster import grid_mesh, grid_row_edges, rasterize, rasterize_row_edges
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method.shadow import cast_shadow, confirm_with_image, shadow_maps

@@ -1,11 +1,9 @@
 """The light estimate for photos whose light nobody wrote down (nodes/light.py)."""
 import numpy as np
-
-from shadowflow.nodes.geometry.normals import angle_deg
-from shadowflow.nodes.method.light import estimate_light, mean_face_weights
-from shadowflow.nodes.geometry.reflectance import light_from_angles
-
 from conftest import random_unit
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.light import estimate_light, mean_face_weights
 
 
 def _scene(rng, n=4000):

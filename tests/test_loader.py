@@ -3,7 +3,6 @@ import json
 import cv2
 import numpy as np
 import pytest
-
 from shadowflow.nodes.photo.loader import InputError, load_image, parse_light, read_sidecar, yaleb_light
 
 

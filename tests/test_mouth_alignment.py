@@ -2,11 +2,9 @@
 alignment, the model's mouth, and (with ../shared) the real photos it is for."""
 import numpy as np
 import pytest
-
+from conftest import SHARED
 from shadowflow.nodes.photo.align import Alignment, eyes_alignment, normals_to_input, stretch_vertically
 from shadowflow.nodes.photo.mouth import face_length_factor, mouth_row
-
-from conftest import SHARED
 
 MOUTH = np.array([64.0, 87.0])
 EYE_ROW = 48.0
@@ -93,10 +91,10 @@ def test_yaleb_the_mouth_line_corrects_a_short_face(tmp_path):
         pytest.skip(f"evaluation data absent: {folder} (needs ../shared beside the repo)")
     import dataclasses
 
-    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.evaluation.yaleb import build_ground_truth
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
     from shadowflow.nodes.method.nodes import MethodOptions
-    from shadowflow.nodes.evaluation.yaleb import build_ground_truth
+    from shadowflow.nodes.model.default_model import default_model
 
     subject = build_ground_truth(folder)
     lights = [(50, 0), (-50, 0), (70, 0), (-70, 0)]

@@ -2,15 +2,13 @@
 Yale B benchmark (skipped when ../shared is absent; nothing from it is written anywhere)."""
 import numpy as np
 import pytest
-
-from shadowflow.nodes.evaluation.scenes import render_scene
-from shadowflow.nodes.photo.eyes import merge_overlapping, pick_eyes
-from shadowflow.nodes.geometry.normals import angle_deg
+from conftest import SHARED
 from shadowflow.nodes.evaluation.photometric_stereo import photometric_stereo, register_translation
+from shadowflow.nodes.evaluation.scenes import render_scene
+from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.model.faces.facegen import render_face, sample_face
-
-from conftest import SHARED
+from shadowflow.nodes.photo.eyes import merge_overlapping, pick_eyes
 
 YALEB = SHARED / "data" / "yaleb"
 
@@ -60,10 +58,9 @@ def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_mod
     """A face rendered at another scale, rotated and shifted inside a larger photo, with its
     eyes given: the normals on the photo's grid must match the rendered truth there."""
     import cv2
-
-    from shadowflow.nodes.photo.align import eyes_alignment
     from shadowflow.nodes.app.cli import main
     from shadowflow.nodes.model.canonical import canonical_eyes
+    from shadowflow.nodes.photo.align import eyes_alignment
 
     rng = np.random.default_rng(11)
     depth, mask, albedo = render_face(sample_face(rng))
@@ -107,8 +104,8 @@ def yaleb_subject():
 
 
 def test_yaleb_ground_truth_explains_the_real_frontal_photo(yaleb_subject):
-    from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
     from shadowflow.nodes.evaluation.photometric_stereo import render
+    from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
 
     st = yaleb_subject.stereo
     assert st.valid.mean() > 0.9
@@ -134,9 +131,9 @@ def test_yaleb_eyes_are_found_under_side_light(yaleb_subject):
 
 def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb_subject):
     """Subject 01 at (+-50, 0) and (+-70, 0) with the default (ICT) model and the Yale light."""
-    from shadowflow.nodes.model.default_model import default_model
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
     from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.model.default_model import default_model
 
     rows = evaluate_subject(yaleb_subject, default_model(), MethodOptions(light="yaleb"), None,
                             lights=[(50, 0), (-50, 0), (70, 0), (-70, 0)])
@@ -155,10 +152,10 @@ def test_yaleb_dividing_out_the_smooth_albedo_helps_the_default_model(yaleb_subj
     everywhere (``--albedo-rounds 0``), subject 01, default (ICT) model."""
     import dataclasses
 
-    from shadowflow.nodes.model.default_model import default_model
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
     from shadowflow.nodes.method.nodes import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
+    from shadowflow.nodes.model.default_model import default_model
 
     lights = [(25, 0), (-25, 0), (50, 0), (-50, 0)]  # at +-70 one round and none tie (README)
     options = MethodOptions(light="yaleb")

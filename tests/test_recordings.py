@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from shadowflow.flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
 from shadowflow.flow.replay import diff_recordings
 from shadowflow.nodes.app.outputs import OUTPUT_FILES
@@ -173,7 +172,6 @@ def test_replay_and_diff_commands(demo, tmp_path):
 def _rewrite(src: Path, dst: Path, change) -> None:
     """Copy a recording, applying ``change(topic, header, array) -> array | None`` to arrays."""
     from mcap.reader import make_reader
-
     from shadowflow.flow.recording import decode_array
 
     sink = McapSink(dst)
@@ -224,9 +222,9 @@ def test_golden_recording_is_reproduced_whatever_the_thread_count(tmp_path):
 
 def test_record_every_and_float16(tmp_path):
     model = golden_model()
+    from shadowflow.nodes.app.runner import RunOptions, run_stream
     from shadowflow.nodes.method.nodes import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
-    from shadowflow.nodes.app.runner import RunOptions, run_stream
 
     paths = golden_inputs(tmp_path)
     opts = MethodOptions(fit=FitConfig(max_iterations=11, tolerance_deg=0.0))
@@ -385,3 +383,13 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")
     assert f"/frames/{len(summary) - 1:05d}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())
+
+
+def test_events_are_typed():
+    """An event's kind is a ``Kind``; a misspelt kind fails where the event is made, not in a sink
+    on the recorder's thread."""
+    from shadowflow.flow.recording import Kind
+
+    assert Event(0, "a/b", "image", np.zeros((2, 2))).kind is Kind.IMAGE
+    with pytest.raises(ValueError, match="imgae"):
+        Event(0, "a/b", "imgae", np.zeros((2, 2)))

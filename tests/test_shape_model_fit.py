@@ -1,6 +1,5 @@
 import numpy as np
 import pytest
-
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import lambertian, light_from_angles
 from shadowflow.nodes.method.robust_fit import FitConfig, combine, fit, huber_weights, residual_scale

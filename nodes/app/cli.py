@@ -33,7 +33,7 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model, train_shape_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
-from .record import default_blueprint
+from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint
 from .runner import RunOptions, check_writable, run_stream, watch_folder
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -278,13 +278,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
 
     rec = open_recording(args.recording)
-    print(format_table(convergence_table(rec)))
+    print(format_table(convergence_table(rec, CONVERGENCE)))
     if rec.truncated:
         print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
     if args.plot:
-        print(f"plot: {plot_convergence(rec, args.plot)}")
+        print(f"plot: {plot_convergence(rec, args.plot, CONVERGENCE, CONVERGENCE_PLOTS)}")
     if args.rrd:
-        print(f"rerun: {relog_to_rerun(rec, args.rrd, default_blueprint())}")
+        print(f"rerun: {relog_to_rerun(rec, args.rrd, DISPLAY_KINDS, default_blueprint())}")
     return 0
 
 
@@ -293,7 +293,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
     a, b = open_recording(args.a), open_recording(args.b)
     diffs = diff_recordings(a, b, args.atol, args.rtol)
     if not diffs:
-        n = sum(len(f.iterations("robust_fit/convergence")) for f in a.frames.values())
+        n = sum(len(f.iterations(CONVERGENCE)) for f in a.frames.values())
         print(f"same: {len(a.frames)} frames, {n} iterations within atol={args.atol:g} rtol={args.rtol:g}")
         return 0
     first = diffs[0]

@@ -8,10 +8,15 @@ from __future__ import annotations
 import numpy as np
 
 from ...flow.frame import Frame
-from ...flow.recording import Event, OnMask, Recorder
+from ...flow.recording import Event, Kind, OnMask, Recorder
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..model.shape_model import ShapeModel
+
+# The method's channel names, for the engine's replay (``flow/replay.py`` knows none of them).
+CONVERGENCE = "robust_fit/convergence"  # per-iteration scalars of the fit (``FitIteration.scalars``)
+CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``replay --plot``
+DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
 
 
 class FitObserver:
@@ -45,12 +50,12 @@ class FitObserver:
         def on_face(values: np.ndarray) -> OnMask:
             return OnMask(np.array(values, np.float32), mask)
 
-        r.emit(Event(fid, "robust_fit/normals", "normals", on_face(it.normals), k))
-        r.emit(Event(fid, "robust_fit/model_normals", "normals", on_face(it.model_normals), k))
-        r.emit(Event(fid, "robust_fit/weights", "image", on_face(it.weights), k))
-        r.emit(Event(fid, "robust_fit/residuals", "array", on_face(it.residuals), k))
-        r.emit(Event(fid, "robust_fit/b", "array", np.array(it.b, np.float32), k))
-        r.emit(Event(fid, "robust_fit/convergence", "scalars", it.scalars(), k))
+        r.emit(Event(fid, "robust_fit/normals", Kind.NORMALS, on_face(it.normals), k))
+        r.emit(Event(fid, "robust_fit/model_normals", Kind.NORMALS, on_face(it.model_normals), k))
+        r.emit(Event(fid, "robust_fit/weights", Kind.IMAGE, on_face(it.weights), k))
+        r.emit(Event(fid, "robust_fit/residuals", Kind.ARRAY, on_face(it.residuals), k))
+        r.emit(Event(fid, "robust_fit/b", Kind.ARRAY, np.array(it.b, np.float32), k))
+        r.emit(Event(fid, CONVERGENCE, Kind.SCALARS, it.scalars(), k))
 
 
 class RecordNode:
@@ -66,18 +71,18 @@ class RecordNode:
         if self.observer is not None:
             self.observer.finish(frame)
         d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
-        emit(Event(fid, "load/grid_image", "image", d["grid_image"].astype(np.float32)))
-        emit(Event(fid, "remap/remapped", "image", d["remapped"]))
-        emit(Event(fid, "sfs_init/normals", "normals", OnMask(np.array(d["initial"], np.float32), m.mask)))
-        emit(Event(fid, "combine/normals", "normals", d["normals"]))
-        emit(Event(fid, "integrate/depth", "depth", d["depth"]))
-        emit(Event(fid, "shadow/cast", "image", d["shadow"].cast.astype(np.float32)))
-        emit(Event(fid, "shadow/attached", "image", d["shadow"].attached.astype(np.float32)))
-        emit(Event(fid, "albedo/albedo", "image", d["albedo"]))
+        emit(Event(fid, "load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32)))
+        emit(Event(fid, "remap/remapped", Kind.IMAGE, d["remapped"]))
+        emit(Event(fid, "sfs_init/normals", Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask)))
+        emit(Event(fid, "combine/normals", Kind.NORMALS, d["normals"]))
+        emit(Event(fid, "integrate/depth", Kind.DEPTH, d["depth"]))
+        emit(Event(fid, "shadow/cast", Kind.IMAGE, d["shadow"].cast.astype(np.float32)))
+        emit(Event(fid, "shadow/attached", Kind.IMAGE, d["shadow"].attached.astype(np.float32)))
+        emit(Event(fid, "albedo/albedo", Kind.IMAGE, d["albedo"]))
         if "relit" in d:
-            emit(Event(fid, "relight/relit", "image", d["relit"]))
-            emit(Event(fid, "relight/novel_view", "image", d["novel_view"]))
-        emit(Event(fid, "integrate/mesh", "mesh", surface_mesh(d["depth"], d["albedo"])))
+            emit(Event(fid, "relight/relit", Kind.IMAGE, d["relit"]))
+            emit(Event(fid, "relight/novel_view", Kind.IMAGE, d["novel_view"]))
+        emit(Event(fid, "integrate/mesh", Kind.MESH, surface_mesh(d["depth"], d["albedo"])))
         return frame
 
 

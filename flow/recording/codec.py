@@ -1,0 +1,102 @@
+"""The array message of MCAP recordings (``shadowflow.ndarray``, see ``recordings/README.md``),
+deterministic log times, and the JSON schemas of the other messages."""
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+
+from .events import OnMask
+
+ARRAY_MAGIC = b"SFA1"
+ARRAY_ENCODING = "shadowflow.ndarray"
+ARRAY_SCHEMA = "shadowflow.NDArray"
+ALLOWED_DTYPES = {"<f2", "<f4", "<f8", "|u1", "<u2", "<u4", "<i4", "<i8", "|b1"}
+MAX_ARRAY_BYTES = 1 << 30  # a message claiming more than 1 GiB is refused when reading
+
+
+def log_time_ns(frame: int, iteration: int | None) -> int:
+    """Deterministic MCAP time: 1 s per frame, 1 ms per iteration (no wall clock)."""
+    return int(frame) * 1_000_000_000 + (0 if iteration is None else int(iteration) + 1) * 1_000_000
+
+
+def encode_array(frame: int, iteration: int | None, arr: np.ndarray, mask: np.ndarray | None = None) -> bytes:
+    """``SFA1`` + uint32 LE header length + JSON header + payload.
+
+    Dense (``mask`` None): the payload is ``arr``'s raw C-order little-endian bytes. Masked:
+    ``arr`` holds the values (N, ...) at the N True pixels of the bool grid ``mask`` (H, W);
+    the header says ``"masked": true`` with the full shape (H, W, ...), and the payload is
+    ``np.packbits(mask)`` followed by the values' bytes. Readers rebuild the full array with
+    NaN (floats) or 0 off the mask.
+    """
+    a = np.ascontiguousarray(arr)
+    if a.dtype.byteorder == ">":
+        a = a.astype(a.dtype.newbyteorder("<"))
+    shape = list(a.shape) if mask is None else list(mask.shape) + list(a.shape[1:])
+    head = {"frame": int(frame), "iteration": iteration, "dtype": a.dtype.str, "shape": shape}
+    if mask is not None:
+        head["masked"] = True
+    header = json.dumps(head, separators=(",", ":")).encode()
+    bits = b"" if mask is None else np.packbits(mask).tobytes()
+    return ARRAY_MAGIC + struct.pack("<I", len(header)) + header + bits + a.tobytes()
+
+
+def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
+    """Inverse of ``encode_array`` (a masked message comes back as the full array); raises
+    ``ValueError`` on anything malformed."""
+    if len(data) < 8 or data[:4] != ARRAY_MAGIC:
+        raise ValueError("not a shadowflow array message")
+    (hlen,) = struct.unpack("<I", data[4:8])
+    if hlen > 4096 or 8 + hlen > len(data):
+        raise ValueError("array header length out of range")
+    header = json.loads(data[8:8 + hlen])
+    dtype, shape, masked = header.get("dtype"), header.get("shape"), header.get("masked", False)
+    if dtype not in ALLOWED_DTYPES or not isinstance(shape, list) or len(shape) > 8 \
+            or not all(isinstance(d, int) and 0 <= d for d in shape) or masked not in (True, False) \
+            or (masked and len(shape) < 2):
+        raise ValueError(f"bad array header {header!r}")
+    itemsize = np.dtype(dtype).itemsize
+    full = int(np.prod(shape, dtype=np.int64)) * itemsize
+    if full > MAX_ARRAY_BYTES:
+        raise ValueError(f"array payload is {len(data) - 8 - hlen} bytes, header says {full}, over the "
+                         f"{MAX_ARRAY_BYTES}-byte limit")
+    payload = memoryview(data)[8 + hlen:]
+    if not masked:
+        if full != len(payload):
+            raise ValueError(f"array payload is {len(payload)} bytes, header says {full}")
+        return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+    pixels = shape[0] * shape[1]
+    nbits = (pixels + 7) // 8
+    if len(payload) < nbits:
+        raise ValueError(f"masked array payload is {len(payload)} bytes, its mask alone needs {nbits}")
+    mask = np.unpackbits(np.frombuffer(payload[:nbits], np.uint8), count=pixels).astype(bool).reshape(shape[:2])
+    per_pixel = int(np.prod(shape[2:], dtype=np.int64))
+    n = int(mask.sum()) * per_pixel * itemsize
+    if n != len(payload) - nbits:
+        raise ValueError(f"masked array values are {len(payload) - nbits} bytes, its mask says {n}")
+    values = np.frombuffer(payload[nbits:], dtype=dtype).reshape((-1, *shape[2:]))
+    fill = np.nan if np.dtype(dtype).kind == "f" else 0
+    return header, OnMask(values, mask).grid(fill)
+
+
+def jsonable(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+JSON_SCHEMAS: dict[str, dict] = {
+    "shadowflow.Scalars": {"type": "object", "properties": {
+        "frame": {"type": "integer"}, "iteration": {"type": ["integer", "null"]},
+        "values": {"type": "object", "additionalProperties": {"type": "number"}}}},
+    "shadowflow.Frame": {"type": "object", "properties": {
+        "frame": {"type": "integer"}, "values": {"type": "object"}}},
+    "foxglove.RawImage": {"type": "object", "properties": {
+        "timestamp": {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}},
+        "frame_id": {"type": "string"}, "width": {"type": "integer"}, "height": {"type": "integer"},
+        "encoding": {"type": "string"}, "step": {"type": "integer"},
+        "data": {"type": "string", "contentEncoding": "base64"}}},
+}

@@ -1,0 +1,98 @@
+"""``McapSink``: recordings as MCAP files, exact arrays plus Foxglove-viewable images."""
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .codec import (
+    ARRAY_ENCODING,
+    ARRAY_SCHEMA,
+    JSON_SCHEMAS,
+    encode_array,
+    jsonable,
+    log_time_ns,
+)
+from .events import Event, Kind, OnMask, Sink
+from .rerun_sink import display
+
+
+class McapSink(Sink):
+    """MCAP file: exact arrays (``shadowflow.ndarray``), scalars and frame records as JSON,
+    images also as ``foxglove.RawImage`` (mono8, JSON) so Foxglove shows them.
+
+    Compressed chunks, lz4 by default: on float arrays it writes in about half the CPU time of
+    mcap's zstd (level 3) for files about a quarter larger, and the recorder shares the machine
+    with the fit. The chunk is closed and flushed after every frame, so a
+    killed run leaves every finished frame readable.
+    """
+
+    def __init__(self, path: str | Path, compression: str = "lz4"):
+        from mcap.writer import CompressionType, Writer
+
+        self.path = Path(path)
+        self._file = open(self.path, "wb")
+        comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
+        self._w = Writer(self._file, compression=comp, chunk_size=4 << 20)
+        self._w.start(profile="", library="shadowflow")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._seq: dict[str, int] = {}
+
+    def _schema(self, name: str) -> int:
+        if name not in self._schemas:
+            if name == ARRAY_SCHEMA:
+                sid = self._w.register_schema(name, ARRAY_ENCODING, b"see recordings/README.md")
+            else:
+                sid = self._w.register_schema(name, "jsonschema", json.dumps(JSON_SCHEMAS[name]).encode())
+            self._schemas[name] = sid
+        return self._schemas[name]
+
+    def _channel(self, topic: str, schema: str, encoding: str) -> int:
+        if topic not in self._channels:
+            self._channels[topic] = self._w.register_channel(topic, encoding, self._schema(schema))
+        return self._channels[topic]
+
+    def _add(self, topic: str, schema: str, encoding: str, event: Event, data: bytes) -> None:
+        ch = self._channel(topic, schema, encoding)
+        seq = self._seq.get(topic, 0)
+        self._seq[topic] = seq + 1
+        t = log_time_ns(event.frame, event.iteration)
+        self._w.add_message(ch, log_time=t, data=data, publish_time=t, sequence=seq)
+
+    def write(self, event: Event) -> None:
+        topic = "/" + event.path
+        if event.kind in (Kind.SCALARS, Kind.FRAME):
+            body = {"frame": event.frame, "iteration": event.iteration, "values": event.value}
+            schema = "shadowflow.Scalars" if event.kind is Kind.SCALARS else "shadowflow.Frame"
+            self._add(topic, schema, "json", event, json.dumps(body, default=jsonable).encode())
+            return
+        if event.kind is Kind.MESH:
+            for key, arr in event.value.items():
+                self._add(f"{topic}/{key}", ARRAY_SCHEMA, ARRAY_ENCODING, event,
+                          encode_array(event.frame, event.iteration, arr))
+            return
+        v = event.value
+        if isinstance(v, OnMask):  # masked pixels and a bit mask instead of a NaN-padded grid
+            data = encode_array(event.frame, event.iteration, v.values, v.mask)
+        else:
+            data = encode_array(event.frame, event.iteration, np.asarray(v))
+        self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, data)
+        if event.kind is Kind.IMAGE:
+            img8 = (display(v).clip(0, 1) * 255 + 0.5).astype(np.uint8)
+            t = log_time_ns(event.frame, event.iteration)
+            msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
+                   "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",
+                   "step": int(img8.shape[1])}
+            # base64 needs no JSON escaping: splice it in rather than have json scan 20 KB of it
+            body = json.dumps(msg).encode()[:-1] + b', "data": "' + base64.b64encode(img8.tobytes()) + b'"}'
+            self._add(topic + "/foxglove", "foxglove.RawImage", "json", event, body)
+
+    def frame_done(self, frame: int) -> None:
+        self._w.flush()
+
+    def close(self) -> None:
+        self._w.finish()
+        self._file.close()

@@ -1,0 +1,93 @@
+"""``Recorder``: takes events from any thread and writes them to its sinks on one thread of its own."""
+from __future__ import annotations
+
+import queue
+import threading
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .events import ARRAY_KINDS, Event, Kind, OnMask, Sink
+
+
+@dataclass
+class RecordOptions:
+    """every: keep iterations 1, 1 + every, ... and the last; float16: store float arrays as
+    float16 (half the bytes, about 3 significant digits)."""
+
+    every: int = 1
+    float16: bool = False
+
+
+class Recorder:
+    """Collects events from any thread and writes them on its own thread.
+
+    ``emit`` blocks when ``max_pending`` events are waiting (backpressure instead of
+    unbounded memory). Errors in a sink are kept and raised by ``close``.
+    """
+
+    def __init__(self, sinks: list[Sink], options: RecordOptions | None = None, max_pending: int = 256):
+        self.sinks = sinks
+        self.options = options or RecordOptions()
+        self._q: queue.Queue = queue.Queue(maxsize=max_pending)
+        self._error: BaseException | None = None
+        self._closed_frames = 0  # frames flushed by every sink (or dropped after an error)
+        self._asked = 0  # frames handed to frame_done
+        self._flushed = threading.Condition()
+        self._thread = threading.Thread(target=self._loop, name="flow-recorder", daemon=True)
+        self._thread.start()
+
+    @property
+    def error(self) -> BaseException | None:
+        """The first error a sink raised (recording stopped there), or None."""
+        return self._error
+
+    def keep_iteration(self, iteration: int, last: bool = False) -> bool:
+        return last or self.options.every <= 1 or (iteration - 1) % self.options.every == 0
+
+    def emit(self, event: Event) -> None:
+        if self.options.float16 and event.kind in ARRAY_KINDS:
+            v = event.value
+            a = v.values if isinstance(v, OnMask) else np.asarray(v)
+            if a.dtype.kind == "f":
+                half = a.astype(np.float16)
+                event = replace(event, value=OnMask(half, v.mask) if isinstance(v, OnMask) else half)
+        self._q.put(("event", event))
+
+    def frame_done(self, frame: int, record: dict, wait: bool = False) -> None:
+        """Close a frame: its status record, then every sink flushes it to disk. ``wait``:
+        return only once that is done (so a caller can then mark the frame finished)."""
+        self._q.put(("event", Event(frame, "frames", Kind.FRAME, record)))
+        self._q.put(("done", frame))
+        self._asked += 1
+        if wait:
+            target = self._asked
+            with self._flushed:
+                self._flushed.wait_for(lambda: self._closed_frames >= target or not self._thread.is_alive())
+
+    def _loop(self) -> None:
+        while True:
+            kind, item = self._q.get()
+            if kind == "stop":
+                return
+            if self._error is None:  # after an error nothing more is written; close() reports it
+                try:
+                    for s in self.sinks:
+                        s.write(item) if kind == "event" else s.frame_done(item)
+                except BaseException as exc:  # noqa: BLE001 - reported by close()
+                    self._error = exc
+            if kind == "done":
+                with self._flushed:
+                    self._closed_frames += 1
+                    self._flushed.notify_all()
+
+    def close(self) -> None:
+        self._q.put(("stop", None))
+        self._thread.join()
+        for s in self.sinks:
+            try:
+                s.close()
+            except BaseException as exc:  # noqa: BLE001
+                self._error = self._error or exc
+        if self._error is not None:
+            raise RuntimeError(f"recording failed: {self._error}") from self._error

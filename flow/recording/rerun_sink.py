@@ -1,0 +1,187 @@
+"""``RerunSink``: recordings as Rerun ``.rrd`` files, and how each event kind is displayed."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .codec import jsonable
+from .events import Event, Kind, OnMask, Sink
+
+
+class RerunSink(Sink):
+    """Rerun ``.rrd`` file with timelines ``frame`` and ``iteration``, entities
+    ``frames/<frame>/<node>/<name>``, and a default blueprint (images side by side and the
+    convergence plots), streamed to disk as it goes.
+
+    Per-iteration images, vectors and scalars are held per entity until the frame ends (or
+    ``batch`` iterations are waiting) and sent in one ``send_columns`` call: Rerun's cost is
+    per call (about 0.3 ms to turn one array into Arrow, whatever its size), and a frame
+    makes dozens of them. The file holds the same rows, times and values as one ``log`` per
+    iteration would write; a frame's rows reach the file when the frame is flushed, as before.
+    """
+
+    def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
+                 batch: int = 32):
+        import rerun as rr
+
+        self.rr = rr
+        self.path = Path(path)
+        self.batch = batch
+        self.rec = rr.RecordingStream(application_id)
+        self.rec.save(str(self.path), default_blueprint=blueprint)
+        self._pending: dict[tuple[int, str], list[Event]] = {}
+
+    def write(self, event: Event) -> None:
+        if event.iteration is not None and self._columnar(event):
+            rows = self._pending.setdefault((event.frame, event.path), [])
+            rows.append(event)
+            if len(rows) >= self.batch:
+                self._send(event.frame, event.path)
+            return
+        self._log(event)
+
+    @staticmethod
+    def _columnar(event: Event) -> bool:
+        """Per-iteration kinds that are batched: scalars, vectors and 2-D/3-D images."""
+        if event.kind in (Kind.SCALARS, Kind.NORMALS, Kind.IMAGE):
+            return True
+        return event.kind is Kind.ARRAY and _ndim(event.value) in (1, 2)
+
+    def _log(self, event: Event) -> None:
+        rr, rec = self.rr, self.rec
+        rec.set_time("frame", sequence=event.frame)
+        if event.iteration is None:
+            rec.disable_timeline("iteration")
+        else:
+            rec.set_time("iteration", sequence=event.iteration)
+        entity = _entity(event)
+        v = event.value
+        if event.kind is Kind.SCALARS:
+            for name, x in v.items():
+                if _is_number(x):
+                    rec.log(f"{entity}/{name}", rr.Scalars(float(x)))
+        elif event.kind is Kind.FRAME:
+            rec.log(f"frames/{event.frame:05d}/status", rr.TextLog(json.dumps(v, default=jsonable)))
+        elif event.kind is Kind.DEPTH:
+            rec.log(entity, rr.DepthImage(display(v)))
+        elif event.kind is Kind.MESH:
+            rec.log(entity, rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"],
+                                      vertex_colors=v["colours"]))
+        elif event.kind is Kind.NORMALS:
+            rec.log(entity, rr.Image(display(v, Kind.NORMALS)))
+        else:
+            a = display(v)
+            if a.ndim == 2:  # "image", and 2-D "array"s
+                rec.log(entity, rr.Image(a))
+            elif a.ndim == 1:  # a vector (the fit's coefficients): one plotted series per entry,
+                rec.log(entity, rr.Scalars(a.astype(np.float64)))  # 40x cheaper to log than a Tensor
+            else:
+                rec.log(entity, rr.Tensor(a))
+
+    def _send(self, frame: int, path: str) -> None:
+        """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
+        rr, rows = self.rr, self._pending.pop((frame, path))
+        entity = _entity(rows[0])
+
+        def index(rs: list[Event]) -> list:
+            return [rr.TimeColumn("frame", sequence=[frame] * len(rs)),
+                    rr.TimeColumn("iteration", sequence=[e.iteration for e in rs])]
+
+        if rows[0].kind is Kind.SCALARS:
+            names = dict.fromkeys(n for e in rows for n, x in e.value.items() if _is_number(x))
+            for name in names:
+                rs = [e for e in rows if _is_number(e.value.get(name))]
+                self.rec.send_columns(f"{entity}/{name}", indexes=index(rs),
+                                      columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
+            return
+        if _ndim(rows[0].value) == 1:
+            shown = [display(e.value) for e in rows]
+            if any(a.ndim != 1 for a in shown):
+                raise ValueError(f"{entity}: iterations mix vectors and images")
+            columns = rr.Scalars.columns(scalars=np.concatenate(shown).astype(np.float64))
+            self.rec.send_columns(entity, indexes=index(rows), columns=columns.partition([a.size for a in shown]))
+            return
+        images = display_stack(rows)
+        n, h, w = images.shape[:3]
+        fmt = rr.components.ImageFormat(width=w, height=h, color_model="RGB" if images.ndim == 4 else "L",
+                                        channel_datatype="U8" if images.dtype == np.uint8 else "F32")
+        self.rec.send_columns(entity, indexes=index(rows),
+                              columns=rr.Image.columns(buffer=images.reshape(n, -1).view(np.uint8), format=[fmt] * n))
+
+    def _send_frame(self, frame: int | None) -> None:
+        for f, path in [k for k in self._pending if frame is None or k[0] == frame]:
+            self._send(f, path)
+
+    def frame_done(self, frame: int) -> None:
+        self._send_frame(frame)
+        self.rec.flush()
+
+    def close(self) -> None:
+        self._send_frame(None)
+        self.rec.flush()
+        self.rec.disconnect()
+
+
+def _entity(event: Event) -> str:
+    return f"frames/{event.frame:05d}/{event.path}"
+
+
+def _ndim(value: Any) -> int:
+    if isinstance(value, OnMask):
+        return value.mask.ndim + value.values.ndim - 1
+    return np.ndim(value)
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float, np.floating, np.integer)) and not isinstance(x, bool)
+
+
+def _finite32(a: Any) -> np.ndarray:
+    """A float32 copy with NaN and inf set to 0 (one pass; ``nan_to_num`` makes four)."""
+    out = np.array(a, np.float32)
+    bad = ~np.isfinite(out)
+    if bad.any():
+        out[bad] = 0
+    return out
+
+
+def _display_rule(kind: Kind):
+    """How Rerun shows an event kind: (conversion of values, fill off the mask). Normals as RGB
+    uint8 ``(n + 1) * 127.5`` with 127 off the mask; everything else float32 with 0 there
+    (Rerun shows NaN as garbage)."""
+    return (_normals_rgb, 127) if kind is Kind.NORMALS else (_finite32, 0)
+
+
+def display(value: Any, kind: Kind = Kind.IMAGE) -> np.ndarray:
+    """One event value as Rerun shows it (see ``_display_rule``)."""
+    convert, fill = _display_rule(kind)
+    if isinstance(value, OnMask):
+        return OnMask(convert(value.values), value.mask).grid(fill)
+    return convert(value)
+
+
+def display_stack(rows: list[Event]) -> np.ndarray:
+    """(n, H, W) float32 or (n, H, W, 3) uint8: the rows' display images, stacked. Rows on one
+    mask are converted and scattered in one pass (one indexed assignment for the whole batch)."""
+    first, kind = rows[0].value, rows[0].kind
+    if isinstance(first, OnMask) and all(isinstance(e.value, OnMask) and e.kind == kind
+                                         and e.value.mask is first.mask for e in rows):
+        convert, fill = _display_rule(kind)
+        shown = convert(np.stack([e.value.values for e in rows]))
+        out = np.full((len(rows), first.mask.size, *shown.shape[2:]), fill, shown.dtype)
+        out[:, np.flatnonzero(first.mask)] = shown
+        return out.reshape((len(rows), *first.mask.shape, *shown.shape[2:]))
+    shown = [display(e.value, e.kind) for e in rows]
+    if any(a.shape != shown[0].shape or a.dtype != shown[0].dtype for a in shown):
+        raise ValueError(f"{_entity(rows[0])}: iterations of different image sizes")
+    return np.stack(shown)
+
+
+def _normals_rgb(n: Any) -> np.ndarray:
+    rgb = _finite32(n)
+    rgb += 1
+    rgb *= 127.5
+    return rgb.clip(0, 255, out=rgb).astype(np.uint8)
