@@ -10,10 +10,10 @@ import json
 import platform
 import statistics
 
-from shadowflow.flow import Chain, Frame
-from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene
+from shadowflow.flow import Chain
+from shadowflow.nodes.evaluation.scenes import render_scene
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid
 from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.sources import procedural
 
@@ -31,8 +31,7 @@ def main() -> None:
     rows = []
     for d, a in zip(depths, albedos):
         sc = render_scene(d, a, s, model.mask)
-        f = chain.process(Frame(0, "bench", data=dict(image=sc.image, grid_image=sc.image, light=s,
-                                                        grid_light=s, alignment=IDENTITY)))
+        f = chain.process(on_model_grid(0, "bench", sc.image, s))
         t = dict(f.meta["timings"])
         t["per_iteration"] = t["robust_fit"] / f.meta["iterations"]
         t["iterations"] = f.meta["iterations"]

@@ -28,11 +28,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from naive_fit import naive_fit  # noqa: E402
-from shadowflow.flow import Chain, Frame  # noqa: E402
-from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene  # noqa: E402
+from shadowflow.flow import Chain  # noqa: E402
+from shadowflow.nodes.evaluation.scenes import render_scene  # noqa: E402
 from shadowflow.nodes.geometry.normals import angle_deg  # noqa: E402
 from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid  # noqa: E402
 from shadowflow.nodes.method.robust_fit import FitConfig, fit  # noqa: E402
 from shadowflow.nodes.model.shape_model import train_shape_model  # noqa: E402
 from shadowflow.nodes.model.sources import load_source  # noqa: E402
@@ -66,8 +66,7 @@ def run(grid: int, ks: list[int], frames: int, repeats: int, naive_max_grid: int
             sc = render_scene(d, 1.0, s, model.mask)
             runs = []
             for _ in range(repeats):  # the same frame again: the median of its repeats
-                f = chain.process(Frame(0, "bench", data=dict(image=sc.image, grid_image=sc.image, light=s,
-                                                                grid_light=s, alignment=IDENTITY)))
+                f = chain.process(on_model_grid(0, "bench", sc.image, s))
                 runs.append(dict(f.meta["timings"]))
             t = {key: statistics.median(r[key] for r in runs) for key in runs[0]}
             t["iterations"] = f.meta["iterations"]

@@ -188,10 +188,9 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
     import dataclasses
 
     from shadowflow.flow.chain import Chain
-    from shadowflow.flow.frame import Frame
-    from shadowflow.nodes.evaluation.scenes import IDENTITY, render_scene
+    from shadowflow.nodes.evaluation.scenes import render_scene
     from shadowflow.nodes.evaluation.synthetic import score
-    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid
 
     depths, _ = procedural(4, seed=21)
     s = light_from_angles(30, 0)
@@ -204,8 +203,7 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
             scene = render_scene(d, 1.0, s, procedural_model.mask)
             image = np.clip(scene.image * 1.8, 0, 1).astype(np.float32)
             assert np.mean(image[procedural_model.mask] >= 0.99) > 0.2
-            frame = chain.process(Frame(i, "overexposed", data={
-                "image": image, "grid_image": image, "light": s, "grid_light": s, "alignment": IDENTITY}))
+            frame = chain.process(on_model_grid(i, "overexposed", image, s))
             errs.append(score(scene, frame)["err_all"])
         errors[name] = float(np.mean(errs))
     assert errors["excluded"] < 0.5 * errors["trusted"], errors

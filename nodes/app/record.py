@@ -19,10 +19,9 @@ CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``
 DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
 
 
-class FitObserver:
-    """``RobustFitNode.observer``: sends each kept iteration to the recorder.
-
-    With ``--record-every N`` it keeps iterations 1, 1 + N, ... and always the last one
+class FitRecorder:
+    """The fit node's observer (``method.nodes.FitObserver``): sends each kept iteration to the
+    recorder. With ``--record-every N`` it keeps iterations 1, 1 + N, ... and always the last one
     (held back until the fit ends, see ``finish``).
     """
 
@@ -30,7 +29,7 @@ class FitObserver:
         self.model, self.recorder = model, recorder
         self._held: dict[int, FitIteration] = {}
 
-    def __call__(self, frame: Frame, it: FitIteration) -> None:
+    def iteration(self, frame: Frame, it: FitIteration) -> None:
         if self.recorder.keep_iteration(it.iteration):
             self._emit(frame.id, it)
             self._held.pop(frame.id, None)
@@ -64,12 +63,10 @@ class RecordNode:
 
     name = "record"
 
-    def __init__(self, model: ShapeModel, recorder: Recorder, observer: FitObserver | None = None):
-        self.model, self.recorder, self.observer = model, recorder, observer
+    def __init__(self, model: ShapeModel, recorder: Recorder):
+        self.model, self.recorder = model, recorder
 
     def __call__(self, frame: Frame) -> Frame:
-        if self.observer is not None:
-            self.observer.finish(frame)
         d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
         emit(Event(fid, "load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32)))
         emit(Event(fid, "remap/remapped", Kind.IMAGE, d["remapped"]))

@@ -14,7 +14,7 @@ from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
 from ...flow.pipeline import Pipeline, Stage
 from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
-from ..method.nodes import LoadNode, MethodOptions, RobustFitNode, method_nodes
+from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import (
     OUTPUT_FILES,
@@ -24,7 +24,7 @@ from .outputs import (
     summary_record,
     write_summary,
 )
-from .record import FitObserver, RecordNode, default_blueprint
+from .record import FitRecorder, RecordNode, default_blueprint
 
 
 @dataclass
@@ -127,18 +127,15 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     if "rerun" in run.record:
         sinks.append(RerunSink(_recording_path(out, "rrd", run.resume), blueprint=default_blueprint()))
     recorder = Recorder(sinks, run.record_options) if sinks else None
-    observer = FitObserver(model, recorder) if recorder else None
+    observer = FitRecorder(model, recorder) if recorder else None
 
-    nodes = [LoadNode(model, options), *method_nodes(model, options)]
-    if observer is not None:
-        for n in nodes:
-            if isinstance(n, RobustFitNode):
-                n.observer = observer
-        nodes.append(RecordNode(model, recorder, observer))
+    nodes = [LoadNode(model, options), *method_nodes(model, options, observer)]
+    if recorder is not None:
+        nodes.append(RecordNode(model, recorder))
     # outputs must never land on an input: all of them when the list is known, else as they come
     protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
     nodes.append(WriteNode(model, out, protected))
-    stages = [Stage(n, run.fit_workers if isinstance(n, RobustFitNode) else 1) for n in nodes]
+    stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
     records: list[dict] = []
     progress = Progress(total, not run.quiet)

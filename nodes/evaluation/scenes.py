@@ -17,9 +17,6 @@ from ..method.shadow import ShadowMaps, shadow_maps
 from ..model.canonical import canonical_eyes
 from ..model.faces.facegen import render_face, sample_face
 from ..model.faces.ict import render_identity, shipped_basis
-from ..photo.align import Alignment
-
-IDENTITY = Alignment(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), "identity")
 
 
 @dataclass

@@ -16,9 +16,9 @@ from ...flow.frame import Frame
 from ..geometry.integrate import fill_holes
 from ..geometry.normals import angle_deg, normals_from_depth
 from ..geometry.reflectance import light_from_angles
-from ..method.nodes import MethodOptions, method_nodes
+from ..method.nodes import MethodOptions, method_nodes, on_model_grid
 from ..model.shape_model import ShapeModel
-from .scenes import IDENTITY, Scene, render_scene
+from .scenes import Scene, render_scene
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -70,10 +70,7 @@ def evaluate(
         for i, d in enumerate(depths):
             alb = 1.0 if albedos is None else albedos[i]
             scene = render_scene(d, alb, s, model.mask)
-            frame = Frame(i, f"test-{i}@{angle:g}deg", data={
-                "image": scene.image, "grid_image": scene.image, "light": s, "grid_light": s,
-                "alignment": IDENTITY})
-            frame = chain.process(frame)
+            frame = chain.process(on_model_grid(i, f"test-{i}@{angle:g}deg", scene.image, s))
             if not frame.ok:
                 raise RuntimeError(frame.status)
             rows.append(score(scene, frame))

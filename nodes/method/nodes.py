@@ -1,32 +1,12 @@
 """The method as a chain of small nodes. Each node reads named entries of ``frame.data``,
-calls one pure function of arrays, and stores its products.
-
-Frame entries, in order of appearance (``Hm, Wm`` = model grid, ``N`` = model pixels):
-
-=================  ======================================================  ===========
-entry              what                                                    node
-=================  ======================================================  ===========
-image              (H, W) float32 input brightness in [0, 1]               load
-light              (3,) light, input camera frame                          load
-alignment          ``Alignment`` model pixel -> input pixel (may be given)   load
-grid_image         (Hm, Wm) input resampled to the model grid              load
-grid_light         (3,) light in the model's camera frame                  load
-remapped           (Hm, Wm) Lambertian-remapped brightness                 remap
-initial            (N, 3) starting normals                                 sfs_init
-fit                ``FitResult`` (on-cone / model normals, weights, ...)   robust_fit
-normals            (Hm, Wm, 3) combined normals, NaN off the face          combine
-shading_normals    (Hm, Wm, 3) the paper's blend, if ``normals`` is not it  combine
-depth              (Hm, Wm) heights, model pixels, NaN off the face        integrate
-shadow             ``ShadowMaps`` (cast, attached) for the input light     shadow
-albedo             (Hm, Wm) albedo, NaN off the face                       albedo
-relit              (Hm, Wm) face under ``relight_light``                   relight
-novel_view         (Hm, Wm) surface turned about the vertical axis         relight
-=================  ======================================================  ===========
+calls one pure function of arrays, and stores its products: the entries and who writes them
+are the table of ``keys``. ``method_nodes`` is the chain after loading; ``LoadNode`` reads a
+photo, ``on_model_grid`` makes the frame of an image already on the model grid.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Protocol
 
 import numpy as np
 
@@ -34,6 +14,7 @@ from ...flow.frame import Frame, FrameFailed
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
 from ..model.shape_model import ShapeModel
 from ..photo.align import (
+    IDENTITY,
     Alignment,
     centred_alignment,
     eyes_alignment,
@@ -76,6 +57,22 @@ class MethodOptions:
     face_length: str | float = "auto"
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
     novel_yaw_deg: float = 45.0
+
+
+class FitObserver(Protocol):
+    """Sees a frame's fit: every iteration, then the end of the fit (``RobustFitNode``)."""
+
+    def iteration(self, frame: Frame, it: FitIteration) -> None: ...
+
+    def finish(self, frame: Frame) -> None: ...
+
+
+def on_model_grid(fid: int, source: str, image: np.ndarray, light: np.ndarray) -> Frame:
+    """The frame of an image already on the model grid (a render, a benchmark scene): the entries
+    ``LoadNode`` would write, with the identity alignment. image: (Hm, Wm) in [0, 1]; light: (3,)
+    unit, camera frame. Run ``method_nodes`` on it."""
+    return Frame(fid, source, data={"image": image, "light": light, "alignment": IDENTITY, "grid_image": image,
+                                    "grid_light": light})
 
 
 def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
@@ -187,7 +184,10 @@ class RemapNode:
         image, s = frame.data["grid_image"], frame.data["grid_light"]
         seen = seen_pixels(frame, self.model)  # face pixels the photo shows
         face = image[self.model.mask][seen]
-        clipped = float(np.mean(clipped_pixels(face, self.saturation, self.max_clipped)))
+        saturated = np.zeros(self.model.n_pixels, bool)  # over-exposure decided here, once
+        saturated[seen] = clipped_pixels(face, self.saturation, self.max_clipped)
+        frame.data["saturated"] = saturated
+        clipped = float(np.mean(saturated[seen]))
         if self.scale == "ratio" or clipped > 0:  # over-exposed: no peak to go by
             scale = ratio_scale(face, self.model.mean_normals[seen] @ s, self.saturation)
             frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
@@ -211,12 +211,13 @@ class SfsInitNode:
 
 
 class RobustFitNode:
-    """The fit loop; ``observer(frame, iteration)`` (if set) sees every iteration."""
+    """The fit loop; ``observer`` (if any) sees every iteration and the end of each fit. Holds no
+    state of a frame: it may run on several threads (``thread_safe``)."""
 
     name = "robust_fit"
+    thread_safe = True
 
-    def __init__(self, model: ShapeModel, config: FitConfig,
-                 observer: Callable[[Frame, FitIteration], None] | None = None):
+    def __init__(self, model: ShapeModel, config: FitConfig, observer: FitObserver | None = None):
         self.model, self.config, self.observer = model, config, observer
 
     def __call__(self, frame: Frame) -> Frame:
@@ -224,13 +225,14 @@ class RobustFitNode:
             if frame.cancelled:  # timed out or stopped: nobody waits for this fit any more
                 raise FrameFailed(f"{frame.source}: fit abandoned at iteration {it.iteration}")
             if self.observer is not None:
-                self.observer(frame, it)
+                self.observer.iteration(frame, it)
 
         intensity = frame.data["remapped"][self.model.mask]
-        saturated = clipped_pixels(frame.data["grid_image"][self.model.mask], self.config.saturation)
-        unseen = ~seen_pixels(frame, self.model)
+        unreliable = frame.data["saturated"] | ~seen_pixels(frame, self.model)
         result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
-                     unreliable=saturated | unseen)
+                     unreliable=unreliable)
+        if self.observer is not None:
+            self.observer.finish(frame)
         frame.data["fit"] = result
         frame.meta.update(iterations=result.iterations, converged=result.converged, final_sigma=result.sigma)
         return frame
@@ -319,8 +321,10 @@ class RelightNode:
         return frame
 
 
-def method_nodes(model: ShapeModel, options: MethodOptions, observer=None, with_views: bool = True) -> list:
-    """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo)."""
+def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
+                 with_views: bool = True) -> list:
+    """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo);
+    ``observer`` goes to the fit node."""
     nodes = [
         RemapNode(model, options.fit.solver != "paper", options.fit.saturation,
                   scale="peak" if options.fit.solver == "paper" else options.remap),  # the paper's remap

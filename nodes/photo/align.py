@@ -47,6 +47,9 @@ class Alignment:
         return _rotate_xy(v, self.rotation.T)
 
 
+IDENTITY = Alignment(np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), "identity")  # the photo is on the model grid
+
+
 def _rotate_xy(v: np.ndarray, rot_pix: np.ndarray) -> np.ndarray:
     """Apply a 2x2 rotation given in (col, row) pixel axes to the (x, y) of camera vectors."""
     v = np.asarray(v, np.float64)

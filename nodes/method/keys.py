@@ -1,0 +1,45 @@
+"""The frame contract: every entry the method's nodes read or write, in one table.
+
+``Hm, Wm`` = the model grid, ``N`` = the model's face pixels, ``H, W`` = the input photo.
+A node reads only entries of the nodes before it; ``tests/test_frame_contract.py`` runs a photo
+and a render through every node and checks that each entry a node writes is listed here.
+"""
+from __future__ import annotations
+
+# frame.data: key -> (what it holds, the node that writes it)
+DATA: dict[str, tuple[str, str]] = {
+    "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given"),
+    "light": ("(3,) unit light, input camera frame", "load, or given"),
+    "alignment": ("``Alignment``: model pixel -> input pixel", "load, or given"),
+    "grid_image": ("(Hm, Wm) the input resampled to the model grid", "load, or on_model_grid"),
+    "grid_valid": ("(Hm, Wm) bool, model pixels inside the photo (absent: all)", "load"),
+    "grid_light": ("(3,) the light in the model's camera frame", "load, or on_model_grid"),
+    "saturated": ("(N,) bool, face pixels clipped by over-exposure", "remap"),
+    "remapped": ("(Hm, Wm) brightness on the Lambertian scale", "remap"),
+    "initial": ("(N, 3) starting normals", "sfs_init"),
+    "fit": ("``FitResult``: on-cone and model normals, weights, residuals, history", "robust_fit"),
+    "normals": ("(Hm, Wm, 3) output normals, camera frame, NaN off the face", "combine"),
+    "shading_normals": ("(Hm, Wm, 3) the paper's blend, when ``normals`` is not it", "combine"),
+    "depth": ("(Hm, Wm) heights in model pixels, NaN off the face", "integrate"),
+    "shadow": ("``ShadowMaps``: cast and attached, (Hm, Wm) bool, for the input light", "shadow"),
+    "albedo": ("(Hm, Wm) float32 albedo, NaN off the face", "albedo"),
+    "albedo_source": ("(Hm, Wm) uint8: 0 off-face, 1 measured, 2 mirrored, 3 filled", "albedo"),
+    "relit": ("(Hm, Wm) the face under ``MethodOptions.relight_light``", "relight"),
+    "novel_view": ("(Hm, Wm) the surface turned about the vertical axis", "relight"),
+}
+
+# frame.meta: key -> (what it holds, who writes it); all JSON-friendly, summarised in summary.json
+META: dict[str, tuple[str, str]] = {
+    "stem": ("the output folder's name", "runner"),
+    "previous": ("the summary record of a frame skipped by --resume", "runner"),
+    "light": ("[x, y, z] the light used, input camera frame", "load"),
+    "light_source": ("sidecar | given | yaleb name | estimated", "load"),
+    "alignment": ("how the photo was aligned (eyes, mouth line, centred crop)", "load"),
+    "remap_scale": ("the brightness scale divided out", "remap"),
+    "clipped_fraction": ("share of the seen face clipped (over-exposed photos)", "remap"),
+    "iterations": ("fit iterations", "robust_fit"),
+    "converged": ("whether the fit met its stopping rule", "robust_fit"),
+    "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
+    "outputs": ("the folder the outputs were written to", "write"),
+    "timings": ("seconds per node", "the flow engine"),
+}

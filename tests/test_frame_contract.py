@@ -1,0 +1,47 @@
+"""The frame contract (``nodes/method/keys.py``): every entry a node writes is in the table, under
+that node's name, and the two ways in (a photo through ``LoadNode``, an image already on the model
+grid through ``on_model_grid``) give the method the same entries."""
+import numpy as np
+from shadowflow.flow.frame import Frame
+from shadowflow.nodes.evaluation.scenes import render_scene, write_shadowed_face
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method import keys
+from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, method_nodes, on_model_grid
+from shadowflow.nodes.model.sources import procedural
+
+
+def _run_node_by_node(frame, nodes):
+    """Call each node in turn; returns {node name: entries it added to data / meta}."""
+    added = {}
+    for node in nodes:
+        data, meta = set(frame.data), set(frame.meta)
+        frame = node(frame)
+        added[node.name] = (set(frame.data) - data, set(frame.meta) - meta)
+    return frame, added
+
+
+def _check(added):
+    for name, (data, meta) in added.items():
+        for key in data:
+            assert key in keys.DATA, f"{name} writes data[{key!r}], missing from keys.DATA"
+            assert name in keys.DATA[key][1], f"keys.DATA[{key!r}] does not name {name} as its writer"
+        for key in meta:
+            assert key in keys.META, f"{name} writes meta[{key!r}], missing from keys.META"
+            assert name in keys.META[key][1], f"keys.META[{key!r}] does not name {name} as its writer"
+
+
+def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
+    model = procedural_model
+    options = MethodOptions()  # cone trust 0.5: both normals entries
+    photo = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(3), light_from_angles(40))
+    frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(model, options), *method_nodes(model, options)])
+    _check(added)
+    assert {"image", "grid_valid", "saturated", "shading_normals", "relit"} <= set(frame.data)
+
+    depth, _ = procedural(1, seed=5)
+    s = light_from_angles(40)
+    scene = render_scene(depth[0], 1.0, s, model.mask)
+    grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), method_nodes(model, options))
+    _check(grid_added)
+    # the render's way in gives the method every entry the photo's does, bar the photo's own bounds
+    assert set(frame.data) - set(grid_frame.data) == {"grid_valid"}
