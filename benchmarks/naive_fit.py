@@ -1,7 +1,7 @@
 """A naive reference for the speed benchmark: a straightforward transcription of the paper's
 robust fit, one pixel at a time. NOT used by the product.
 
-Same mathematics as ``nodes.robust_fit.fit`` with ``FitConfig(adaptive_prior=0)`` minus the
+Same mathematics as ``shadowflow.nodes.method.robust_fit.fit`` with ``FitConfig(adaptive_prior=0)`` minus the
 in-loop cast-shadow release: per pixel, the tangent basis is rebuilt, the normal projected by
 the azimuthal equidistant projection, the weighted normal equations accumulated, the fit
 unprojected and rotated onto the reflectance cone, all in Python loops over pixels.
@@ -58,7 +58,7 @@ def _on_cone(n, s, i):
 
 def naive_fit(mean_normals, mean_proj, modes, intensity, light, huber_k=1.5, dark=0.02,
               max_iterations=100, tolerance_deg=0.01):
-    """(N, 3) fitted normals and the iteration count; arguments as ``nodes.robust_fit.fit``."""
+    """(N, 3) fitted normals and the iteration count; arguments as ``shadowflow.nodes.method.robust_fit.fit``."""
     N, K = len(mean_normals), modes.shape[1]
     s = np.asarray(light, float)
     n = np.array(mean_normals, float)

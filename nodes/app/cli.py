@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import glob
 import json
 import os
 import sys
@@ -34,7 +33,7 @@ from ..model.shape_model import save_model, train_shape_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint
-from .runner import RunOptions, check_writable, run_stream, watch_folder
+from .runner import RunOptions, check_writable, expand_inputs, run_stream, watch_folder
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -83,29 +82,6 @@ def _face_length(text: str) -> str | float:
 def _load_model(spec: str | None):
 
     return resolve_model(spec)
-
-
-def expand_inputs(items: list[str], note=print) -> list[str]:
-    """Files, folders (sorted, not recursed; names without an image suffix skipped with a
-    note) and glob patterns -> paths. Anything named like an image is kept, even a folder,
-    a broken link or a pipe: its frame then fails with the loader's exact reason."""
-    out: list[str] = []
-    for item in items:
-        p = Path(item)
-        if p.is_dir():
-            for f in sorted(p.iterdir()):
-                if f.suffix.lower() in IMAGE_SUFFIXES:
-                    out.append(str(f))
-                elif f.suffix.lower() != ".json":
-                    note(f"{f}: skipped (not an image)")
-        elif not p.exists() and any(ch in item for ch in "*?["):
-            matches = sorted(glob.glob(item))
-            if not matches:
-                note(f"{item}: no file matches")
-            out.extend(m for m in matches if Path(m).suffix.lower() in IMAGE_SUFFIXES)
-        else:
-            out.append(item)  # missing or unreadable files fail as frames, with their reason
-    return out
 
 
 def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:

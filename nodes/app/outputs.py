@@ -15,7 +15,7 @@ import numpy as np
 from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
 from ..method.products import input_grid_products
-from ..method.relight import mesh_ply_bytes
+from ..method.relight import surface_mesh
 from ..model.shape_model import ShapeModel
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
@@ -59,6 +59,16 @@ def _png_bytes(img8: np.ndarray) -> bytes:
     if not ok:
         raise OSError("PNG encoding failed")
     return enc.tobytes()
+
+
+def mesh_ply_bytes(depth: np.ndarray, albedo: np.ndarray) -> bytes:
+    """``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
+    import trimesh
+
+    m = surface_mesh(depth, albedo)
+    colours = np.column_stack([m["colours"], np.full(len(m["colours"]), 255, np.uint8)])
+    mesh = trimesh.Trimesh(vertices=m["vertices"], faces=m["triangles"], vertex_colors=colours, process=False)
+    return mesh.export(file_type="ply")
 
 
 def to_8bit(values: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -3,6 +3,7 @@ write outputs and recordings, keep ``summary.json`` current after every frame.""
 from __future__ import annotations
 
 import errno
+import glob
 import json
 import sys
 import time
@@ -16,6 +17,7 @@ from ...flow.pipeline import Pipeline, Stage
 from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
+from ..photo.loader import IMAGE_SUFFIXES
 from .outputs import (
     OUTPUT_FILES,
     WriteNode,
@@ -215,6 +217,29 @@ def _previous_summary(out: Path) -> dict[str, dict]:
         return {r["stem"]: r for r in recs if isinstance(r, dict) and r.get("stem")}
     except (OSError, ValueError):
         return {}
+
+
+def expand_inputs(items: list[str], note=print) -> list[str]:
+    """Files, folders (sorted, not recursed; names without an image suffix skipped with a
+    note) and glob patterns -> paths. Anything named like an image is kept, even a folder,
+    a broken link or a pipe: its frame then fails with the loader's exact reason."""
+    out: list[str] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            for f in sorted(p.iterdir()):
+                if f.suffix.lower() in IMAGE_SUFFIXES:
+                    out.append(str(f))
+                elif f.suffix.lower() != ".json":
+                    note(f"{f}: skipped (not an image)")
+        elif not p.exists() and any(ch in item for ch in "*?["):
+            matches = sorted(glob.glob(item))
+            if not matches:
+                note(f"{item}: no file matches")
+            out.extend(m for m in matches if Path(m).suffix.lower() in IMAGE_SUFFIXES)
+        else:
+            out.append(item)  # missing or unreadable files fail as frames, with their reason
+    return out
 
 
 def watch_folder(folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5) -> Iterator[str]:

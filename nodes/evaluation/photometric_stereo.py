@@ -1,6 +1,6 @@
 """Robust Lambertian photometric stereo: normals and albedo from many images under known lights.
 
-Used to build ground truth for real photographs (``nodes.yaleb``), not by the method itself.
+Used to build ground truth for real photographs (``evaluation.yaleb``), not by the method itself.
 """
 from __future__ import annotations
 

@@ -92,7 +92,7 @@ def grid_mesh(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mask: (H, W) bool. Returns ``(pixel_index (V,) flat indices of the vertices,
     triangles (T, 3) into that vertex list)``: each 2x2 block with 3 or 4 mask pixels gives
     one or two triangles, wound counter-clockwise as seen from +z (y up). Kept per mask
-    (read-only, ``nodes.mask_cache``).
+    (read-only, ``geometry.mask_cache``).
     """
     return per_mask("grid mesh", mask, _grid_mesh)
 

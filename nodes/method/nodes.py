@@ -41,7 +41,7 @@ class MethodOptions:
 
     light: "auto" | "yaleb" | a (3,) vector (input camera frame); a sidecar light wins.
     eyes: (2, 2) input eye centres for every input, or None: a sidecar's, else detected
-    (``detect_eyes``, see ``nodes.eyes``), else a centred frontal crop.
+    (``detect_eyes``, see ``photo.eyes``), else a centred frontal crop.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
@@ -52,7 +52,7 @@ class MethodOptions:
     eyes: np.ndarray | None = None
     detect_eyes: bool = True
     # the face's length (eye-to-mouth distance) against the model's: "auto" measures it from the mouth
-    # line (``nodes.mouth``) when the eyes were detected and the model knows its mouth; "off" keeps the
+    # line (``photo.mouth``) when the eyes were detected and the model knows its mouth; "off" keeps the
     # eyes' similarity; a number is the stretch itself
     face_length: str | float = "auto"
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
@@ -97,12 +97,13 @@ class LoadNode:
         self.model, self.options = model, options
 
     def __call__(self, frame: Frame) -> Frame:
-        if "image" not in frame.data:
+        from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
+        if from_file:
             frame.data["image"] = load_image(frame.source)
         image = frame.data["image"]
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
-        side = read_sidecar(frame.source) if "light" not in frame.data else None
+        side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
         if "alignment" in frame.data:  # given: e.g. a render put in a photo's place
             al = eyes_al = frame.data["alignment"]
             grid_image = eyes_grid = to_model_grid(image, al, self.model.grid)

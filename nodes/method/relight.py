@@ -59,13 +59,3 @@ def surface_mesh(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]
     grey = (np.clip(np.nan_to_num(albedo.ravel()[pix]), 0, 1) * 255).astype(np.uint8)
     return {"vertices": np.column_stack([cols, -rows, depth.ravel()[pix]]).astype(np.float32),
             "triangles": tris.astype(np.uint32), "colours": np.column_stack([grey, grey, grey])}
-
-
-def mesh_ply_bytes(depth: np.ndarray, albedo: np.ndarray) -> bytes:
-    """``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
-    import trimesh
-
-    m = surface_mesh(depth, albedo)
-    colours = np.column_stack([m["colours"], np.full(len(m["colours"]), 255, np.uint8)])
-    mesh = trimesh.Trimesh(vertices=m["vertices"], faces=m["triangles"], vertex_colors=colours, process=False)
-    return mesh.export(file_type="ply")

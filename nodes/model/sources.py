@@ -136,7 +136,7 @@ def _ict_basis(path: str | None):
 def load_source(spec: str, n: int, seed: int, grid: tuple[int, int],
                 expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Faces from a source spec (see ``parse_source``); ``expressions``: ICT only, the chance of
-    each expression blendshape per face (``nodes.synth.ict.ict_faces``)."""
+    each expression blendshape per face (``faces.ict.ict_faces``)."""
     kind, arg = parse_source(spec)
     if expressions and kind != "ict":
         raise ValueError(f"expressions are a variation of the ICT source, not of {spec!r}")

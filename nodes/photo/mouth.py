@@ -6,7 +6,7 @@ place, and the robust fit's prior keeps it from moving them far. The lips' parti
 darkest horizontal feature of a face near its vertical midline under any light (the upper lip
 shades it from above, the lower lip's edge is dark): its row on the model grid, against the
 model's mouth row, gives the vertical stretch that the alignment then applies
-(``nodes.align.stretch_vertically``).
+(``photo.align.stretch_vertically``).
 
 Measured on the Yale B subjects (README, "Real photographs"): with the stretch the normals are
 1.5 / 1.2 / 0.7 / 0.2 deg closer to photometric stereo at (+-25, 0) / (+-50, 0) / (+-70, 0) /

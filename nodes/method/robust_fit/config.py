@@ -76,7 +76,7 @@ class FitConfig:
     n_modes: int | None = None  # use the model's first K modes (None: all)
     saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
     # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
-    # (nodes.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
+    # (method.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
     # (on by default: with the ICT model and today's other defaults it takes Yale B normals 0.1-0.4 deg lower at
     # +-25 / +-50 / +-35+15 and leaves +-70 as it was; 0.7-1.8 deg lower before the mouth line and cone trust)
     albedo_rounds: int = 1

@@ -1,0 +1,171 @@
+"""The Python API: ``fit`` one image in memory, ``run`` a stream of files into an output folder.
+
+    import shadowflow
+    result = shadowflow.fit("face.png")            # or an (H, W) / (H, W, 3) array
+    result.normals, result.depth, result.albedo    # on the photo's pixel grid
+    result.save("out/face")                        # the files ``shadowflow run`` writes
+
+Both run the same nodes as the command line (``method.nodes``) with the same defaults.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from ...flow.chain import Chain
+from ...flow.frame import Frame
+from ...flow.recording import RecordOptions
+from ..method.nodes import LoadNode, MethodOptions, method_nodes
+from ..method.products import input_grid_products
+from ..method.relight import surface_mesh
+from ..model.default_model import resolve_model
+from ..model.shape_model import ShapeModel
+from ..photo.loader import InputError
+from .outputs import OUTPUT_FILES, real_path, write_outputs
+from .runner import RunOptions, RunResult, expand_inputs, run_stream
+
+ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
+
+# ITU-R BT.601 luminance of RGB, as the file loader's BGR2GRAY
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+@dataclass
+class Products:
+    """What ``fit`` recovers from one photo. Images are on the photo's pixel grid (H, W), NaN (or
+    False) off the face, camera frame (x right, y down, z toward the camera; conventions.md).
+
+    normals (H, W, 3) float32 unit; depth (H, W) float32 heights in input pixels; albedo (H, W);
+    weights (H, W) the fit's robust weights in [0, 1]; lit (H, W) bool, not in cast or attached
+    shadow under the input light; relit (H, W) the face lit from ``MethodOptions.relight_light``;
+    mask (H, W) bool face; novel_view (Hm, Wm) model grid, the surface turned about the vertical
+    axis; light (3,) the light used (input camera frame); history: one dict of scalars per fit
+    iteration (sigma, residual_mean, residual_median, downweighted_fraction, change_deg);
+    iterations, converged: how the fit ended; frame: everything on the model grid
+    (``method/keys.py``); model: the shape model used.
+    """
+
+    normals: np.ndarray
+    depth: np.ndarray
+    albedo: np.ndarray
+    weights: np.ndarray
+    lit: np.ndarray
+    relit: np.ndarray
+    mask: np.ndarray
+    novel_view: np.ndarray
+    light: np.ndarray
+    history: list[dict[str, float]]
+    iterations: int
+    converged: bool
+    frame: Frame
+    model: ShapeModel
+
+    @property
+    def shadow(self) -> np.ndarray:
+        """(H, W) bool: the face's cast or attached shadow under the input light."""
+        return self.mask & ~self.lit
+
+    @property
+    def mesh(self) -> dict[str, np.ndarray]:
+        """The face as a mesh: vertices (V, 3) float32 (column, -row, height), triangles (T, 3),
+        colours (V, 3) uint8 grey albedo; ``mesh.ply`` holds the same."""
+        return surface_mesh(self.depth, self.albedo)
+
+    def save(self, folder: str | os.PathLike) -> dict[str, str]:
+        """Write the files of one ``shadowflow run`` output folder (conventions.md) into ``folder``,
+        each atomically; refuses to write over the input image. Returns name -> path."""
+        folder = Path(folder)
+        if self.frame.source != ARRAY_SOURCE:
+            clash = [n for n in OUTPUT_FILES if real_path(folder / n) == real_path(self.frame.source)]
+            if clash:
+                raise ValueError(f"{folder / clash[0]}: is the input image; save somewhere else")
+        folder.mkdir(parents=True, exist_ok=True)
+        return write_outputs(self.frame, self.model, folder)
+
+
+def _as_image(image: np.ndarray) -> np.ndarray:
+    """An array as the loader gives a file: (H, W) float32 brightness in [0, 1]. Accepts (H, W) or
+    (H, W, 3) RGB (or (H, W, 4) RGBA), uint8, uint16 or floats in [0, 1]."""
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        a = a[..., :3]
+    elif a.ndim != 2:
+        raise InputError(f"{ARRAY_SOURCE}: shape {a.shape} is not (H, W) or (H, W, 3)")
+    if a.dtype == np.uint8:
+        f = a.astype(np.float32) / 255.0
+    elif a.dtype == np.uint16:
+        f = a.astype(np.float32) / 65535.0
+    elif np.issubdtype(a.dtype, np.floating) or a.dtype == bool:
+        f = a.astype(np.float32)
+        if not np.all(np.isfinite(f)):
+            raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
+    else:
+        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
+    if f.ndim == 3:
+        f = f @ _LUMA
+    f = np.clip(f, 0.0, 1.0)
+    if float(f.max() - f.min()) < 1.0 / 255.0:
+        raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
+    return f
+
+
+def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
+    return model if isinstance(model, ShapeModel) else resolve_model(None if model is None else str(model))
+
+
+def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
+    opts = options or MethodOptions()
+    changes = {}
+    if light is not None:
+        changes["light"] = light if isinstance(light, str) else np.asarray(light, np.float64)
+    if eyes is not None:
+        changes["eyes"] = np.asarray(eyes, np.float64).reshape(2, 2)
+    return dataclasses.replace(opts, **changes) if changes else opts
+
+
+def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = None,
+        eyes: np.ndarray | None = None, model: ShapeModel | str | os.PathLike | None = None,
+        options: MethodOptions | None = None) -> Products:
+    """Recover one face's shape, albedo and shadows, and relight it.
+
+    image: a file (any format ``shadowflow run`` reads; a sidecar ``<stem>.json`` beside it is
+    used) or an array (``_as_image``). light: None (a sidecar's, else estimated), "auto", "yaleb"
+    (from an Extended Yale B file name) or (3,) toward the light, camera frame. eyes: None
+    (detected, else a centred crop) or (2, 2) eye centres ``[[x, y], [x, y]]`` in input pixels,
+    image-left first. model: None (the built-in ICT model), "ict", "procedural", a model ``.npz``
+    or a ``ShapeModel``. options: every other choice (``MethodOptions``; ``light`` and ``eyes``
+    above override its own). Raises ``ValueError`` (``InputError``) naming the problem.
+    """
+    shape_model = _model(model)
+    opts = _options(options, light, eyes)
+    if isinstance(image, (str, os.PathLike)):
+        frame = Frame(0, str(image))
+    else:
+        frame = Frame(0, ARRAY_SOURCE, data={"image": _as_image(image)})
+    frame = Chain([LoadNode(shape_model, opts), *method_nodes(shape_model, opts)]).process(frame)
+    if not frame.ok:
+        raise InputError(frame.status)
+    p = input_grid_products(frame, shape_model)
+    r = frame.data["fit"]
+    return Products(normals=p["normals"], depth=p["depth"], albedo=p["albedo"], weights=p["weights"], lit=p["lit"],
+                    relit=p["relit"], mask=p["mask"], novel_view=frame.data["novel_view"],
+                    light=np.asarray(frame.data["light"], np.float64), history=list(r.history),
+                    iterations=r.iterations, converged=r.converged, frame=frame, model=shape_model)
+
+
+def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: ShapeModel | str | None = None,
+        options: MethodOptions | None = None, record: tuple[str, ...] = ("rerun", "mcap"),
+        record_every: int = 1, workers: int = 1, resume: bool = False, quiet: bool = True) -> RunResult:
+    """Stream image files (folders are listed, not recursed) through the method into ``out``, as
+    ``shadowflow run`` does: ``out/<stem>/`` per image, ``out/summary.json``, and the recordings
+    named in ``record`` (``run.rrd``, ``run.mcap``). A bad input fails its own frame only (its
+    record in the result says why). Returns the ``RunResult`` (summary records in input order)."""
+    paths = expand_inputs([str(i) for i in inputs], note=lambda msg: None if quiet else print(msg))
+    run_options = RunOptions(record=tuple(record), record_options=RecordOptions(every=record_every),
+                             fit_workers=workers, resume=resume, quiet=quiet)
+    return run_stream(paths, Path(out), _model(model), options or MethodOptions(), run_options, total=len(paths))
