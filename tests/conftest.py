@@ -46,3 +46,17 @@ def random_unit(n: int, rng: np.random.Generator, min_z: float = 0.05) -> np.nda
     v = rng.standard_normal((n, 3))
     v[:, 2] = np.abs(v[:, 2]) + min_z
     return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def rrd_rows(path: Path, entity: str, component: str) -> dict[int, object]:
+    """iteration -> the component's value in that row, for one entity of an .rrd file."""
+    rc = pytest.importorskip("rerun.chunk")
+    rows = {}
+    for chunk in rc.RrdReader(path).store().stream():
+        if chunk.entity_path != entity:
+            continue
+        rb = chunk.to_record_batch()
+        if component in rb.schema.names and "iteration" in rb.schema.names:
+            for it, value in zip(rb.column("iteration").to_pylist(), rb.column(component).to_pylist()):
+                rows[int(it)] = value
+    return rows

@@ -41,15 +41,3 @@ def test_trusting_the_pixels_where_the_mean_face_is_reliable_beats_trusting_all(
         weighted.append(angle_deg(estimate_light(intensity, stand_in, weights=w)[None], s[None])[0])
     assert np.mean(weighted) < 0.5 * np.mean(plain), (weighted, plain)
     assert np.mean(weighted) < 3.0, weighted
-
-
-def test_model_normal_variance_is_the_modes_spread_per_pixel(procedural_model):
-    m = procedural_model
-    var = m.normal_variance
-    assert var.shape == (m.n_pixels,) and np.all(var >= 0)
-    # the variance of each pixel's AEP coordinates over samples b ~ N(0, eigenvalues)
-    rng = np.random.default_rng(2)
-    b = rng.standard_normal((4000, m.n_modes)) * np.sqrt(m.eigenvalues)
-    v = (b @ m.modes.T.astype(np.float64)).reshape(4000, m.n_pixels, 2)
-    sampled = v.var(axis=0).sum(axis=1)
-    np.testing.assert_allclose(var, sampled, rtol=0.1, atol=1e-6)

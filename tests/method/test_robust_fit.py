@@ -1,69 +1,27 @@
+"""The robust fit: solvers, weights, stopping, fall-backs, the output blend."""
 import numpy as np
 import pytest
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import lambertian, light_from_angles
 from shadowflow.nodes.method.robust_fit import FitConfig, combine, fit, huber_weights, residual_scale
-from shadowflow.nodes.model.shape_model import load_model, save_model
 from shadowflow.nodes.model.sources import procedural
 
 
-def test_model_save_load_round_trip_without_pickles(tmp_path, procedural_model):
-    path = save_model(procedural_model, tmp_path / "m.npz")
-    with np.load(path, allow_pickle=False) as z:  # must not need pickles
-        assert list(z["grid"]) == [128, 128] and z["eyes"].shape == (2, 2)
-    back = load_model(path)
-    assert back.grid == procedural_model.grid and back.n_modes == 60
-    np.testing.assert_array_equal(back.modes, procedural_model.modes)
-    np.testing.assert_array_equal(back.mask, procedural_model.mask)
+def _fit_errors(model, depths, light, configs: dict) -> dict:
+    """Mean angular error (degrees) of the combined normals and the iterations, per config name."""
+    from shadowflow.nodes.evaluation.scenes import render_scene
+    from shadowflow.nodes.method.robust_fit import initial_normals
 
-
-def test_load_model_rejects_bad_files(tmp_path):
-    bad = tmp_path / "bad.npz"
-    bad.write_bytes(b"not a zip")
-    with pytest.raises(ValueError, match="bad.npz"):
-        load_model(bad)
-    np.savez(tmp_path / "partial.npz", grid=np.array([4, 4]))
-    with pytest.raises(ValueError, match="lacks"):
-        load_model(tmp_path / "partial.npz")
-    obj = tmp_path / "obj.npz"
-    np.savez(obj, grid=np.array([1, 2], dtype=object), eyes=np.zeros((2, 2)))
-    with pytest.raises(ValueError):
-        load_model(obj)  # object arrays would need pickles: refused
-
-
-def test_model_modes_are_orthonormal_and_reconstruct_training_faces(procedural_model):
-    m = procedural_model
-    np.testing.assert_allclose(m.modes.T @ m.modes, np.eye(m.n_modes), atol=1e-4)
-    assert np.all(np.diff(m.eigenvalues) <= 1e-6)
-    depths, _ = procedural(3, seed=0)  # the first training faces
-    from shadowflow.nodes.geometry.normals import normals_from_depth
-
+    out = {name: {"err": [], "iterations": []} for name in configs}
     for d in depths:
-        n = normals_from_depth(d)[m.mask].astype(np.float64)
-        b = m.modes.T.astype(np.float64) @ (m.project(n) - m.mean_proj).reshape(-1)
-        assert np.mean(angle_deg(m.synthesize(b), n)) < 0.3
-
-
-def test_closest_coefficients_recover_a_needle_map_from_the_pixels_that_are_known(procedural_model):
-    """The model floor of ``eval yaleb``: a needle-map in the model's span is recovered exactly
-    from part of its pixels (the rest hold garbage); an unseen face lands far
-    closer than the mean face, and the model's own mean (b = 0) gives zero coefficients."""
-    m = procedural_model
-    rng = np.random.default_rng(3)
-    b = rng.standard_normal(m.n_modes) * np.sqrt(m.eigenvalues)
-    n = m.synthesize(b)
-    known = rng.random(m.n_pixels) < 0.6
-    garbage = np.where(known[:, None], n, -n)
-    np.testing.assert_allclose(m.closest_coefficients(garbage, known), b, atol=1e-3 * np.abs(b).max())
-    np.testing.assert_allclose(m.closest_coefficients(m.synthesize(np.zeros(m.n_modes))), 0.0, atol=1e-4)
-    from shadowflow.nodes.geometry.normals import normals_from_depth
-
-    depths, _ = procedural(1, seed=999)  # a face the model was not trained on
-    unseen = normals_from_depth(depths[0])[m.mask].astype(np.float64)
-    closest = m.synthesize(m.closest_coefficients(unseen))
-    error, mean_error = np.mean(angle_deg(closest, unseen)), np.mean(angle_deg(m.mean_normals, unseen))
-    assert 0.05 < error < 0.5 * mean_error, (error, mean_error)
-    assert not m.closest_coefficients(n, np.zeros(m.n_pixels, bool)).any()
+        sc = render_scene(d, 1.0, light, model.mask)
+        ok = sc.valid[model.mask]
+        for name, cfg in configs.items():
+            r = fit(model, sc.image[model.mask], light, cfg, initial_normals(model, sc.image, light, cfg))
+            n = combine(r.normals, r.model_normals, r.weights)
+            out[name]["err"].append(float(np.mean(angle_deg(n[ok], sc.normals[model.mask][ok]))))
+            out[name]["iterations"].append(r.iterations)
+    return out
 
 
 def test_huber_weights_and_scales():
@@ -98,23 +56,6 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
     assert np.mean(res.weights[occ] < 0.5) > 0.5 or np.mean(res.weights[occ] == 0) > 0.5
     lit = ~occ & (I > 0.05)
     np.testing.assert_allclose(res.normals[lit] @ s, I[lit], atol=1e-6)
-
-
-def _fit_errors(model, depths, light, configs: dict) -> dict:
-    """Mean angular error (degrees) of the combined normals and the iterations, per config name."""
-    from shadowflow.nodes.evaluation.scenes import render_scene
-    from shadowflow.nodes.method.robust_fit import initial_normals
-
-    out = {name: {"err": [], "iterations": []} for name in configs}
-    for d in depths:
-        sc = render_scene(d, 1.0, light, model.mask)
-        ok = sc.valid[model.mask]
-        for name, cfg in configs.items():
-            r = fit(model, sc.image[model.mask], light, cfg, initial_normals(model, sc.image, light, cfg))
-            n = combine(r.normals, r.model_normals, r.weights)
-            out[name]["err"].append(float(np.mean(angle_deg(n[ok], sc.normals[model.mask][ok]))))
-            out[name]["iterations"].append(r.iterations)
-    return out
 
 
 def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(procedural_model):

@@ -3,7 +3,6 @@ alignment, the model's mouth, and (with ../shared) the real photos it is for."""
 import numpy as np
 import pytest
 from conftest import SHARED
-from shadowflow.nodes.photo.align import Alignment, eyes_alignment, normals_to_input, stretch_vertically
 from shadowflow.nodes.photo.mouth import face_length_factor, mouth_row
 
 MOUTH = np.array([64.0, 87.0])
@@ -32,36 +31,6 @@ def test_mouth_row_finds_the_lips_line_not_the_edge_of_a_shadow():
     f = face_length_factor(_face_like(81.4), MOUTH, EYE_ROW)
     assert abs(f - (81.4 - EYE_ROW) / (MOUTH[1] - EYE_ROW)) < 0.015
     assert face_length_factor(_face_like(99.0), MOUTH, EYE_ROW, limits=(0.85, 1.15)) == 1.15
-
-
-def test_a_stretched_alignment_keeps_the_eyes_moves_the_mouth_and_turns_vectors_only():
-    eyes_in = np.array([[40.0, 60.0], [100.0, 66.0]])  # a tilted face
-    model_eyes = np.array([[46.0, EYE_ROW], [82.0, EYE_ROW]])
-    al = eyes_alignment(eyes_in, model_eyes, "eyes")
-    st = stretch_vertically(al, 0.9, EYE_ROW, "stretched")
-    assert stretch_vertically(al, 1.0, EYE_ROW, "x") is al
-
-    def to_input(a: Alignment, p):
-        return a.matrix @ np.array([p[0], p[1], 1.0])
-
-    for e in model_eyes:  # the eyes stay where they were
-        np.testing.assert_allclose(to_input(st, e), to_input(al, e), atol=1e-9)
-    # the model's mouth lands 0.9 of the way down the eyes' perpendicular
-    mid_in = to_input(al, model_eyes.mean(axis=0))
-    drop = to_input(st, MOUTH) - mid_in
-    np.testing.assert_allclose(np.linalg.norm(drop), 0.9 * np.linalg.norm(to_input(al, MOUTH) - mid_in), rtol=1e-9)
-    # vectors follow the same rotation as without the stretch
-    np.testing.assert_allclose(st.rotation, al.rotation, atol=1e-9)
-    n = np.zeros((128, 128, 3), np.float32)
-    n[..., 2] = 1.0
-    n[..., 0] = 0.3
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    mask = np.zeros((128, 128), bool)
-    mask[30:100, 30:100] = True
-    a = normals_to_input(n, mask, al, (160, 150))
-    b = normals_to_input(n, mask, st, (160, 150))
-    both = np.isfinite(a[..., 0]) & np.isfinite(b[..., 0])
-    np.testing.assert_allclose(a[both], b[both], atol=1e-5)
 
 
 def test_the_ict_models_know_their_mouth_and_keep_it_in_the_file(tmp_path):

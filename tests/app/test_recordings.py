@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import rrd_rows
 from shadowflow.flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
 from shadowflow.flow.replay import diff_recordings
 from shadowflow.nodes.app.outputs import OUTPUT_FILES
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 sys.path.insert(0, str(REPO / "recordings"))
 from make_golden import GOLDEN, golden_inputs, golden_model, golden_run  # noqa: E402
@@ -27,6 +28,49 @@ def demo(tmp_path_factory):
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return out
+
+
+def _rewrite(src: Path, dst: Path, change) -> None:
+    """Copy a recording, applying ``change(topic, header, array) -> array | None`` to arrays."""
+    from mcap.reader import make_reader
+    from shadowflow.flow.recording import decode_array
+
+    sink = McapSink(dst)
+    with open(src, "rb") as f:
+        for schema, channel, msg in make_reader(f).iter_messages():
+            data = msg.data
+            if channel.message_encoding == "shadowflow.ndarray":
+                header, arr = decode_array(data)
+                new = change(channel.topic, header, arr)
+                if new is not None:
+                    data = encode_array(header["frame"], header["iteration"], new)
+            sink._add(channel.topic, schema.name, channel.message_encoding,
+                      Event(0, "", "array", None), data)
+    sink.close()
+
+
+def _golden_copies(src: Path, n: int) -> None:
+    """``n`` inputs in ``src``: copies of the two golden faces (with their sidecar lights)."""
+    base = golden_inputs(src)
+    for k in range(n):
+        p = Path(base[k % 2])
+        shutil.copy(p, src / f"face-{k:02d}.png")
+        shutil.copy(p.with_suffix(".json"), src / f"face-{k:02d}.json")
+    for p in base:
+        Path(p).unlink()
+        Path(p).with_suffix(".json").unlink()
+
+
+def _wait_for_records(out: Path, n: int, timeout: float = 120.0) -> None:
+    """Wait until ``out/summary.json`` lists at least ``n`` frames."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        try:
+            if len(json.loads((out / "summary.json").read_text())) >= n:
+                return
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
 
 
 def test_every_iteration_of_every_frame_is_recorded(demo):
@@ -70,20 +114,6 @@ def test_rerun_opens_both_recordings(demo):
     assert info.message_count > 6 * iterations  # six per-iteration channels, plus the per-frame ones
 
 
-def _rrd_rows(path: Path, entity: str, component: str) -> dict[int, object]:
-    """iteration -> the component's value in that row, for one entity of an .rrd file."""
-    rc = pytest.importorskip("rerun.chunk")
-    rows = {}
-    for chunk in rc.RrdReader(path).store().stream():
-        if chunk.entity_path != entity:
-            continue
-        rb = chunk.to_record_batch()
-        if component in rb.schema.names and "iteration" in rb.schema.names:
-            for it, value in zip(rb.column("iteration").to_pylist(), rb.column(component).to_pylist()):
-                rows[int(it)] = value
-    return rows
-
-
 def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
     """The .rrd's per-iteration rows (sent in columns, a frame at a time) show exactly the MCAP's
     arrays: weights as float images with 0 off the face, normals as (n + 1) * 127.5 RGB,
@@ -92,10 +122,10 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
     fr = rec.finished_frames()[1]
     its = fr.iterations("robust_fit/weights")
     base = f"/frames/{fr.frame:05d}/robust_fit"
-    weights = _rrd_rows(demo / "run.rrd", f"{base}/weights", "Image:buffer")
-    normals = _rrd_rows(demo / "run.rrd", f"{base}/normals", "Image:buffer")
-    b = _rrd_rows(demo / "run.rrd", f"{base}/b", "Scalars:scalars")
-    sigma = _rrd_rows(demo / "run.rrd", f"{base}/convergence/sigma", "Scalars:scalars")
+    weights = rrd_rows(demo / "run.rrd", f"{base}/weights", "Image:buffer")
+    normals = rrd_rows(demo / "run.rrd", f"{base}/normals", "Image:buffer")
+    b = rrd_rows(demo / "run.rrd", f"{base}/b", "Scalars:scalars")
+    sigma = rrd_rows(demo / "run.rrd", f"{base}/convergence/sigma", "Scalars:scalars")
     assert sorted(weights) == sorted(normals) == sorted(b) == sorted(sigma) == its and len(its) >= 3
     for it in its:
         w = np.frombuffer(bytes(weights[it][0]), np.float32).reshape(128, 128)
@@ -105,32 +135,6 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
         assert np.array_equal(n, expect)
         assert np.allclose(b[it], fr.arrays["robust_fit/b"][it], rtol=0, atol=1e-7)
         assert sigma[it] == [pytest.approx(fr.scalars["robust_fit/convergence"][it]["sigma"], rel=1e-12)]
-
-
-def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
-    """More iterations than one batch holds, of a face-pixel image and of a dense one (as
-    ``replay --rrd`` sends them), and a frame closed by ``close`` alone: every row reaches the
-    .rrd at its iteration with its own values."""
-    from shadowflow.flow.recording import OnMask, RerunSink
-
-    rng = np.random.default_rng(4)
-    mask = rng.random((6, 5)) < 0.6
-    faces = {it: rng.random(int(mask.sum())).astype(np.float32) for it in range(1, 8)}
-    grids = {it: rng.random((6, 5)).astype(np.float32) for it in range(1, 8)}
-    sink = RerunSink(tmp_path / "b.rrd", batch=3)
-    for it in range(1, 8):
-        sink.write(Event(0, "fit/weights", "image", OnMask(faces[it], mask), it))
-        sink.write(Event(0, "fit/residuals", "array", grids[it], it))
-        sink.write(Event(1, "fit/weights", "image", OnMask(faces[it], mask), it))
-    sink.frame_done(0)
-    sink.close()  # frame 1 was never closed: its held rows are written at close
-    for frame, path, expect in ((0, "weights", lambda it: OnMask(faces[it], mask).grid(0)),
-                                (0, "residuals", lambda it: grids[it]),
-                                (1, "weights", lambda it: OnMask(faces[it], mask).grid(0))):
-        rows = _rrd_rows(tmp_path / "b.rrd", f"/frames/{frame:05d}/fit/{path}", "Image:buffer")
-        assert sorted(rows) == list(range(1, 8)), (frame, path)
-        for it, buf in rows.items():
-            assert np.array_equal(np.frombuffer(bytes(buf[0]), np.float32).reshape(6, 5), expect(it)), (frame, path, it)
 
 
 def test_foxglove_copies_show_the_recorded_images(demo):
@@ -167,25 +171,6 @@ def test_replay_and_diff_commands(demo, tmp_path):
     (tmp_path / "junk.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\xff" * 64)
     bad = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(tmp_path / "junk.mcap")], capture_output=True, text=True)
     assert bad.returncode == 2 and "junk.mcap" in bad.stderr
-
-
-def _rewrite(src: Path, dst: Path, change) -> None:
-    """Copy a recording, applying ``change(topic, header, array) -> array | None`` to arrays."""
-    from mcap.reader import make_reader
-    from shadowflow.flow.recording import decode_array
-
-    sink = McapSink(dst)
-    with open(src, "rb") as f:
-        for schema, channel, msg in make_reader(f).iter_messages():
-            data = msg.data
-            if channel.message_encoding == "shadowflow.ndarray":
-                header, arr = decode_array(data)
-                new = change(channel.topic, header, arr)
-                if new is not None:
-                    data = encode_array(header["frame"], header["iteration"], new)
-            sink._add(channel.topic, schema.name, channel.message_encoding,
-                      Event(0, "", "array", None), data)
-    sink.close()
 
 
 def test_diff_finds_a_one_ulp_change_and_says_where(demo, tmp_path):
@@ -269,59 +254,6 @@ def test_truncated_and_hostile_files(demo, tmp_path):
         decode_array(b"SFA1" + struct.pack("<I", 20) + b'{"dtype": "|O"}' + b" " * 5)
 
 
-def test_masked_array_messages_round_trip_and_refuse_bad_payloads():
-    """A masked message (bit mask + face values) reads back as the full grid, NaN off the mask,
-    and is a quarter of the dense one's size at a typical face coverage."""
-    import struct
-
-    from shadowflow.flow.recording import OnMask, decode_array
-
-    rng = np.random.default_rng(3)
-    mask = rng.random((128, 128)) < 0.26
-    values = rng.standard_normal((int(mask.sum()), 3)).astype(np.float32)
-    data = encode_array(4, 2, values, mask)
-    header, grid = decode_array(data)
-    expect = OnMask(values, mask).grid()
-    assert header["shape"] == [128, 128, 3] and grid.dtype == np.float32
-    assert np.array_equal(np.isnan(grid), np.isnan(expect)) and np.array_equal(grid[mask], values)
-    assert len(data) < 0.3 * len(encode_array(4, 2, expect))
-    _, ints = decode_array(encode_array(0, None, np.arange(mask.sum(), dtype=np.int32), mask))
-    assert ints[~mask].max() == 0 and np.array_equal(ints[mask], np.arange(mask.sum()))
-    hlen = struct.unpack("<I", data[4:8])[0]
-    head, body = data[:8 + hlen], data[8 + hlen:]
-    with pytest.raises(ValueError, match="values are"):
-        decode_array(head + body[:-12])  # a pixel short
-    with pytest.raises(ValueError, match="mask alone"):
-        decode_array(head + body[:100])  # cut inside the mask
-    flat = json.dumps({"frame": 0, "iteration": 1, "dtype": "<f4", "shape": [16], "masked": True}).encode()
-    with pytest.raises(ValueError, match="bad array header"):
-        decode_array(b"SFA1" + struct.pack("<I", len(flat)) + flat + b"\x00" * 8)
-
-
-def _golden_copies(src: Path, n: int) -> None:
-    """``n`` inputs in ``src``: copies of the two golden faces (with their sidecar lights)."""
-    base = golden_inputs(src)
-    for k in range(n):
-        p = Path(base[k % 2])
-        shutil.copy(p, src / f"face-{k:02d}.png")
-        shutil.copy(p.with_suffix(".json"), src / f"face-{k:02d}.json")
-    for p in base:
-        Path(p).unlink()
-        Path(p).with_suffix(".json").unlink()
-
-
-def _wait_for_records(out: Path, n: int, timeout: float = 120.0) -> None:
-    """Wait until ``out/summary.json`` lists at least ``n`` frames."""
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        try:
-            if len(json.loads((out / "summary.json").read_text())) >= n:
-                return
-        except (OSError, ValueError):
-            pass
-        time.sleep(0.05)
-
-
 def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     """A run killed hard mid-stream leaves readable recordings of its finished frames, and
     --resume finishes the job without redoing them; the outputs equal an uninterrupted run's."""
@@ -383,13 +315,3 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")
     assert f"/frames/{len(summary) - 1:05d}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())
-
-
-def test_events_are_typed():
-    """An event's kind is a ``Kind``; a misspelt kind fails where the event is made, not in a sink
-    on the recorder's thread."""
-    from shadowflow.flow.recording import Kind
-
-    assert Event(0, "a/b", "image", np.zeros((2, 2))).kind is Kind.IMAGE
-    with pytest.raises(ValueError, match="imgae"):
-        Event(0, "a/b", "imgae", np.zeros((2, 2)))

@@ -6,13 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import shadowflow
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.photo.loader import InputError
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def _readme_python_example() -> str:

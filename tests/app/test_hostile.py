@@ -25,7 +25,7 @@ from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _png_header_only(width: int, height: int) -> bytes:

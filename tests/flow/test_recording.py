@@ -1,0 +1,72 @@
+"""The recording package: the array message, typed events, the Rerun sink's batches."""
+import json
+
+import numpy as np
+import pytest
+from conftest import rrd_rows
+from shadowflow.flow.recording import Event, encode_array
+
+
+def test_masked_array_messages_round_trip_and_refuse_bad_payloads():
+    """A masked message (bit mask + face values) reads back as the full grid, NaN off the mask,
+    and is a quarter of the dense one's size at a typical face coverage."""
+    import struct
+
+    from shadowflow.flow.recording import OnMask, decode_array
+
+    rng = np.random.default_rng(3)
+    mask = rng.random((128, 128)) < 0.26
+    values = rng.standard_normal((int(mask.sum()), 3)).astype(np.float32)
+    data = encode_array(4, 2, values, mask)
+    header, grid = decode_array(data)
+    expect = OnMask(values, mask).grid()
+    assert header["shape"] == [128, 128, 3] and grid.dtype == np.float32
+    assert np.array_equal(np.isnan(grid), np.isnan(expect)) and np.array_equal(grid[mask], values)
+    assert len(data) < 0.3 * len(encode_array(4, 2, expect))
+    _, ints = decode_array(encode_array(0, None, np.arange(mask.sum(), dtype=np.int32), mask))
+    assert ints[~mask].max() == 0 and np.array_equal(ints[mask], np.arange(mask.sum()))
+    hlen = struct.unpack("<I", data[4:8])[0]
+    head, body = data[:8 + hlen], data[8 + hlen:]
+    with pytest.raises(ValueError, match="values are"):
+        decode_array(head + body[:-12])  # a pixel short
+    with pytest.raises(ValueError, match="mask alone"):
+        decode_array(head + body[:100])  # cut inside the mask
+    flat = json.dumps({"frame": 0, "iteration": 1, "dtype": "<f4", "shape": [16], "masked": True}).encode()
+    with pytest.raises(ValueError, match="bad array header"):
+        decode_array(b"SFA1" + struct.pack("<I", len(flat)) + flat + b"\x00" * 8)
+
+
+def test_events_are_typed():
+    """An event's kind is a ``Kind``; a misspelt kind fails where the event is made, not in a sink
+    on the recorder's thread."""
+    from shadowflow.flow.recording import Kind
+
+    assert Event(0, "a/b", "image", np.zeros((2, 2))).kind is Kind.IMAGE
+    with pytest.raises(ValueError, match="imgae"):
+        Event(0, "a/b", "imgae", np.zeros((2, 2)))
+
+
+def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
+    """More iterations than one batch holds, of a face-pixel image and of a dense one (as
+    ``replay --rrd`` sends them), and a frame closed by ``close`` alone: every row reaches the
+    .rrd at its iteration with its own values."""
+    from shadowflow.flow.recording import OnMask, RerunSink
+
+    rng = np.random.default_rng(4)
+    mask = rng.random((6, 5)) < 0.6
+    faces = {it: rng.random(int(mask.sum())).astype(np.float32) for it in range(1, 8)}
+    grids = {it: rng.random((6, 5)).astype(np.float32) for it in range(1, 8)}
+    sink = RerunSink(tmp_path / "b.rrd", batch=3)
+    for it in range(1, 8):
+        sink.write(Event(0, "fit/weights", "image", OnMask(faces[it], mask), it))
+        sink.write(Event(0, "fit/residuals", "array", grids[it], it))
+        sink.write(Event(1, "fit/weights", "image", OnMask(faces[it], mask), it))
+    sink.frame_done(0)
+    sink.close()  # frame 1 was never closed: its held rows are written at close
+    for frame, path, expect in ((0, "weights", lambda it: OnMask(faces[it], mask).grid(0)),
+                                (0, "residuals", lambda it: grids[it]),
+                                (1, "weights", lambda it: OnMask(faces[it], mask).grid(0))):
+        rows = rrd_rows(tmp_path / "b.rrd", f"/frames/{frame:05d}/fit/{path}", "Image:buffer")
+        assert sorted(rows) == list(range(1, 8)), (frame, path)
+        for it, buf in rows.items():
+            assert np.array_equal(np.frombuffer(bytes(buf[0]), np.float32).reshape(6, 5), expect(it)), (frame, path, it)

@@ -1,0 +1,61 @@
+"""Cast and attached shadows, traced and confirmed by the image."""
+import numpy as np
+import pytest
+from shadowflow.nodes.geometry.normals import normals_from_depth
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.shadow import cast_shadow, confirm_with_image, shadow_maps
+
+
+@pytest.mark.parametrize("elev_deg", [30.0, 45.0, 60.0])
+def test_shadow_of_a_step_has_the_right_length(elev_deg):
+    # a wall of height 10 px at columns 20..21; light from the image's left, elev_deg above the ground plane
+    z = np.zeros((20, 80))
+    z[:, 20:22] = 10.0
+    az = 90.0 - elev_deg  # angle from the view axis
+    s = light_from_angles(az)  # toward the image's left: shadows fall to the right
+    cast = cast_shadow(z, s)
+    length = 10.0 / np.tan(np.radians(elev_deg))
+    row = cast[10]
+    shadowed = np.flatnonzero(row)
+    assert shadowed.min() == 22  # starts right behind the wall
+    # heights are bilinear between pixel centres, so the wall top is at column 21 and the
+    # shadow reaches up to (not including) column 21 + length
+    assert length - 1.0 - 1e-9 <= shadowed.max() - 21 < length
+    assert np.array_equal(shadowed, np.arange(22, shadowed.max() + 1))  # one solid run
+    assert not row[:20].any()  # nothing on the lit side
+
+
+def test_a_sphere_has_its_attached_shadow_beyond_the_terminator_and_casts_none():
+    """Frontal light: no shadow at all. Light 70 deg from the view axis on a hemisphere (convex,
+    so nothing is cast): the attached shadow from the numerically differentiated depth is the
+    analytic one, the side beyond the terminator ``n . s = 0``, to within its boundary pixels."""
+    r, size = 40.0, 96
+    rows, cols = np.mgrid[0:size, 0:size].astype(float)
+    x, y = cols - size / 2 + 0.5, -(rows - size / 2 + 0.5)
+    inside = x**2 + y**2 < (0.97 * r) ** 2
+    z = np.where(inside, np.sqrt(np.clip(r**2 - x**2 - y**2, 0, None)), np.nan)
+    n = normals_from_depth(z)
+    maps = shadow_maps(z, n, np.array([0, 0, 1.0]))
+    assert not maps.cast.any() and not maps.attached.any()
+    s = light_from_angles(70)  # toward the image's left: the right side is dark
+    maps = shadow_maps(z, n, s)
+    analytic = inside & (np.stack([x, y, np.nan_to_num(z)], -1) @ s <= 0)
+    assert analytic.sum() > 0.2 * inside.sum()
+    assert not maps.cast.any()
+    assert np.count_nonzero(maps.attached ^ analytic) < 0.03 * analytic.sum()
+    assert not maps.attached[:, : size // 2].any()  # nothing on the lit side
+
+
+def test_confirmation_removes_lit_pixels_and_grows_into_connected_dark_ones():
+    from shadowflow.nodes.method.shadow import ShadowMaps
+
+    traced = np.zeros((10, 10), bool)
+    traced[2:5, 2:5] = True
+    image = np.ones((10, 10))
+    image[2:6, 2:6] = 0.0  # the real shadow is a little larger
+    image[2, 2] = 0.5  # ...and this pixel is visibly lit
+    image[8, 8] = 0.0  # dark albedo far from any shadow
+    out = confirm_with_image(ShadowMaps(traced, np.zeros_like(traced)), image, 0.02)
+    expect = image <= 0.02
+    expect[8, 8] = False
+    assert np.array_equal(out.cast, expect)

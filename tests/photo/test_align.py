@@ -1,0 +1,79 @@
+"""Mapping between the photo and the model grid."""
+import numpy as np
+from shadowflow.nodes.evaluation.scenes import render_scene
+from shadowflow.nodes.geometry.normals import angle_deg
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.model.faces.facegen import render_face, sample_face
+from shadowflow.nodes.photo.align import Alignment, eyes_alignment, normals_to_input, stretch_vertically
+
+MOUTH = np.array([64.0, 87.0])
+EYE_ROW = 48.0
+
+
+def _save(model, folder):
+    from shadowflow.nodes.model.shape_model import save_model
+
+    return save_model(model, folder / "model.npz")
+
+
+def test_a_stretched_alignment_keeps_the_eyes_moves_the_mouth_and_turns_vectors_only():
+    eyes_in = np.array([[40.0, 60.0], [100.0, 66.0]])  # a tilted face
+    model_eyes = np.array([[46.0, EYE_ROW], [82.0, EYE_ROW]])
+    al = eyes_alignment(eyes_in, model_eyes, "eyes")
+    st = stretch_vertically(al, 0.9, EYE_ROW, "stretched")
+    assert stretch_vertically(al, 1.0, EYE_ROW, "x") is al
+
+    def to_input(a: Alignment, p):
+        return a.matrix @ np.array([p[0], p[1], 1.0])
+
+    for e in model_eyes:  # the eyes stay where they were
+        np.testing.assert_allclose(to_input(st, e), to_input(al, e), atol=1e-9)
+    # the model's mouth lands 0.9 of the way down the eyes' perpendicular
+    mid_in = to_input(al, model_eyes.mean(axis=0))
+    drop = to_input(st, MOUTH) - mid_in
+    np.testing.assert_allclose(np.linalg.norm(drop), 0.9 * np.linalg.norm(to_input(al, MOUTH) - mid_in), rtol=1e-9)
+    # vectors follow the same rotation as without the stretch
+    np.testing.assert_allclose(st.rotation, al.rotation, atol=1e-9)
+    n = np.zeros((128, 128, 3), np.float32)
+    n[..., 2] = 1.0
+    n[..., 0] = 0.3
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    mask = np.zeros((128, 128), bool)
+    mask[30:100, 30:100] = True
+    a = normals_to_input(n, mask, al, (160, 150))
+    b = normals_to_input(n, mask, st, (160, 150))
+    both = np.isfinite(a[..., 0]) & np.isfinite(b[..., 0])
+    np.testing.assert_allclose(a[both], b[both], atol=1e-5)
+
+
+def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_model, tmp_path):
+    """A face rendered at another scale, rotated and shifted inside a larger photo, with its
+    eyes given: the normals on the photo's grid must match the rendered truth there."""
+    import cv2
+    from shadowflow.nodes.app.cli import main
+    from shadowflow.nodes.model.canonical import canonical_eyes
+    from shadowflow.nodes.photo.align import eyes_alignment
+
+    rng = np.random.default_rng(11)
+    depth, mask, albedo = render_face(sample_face(rng))
+    s = light_from_angles(40, 0)
+    scene = render_scene(depth, albedo, s, mask)
+    eyes_photo = np.array([[70.0, 95.0], [128.0, 88.0]])  # scaled by ~1.6 and rotated ~7 degrees
+    al = eyes_alignment(eyes_photo, canonical_eyes((128, 128)))
+    shape = (240, 200)
+    photo = cv2.warpAffine(scene.image.astype(np.float32), al.matrix, shape[::-1], flags=cv2.INTER_LINEAR)
+    path = tmp_path / "photo.png"
+    cv2.imwrite(str(path), (np.clip(photo, 0, 1) * 255 + 0.5).astype(np.uint8))
+    light = al.vector_to_input(s)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--record", "none", "--quiet", "--model",
+                 str(_save(procedural_model, tmp_path)), "--light=" + ",".join(f"{x:.6f}" for x in light),
+                 "--eyes=" + ",".join(f"{v:g}" for v in eyes_photo.ravel())]) == 0
+    n = np.load(out / "photo" / "normals.npy")
+    truth_model = np.where(mask[..., None], scene.normals, 0).astype(np.float32)
+    truth = np.stack([cv2.warpAffine(truth_model[..., i], al.matrix, shape[::-1]) for i in range(3)], -1)
+    truth = al.vector_to_input(truth)
+    inner = cv2.warpAffine(cv2.erode(mask.astype(np.uint8), np.ones((7, 7))), al.matrix, shape[::-1]) > 0
+    ok = inner & np.isfinite(n[..., 0])
+    assert ok.sum() > 5000
+    assert np.mean(angle_deg(n[ok], truth[ok] / np.linalg.norm(truth[ok], axis=1, keepdims=True))) < 6.0
