@@ -29,7 +29,7 @@ from ..geometry.reflectance import light_from_angles
 from ..method.nodes import MethodOptions
 from ..method.robust_fit import FitConfig
 from ..model.default_model import resolve_model, train_from_recipe
-from ..model.shape_model import save_model, train_shape_model
+from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint
@@ -222,8 +222,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         trained_on = f"model {args.model}"
     else:
         train_src = args.train_source or args.source
-        tr, _ = load_source(train_src, args.n_train, args.train_seed, size)
-        model = train_shape_model(tr, args.modes or 60, source=train_src)
+        model = train_from_recipe({"source": train_src, "n": args.n_train, "seed": args.train_seed,
+                                   "modes": args.modes or 60, "size": list(size)})
         trained_on = f"{args.n_train} faces of {train_src} (seed {args.train_seed})"
     test, albedo = load_source(args.source, args.n_test, args.test_seed, model.grid)
     if args.albedo == "constant":

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..geometry.reflectance import lambertian
+
 
 @dataclass
 class StereoResult:
@@ -67,8 +69,7 @@ def photometric_stereo(images: np.ndarray, lights: np.ndarray, dark: float = 0.0
 
 def render(result: StereoResult, light: np.ndarray) -> np.ndarray:
     """(H, W) Lambertian image of the stereo surface under ``light`` (3,), 0 where not valid."""
-    n = np.nan_to_num(result.normals)
-    return np.where(result.valid, result.albedo * np.clip(n @ np.asarray(light, np.float64), 0, None), 0.0)
+    return np.where(result.valid, lambertian(np.nan_to_num(result.normals), light, np.nan_to_num(result.albedo)), 0.0)
 
 
 def register_translation(image: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:

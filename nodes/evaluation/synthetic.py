@@ -89,6 +89,6 @@ def model_floor(model: ShapeModel, depths: np.ndarray) -> float:
     for d in depths:
         n = normals_from_depth(fill_holes(d, model.mask))[model.mask].astype(np.float64)
         ok = np.all(np.isfinite(n), axis=1)
-        fit_n = model.synthesize(model.closest_coefficients(np.where(ok[:, None], n, model.mean_normals), ok))
+        fit_n = model.closest_normals(np.where(ok[:, None], n, model.mean_normals), ok)
         errs.append(np.mean(angle_deg(fit_n[ok], n[ok])))
     return float(np.mean(errs))

@@ -29,7 +29,7 @@ import numpy as np
 from ...flow.chain import Chain
 from ...flow.frame import Frame
 from ..geometry.normals import angle_deg
-from ..geometry.reflectance import light_from_angles
+from ..geometry.reflectance import lambertian, light_from_angles
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..method.products import input_grid_products
 from ..model.shape_model import ShapeModel
@@ -62,8 +62,8 @@ def model_floor_normals(stereo_normals: np.ndarray, stereo_valid: np.ndarray, mo
     """The closest needle-map the model can represent to the stereo normals (H, W, 3), known
     where ``stereo_valid``, in alignment ``al``; returned on the input grid (H, W, 3)."""
     n, known = normals_to_model(stereo_normals, stereo_valid, al, model.grid)
-    b = model.closest_coefficients(n[model.mask], known[model.mask])
-    return normals_to_input(model.to_image(model.synthesize(b).astype(np.float32)), model.mask, al,
+    closest = model.closest_normals(n[model.mask], known[model.mask])
+    return normals_to_input(model.to_image(closest.astype(np.float32)), model.mask, al,
                             stereo_valid.shape)
 
 
@@ -72,8 +72,8 @@ def clean_render(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> 
     (the stereo albedo's median); the photo's own pixels where stereo has no normal."""
     st = subject.stereo
     rho = float(np.median(st.albedo[st.valid]))
-    shade = np.clip(np.nan_to_num(st.normals) @ np.asarray(light, np.float64), 0.0, None)
-    return np.where(st.valid, np.clip(rho * shade, 0.0, 1.0), photo).astype(np.float32)
+    return np.where(st.valid, np.clip(lambertian(np.nan_to_num(st.normals), light, rho), 0.0, 1.0),
+                    photo).astype(np.float32)
 
 
 def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOptions,

@@ -5,6 +5,7 @@ import numpy as np
 
 from ..geometry.normals import normals_from_depth
 from ..geometry.raster import grid_mesh, grid_row_edges, rasterize_row_edges
+from ..geometry.reflectance import lambertian
 from .shadow import cast_shadow
 
 FRONTAL = np.array([0.0, 0.0, 1.0])
@@ -20,11 +21,10 @@ def relight(albedo: np.ndarray, normals: np.ndarray, light: np.ndarray = FRONTAL
     """
     s = np.asarray(light, np.float64)
     s = s / np.linalg.norm(s)
-    shade = np.clip(np.einsum("hwc,c->hw", normals, s), 0.0, None)
-    out = albedo * shade
+    out = lambertian(normals, s, albedo)
     if depth is not None:
-        out = np.where(cast_shadow(depth, s), 0.0, out)
-    return out.astype(np.float32)
+        out = np.where(cast_shadow(depth, s), np.float32(0.0), out)
+    return out
 
 
 def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,

@@ -123,6 +123,11 @@ class ShapeModel:
         rows = np.repeat(known, 2)
         return np.linalg.lstsq(self.modes[rows].astype(np.float64), v.reshape(-1), rcond=None)[0]
 
+    def closest_normals(self, normals: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) the closest needle-map the model can represent to ``normals`` (N, 3) at the
+        ``known`` (N,) pixels (``closest_coefficients``): the model's floor for that face."""
+        return self.synthesize(self.closest_coefficients(normals, known))
+
     def to_image(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
         """Scatter per-mask-pixel values (N, ...) onto the grid: (H, W, ...)."""
         out = np.full(self.grid + values.shape[1:], fill, dtype=np.result_type(values.dtype, np.float32))

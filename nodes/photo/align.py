@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..geometry.similarity import two_point_similarity
+
 
 @dataclass(frozen=True)
 class Alignment:
@@ -76,17 +78,10 @@ def eyes_alignment(eyes_input: np.ndarray, eyes_model: np.ndarray, how: str = "e
 
     Eyes are ``[[x, y], [x, y]]`` pixel coordinates (x = column), image-left eye first.
     """
-    src = np.asarray(eyes_model, np.float64)
-    dst = np.asarray(eyes_input, np.float64)
-    vs, vd = src[1] - src[0], dst[1] - dst[0]
-    ns, nd = np.linalg.norm(vs), np.linalg.norm(vd)
-    if ns < 1e-9 or nd < 1e-9:
-        raise ValueError("the two eye positions coincide")
-    s = nd / ns
-    ang = np.arctan2(vd[1], vd[0]) - np.arctan2(vs[1], vs[0])
-    lin = s * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
-    t = dst[0] - lin @ src[0]
-    return Alignment(np.column_stack([lin, t]), how)
+    try:
+        return Alignment(two_point_similarity(eyes_model, eyes_input).matrix, how)
+    except ValueError:
+        raise ValueError("the two eye positions coincide") from None
 
 
 def stretch_vertically(al: Alignment, factor: float, about_row: float, how: str) -> Alignment:

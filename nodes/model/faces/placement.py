@@ -7,6 +7,7 @@ from scipy import ndimage
 
 from ...geometry.integrate import fill_holes
 from ...geometry.raster import rasterize
+from ...geometry.similarity import two_point_similarity
 from ..canonical import canonical_eyes
 
 
@@ -20,12 +21,9 @@ def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndar
     target = canonical_eyes(grid)
     src = np.array([eye_left[:2], eye_right[:2]], float)
     dst = np.array([[target[0, 0], -target[0, 1]], [target[1, 0], -target[1, 1]]])  # y up
-    vs, vd = src[1] - src[0], dst[1] - dst[0]
-    scale = np.linalg.norm(vd) / np.linalg.norm(vs)
-    ang = np.arctan2(vd[1], vd[0]) - np.arctan2(vs[1], vs[0])
-    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
-    xy = (vertices[:, :2] - src[0]) @ rot.T * scale + dst[0]
-    return np.column_stack([xy[:, 0], -xy[:, 1], vertices[:, 2] * scale])
+    sim = two_point_similarity(src, dst)
+    xy = sim.apply(vertices[:, :2])
+    return np.column_stack([xy[:, 0], -xy[:, 1], vertices[:, 2] * sim.scale])
 
 
 def render_mesh(vertices_px: np.ndarray, triangles: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
