@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
+import cv2
 import numpy as np
 
 from .recording import Event, FrameRecording, Kind, Recording, RecordingError, RerunSink, read_mcap
@@ -100,8 +101,6 @@ def plot_convergence(rec: Recording, path: str | Path, channel: str, keys: tuple
                      size=(900, 300)) -> Path:
     """PNG with one panel per scalar ``keys`` of ``channel`` (log scale), one line per frame, against
     iteration."""
-    import cv2
-
     w, h = size
     panels = []
     colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
