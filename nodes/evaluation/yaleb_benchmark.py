@@ -42,7 +42,11 @@ INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15
 def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
     """(PSNR dB, SSIM) of ``relit`` against ``photo`` over ``region`` after the least-squares
     gain ``g = <photo, relit> / <relit, relit>``; images (H, W) in [0, 1]."""
-    from skimage.metrics import structural_similarity
+    try:
+        from skimage.metrics import structural_similarity  # optional: the "eval" extra
+    except ImportError:
+        raise RuntimeError("eval yaleb scores relighting by SSIM, which needs scikit-image: "
+                           "pip install 'shadowflow[eval]'") from None
 
     r = np.nan_to_num(np.asarray(relit, np.float64))
     p = np.asarray(photo, np.float64)
