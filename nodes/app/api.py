@@ -25,14 +25,11 @@ from ..method.products import input_grid_products
 from ..method.relight import surface_mesh
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
-from ..photo.loader import InputError
+from ..photo.loader import InputError, luminance
 from .outputs import OUTPUT_FILES, real_path, write_outputs
 from .runner import RunOptions, RunResult, expand_inputs, run_stream
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
-
-# ITU-R BT.601 luminance of RGB, as the file loader's BGR2GRAY
-_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 
 
 @dataclass
@@ -107,7 +104,7 @@ def _as_image(image: np.ndarray) -> np.ndarray:
     else:
         raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
     if f.ndim == 3:
-        f = f @ _LUMA
+        f = luminance(f)
     f = np.clip(f, 0.0, 1.0)
     if float(f.max() - f.min()) < 1.0 / 255.0:
         raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")

@@ -195,6 +195,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     report = evaluate_yaleb(args.data, model, options)
     cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
             ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
+            ("psnr_unmoved", "unmoved dB"), ("relit_level", "relit level"), ("shadow_iou", "shadow IoU"),
             ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
             ("light_err_deg", "auto light"), ("iterations", "iterations")]
     print("per subject and light (errors in degrees):")
@@ -205,6 +206,9 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     summary = summarise(report["rows"])
     for s in summary:
         print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
+    for f in report["frontal"]:
+        print(f"{f['subject']:8} frontal photo relit frontally: {f['psnr']:.2f} dB, "
+              f"{100 * f['gradient_energy']:.1f} % of its gradient energy")
     report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
                   seconds=time.perf_counter() - t0)
     _write_report(args.json, report)

@@ -17,6 +17,7 @@ from ...flow.frame import Frame
 from ..method.products import input_grid_products
 from ..method.relight import surface_mesh
 from ..model.shape_model import ShapeModel
+from ..photo.loader import luminance
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
                 "relit.png", "novel_view.png", "mesh.ply")
@@ -71,9 +72,23 @@ def mesh_ply_bytes(depth: np.ndarray, albedo: np.ndarray) -> bytes:
     return mesh.export(file_type="ply")
 
 
-def to_8bit(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """[0, 1] floats -> uint8, 0 off the mask."""
-    return np.where(mask, np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255), 0).astype(np.uint8)
+def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """[0, 1] floats (H, W) or RGB (H, W, 3) -> uint8 (RGB becomes OpenCV's BGR), 0 off the mask."""
+    v = np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255)
+    if v.ndim == 3:
+        v = v[..., ::-1]
+        if mask is not None:
+            mask = mask[..., None]
+    return (v if mask is None else np.where(mask, v, 0)).astype(np.uint8)
+
+
+def light_name(light: np.ndarray) -> str:
+    """A light's file-name tag, Yale B style: ``A+030E-10`` (azimuth, elevation in whole degrees;
+    azimuth positive toward the image's left, as ``light_from_angles``)."""
+    s = np.asarray(light, np.float64) / np.linalg.norm(light)
+    el = np.degrees(np.arcsin(np.clip(s[1], -1, 1)))
+    az = np.degrees(np.arctan2(-s[0], s[2]))
+    return f"A{int(round(az)):+04d}E{int(round(el)):+03d}"
 
 
 def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
@@ -85,12 +100,14 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
         "mask.png": _png_bytes(np.where(mask, 255, 0).astype(np.uint8)),
         "weights.npy": _npy_bytes(p["weights"]),
         "depth.npy": _npy_bytes(p["depth"]),
-        "albedo.png": _png_bytes(to_8bit(p["albedo"], mask)),
+        "albedo.png": _png_bytes(to_8bit(p["albedo"], mask)),  # colour for a colour photo
         "shadow.png": _png_bytes(np.where(p["lit"], 255, 0).astype(np.uint8)),
-        "relit.png": _png_bytes(to_8bit(p["relit"], mask)),
+        "relit.png": _png_bytes(to_8bit(p["relit"])),
         "novel_view.png": _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
     }
-    files["mesh.ply"] = mesh_ply_bytes(p["depth"], p["albedo"])
+    for light, relit in p["relit_extra"]:
+        files[f"relit_{light_name(light)}.png"] = _png_bytes(to_8bit(relit))
+    files["mesh.ply"] = mesh_ply_bytes(p["depth"], luminance(p["albedo"]))
     written = {}
     for name, data in files.items():
         atomic_write_bytes(folder / name, data)

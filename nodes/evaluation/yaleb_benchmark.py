@@ -24,7 +24,9 @@ import dataclasses
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
+from scipy import ndimage
 
 from ...flow.chain import Chain
 from ...flow.frame import Frame
@@ -34,6 +36,7 @@ from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..method.products import input_grid_products
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment, normals_to_input, normals_to_model
+from .photometric_stereo import register_translation, render
 from .yaleb import YaleSubject, build_ground_truth
 
 INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15), (-35, 15)]
@@ -69,6 +72,60 @@ def model_floor_normals(stereo_normals: np.ndarray, stereo_valid: np.ndarray, mo
     closest = model.closest_normals(n[model.mask], known[model.mask])
     return normals_to_input(model.to_image(closest.astype(np.float32)), model.mask, al,
                             stereo_valid.shape)
+
+
+def camera_shift(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> tuple[float, float]:
+    """(dx, dy) pixels that move ``photo`` (taken under ``light``) onto the subject's frontal photo:
+    each is registered to the stereo surface rendered under its own light (phase correlation)."""
+    _, (dx_in, dy_in) = register_translation(photo, render(subject.stereo, light))
+    _, (dx_f, dy_f) = register_translation(subject.frontal, render(subject.stereo, light_from_angles(0, 0)))
+    return dx_f - dx_in, dy_f - dy_in
+
+
+def translate(image: np.ndarray, shift: tuple[float, float]) -> np.ndarray:
+    """(H, W) ``image`` moved by ``shift`` = (dx, dy) pixels (bilinear, edges replicated)."""
+    mat = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]]])
+    img = np.nan_to_num(np.asarray(image, np.float32))
+    return cv2.warpAffine(img, mat, img.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def shadow_truth(subject: YaleSubject, photo: np.ndarray, light: np.ndarray, far_darker: float = 0.5) -> np.ndarray:
+    """(H, W) bool: where the photo is in shadow, by photometric stereo: attached where the stereo
+    normal faces away from the light (``n . s <= 0``); cast where it faces the light yet the photo
+    is far darker (under ``far_darker`` of it) than the stereo albedo x ``n . s`` predicts."""
+    st = subject.stereo
+    shading = np.nan_to_num(st.normals) @ np.asarray(light, np.float64)
+    predicted = np.nan_to_num(st.albedo) * np.clip(shading, 0.0, None)
+    attached = st.valid & (shading <= 0.0)
+    cast = st.valid & (shading > 0.0) & (np.asarray(photo) < far_darker * predicted)
+    return attached | cast
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    union = np.count_nonzero(a | b)
+    return float(np.count_nonzero(a & b) / union) if union else float("nan")
+
+
+def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: MethodOptions) -> dict:
+    """The frontal photo relit frontally with its true light: how much of the photo survives (PSNR
+    against itself, gain-corrected, over the face; and the share of its gradient energy kept)."""
+    chain = Chain([LoadNode(model, options), *method_nodes(model, options)])
+    frame = chain.process(Frame(0, str(subject.image_path(0, 0))))
+    if not frame.ok:
+        raise RuntimeError(frame.status)
+    out = input_grid_products(frame, model)
+    photo = frame.data["image"]
+    region = out["mask"] & subject.stereo.valid
+    relit = np.nan_to_num(out["relit"]).astype(np.float64)
+    gain = float(np.sum(photo[region] * relit[region]) / max(np.sum(relit[region] ** 2), 1e-12))
+    inner = ndimage.binary_erosion(region, iterations=2)
+
+    def energy(img: np.ndarray) -> float:
+        gy, gx = np.gradient(np.asarray(img, np.float64))
+        return float(np.sum((gx**2 + gy**2)[inner]))
+
+    return {"subject": subject.name, "psnr": relight_scores(relit, photo, region)[0],
+            "gradient_energy": energy(gain * relit) / max(energy(photo), 1e-12)}
 
 
 def clean_render(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> np.ndarray:
@@ -109,8 +166,17 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
             "err_others_mean": float("nan") if others_mean is None else _mean_error(others_mean, gt.normals, region),
             "iterations": frame.meta.get("iterations"), "seconds": seconds,
         }
-        row["psnr"], row["ssim"] = relight_scores(out["relit"], subject.frontal, region)
+        # the input and the frontal exposure were taken moments apart and moved by 0.5-3 px: score the
+        # relit photo (on the input's grid) moved into the frontal photo's place (camera_shift)
+        shift = camera_shift(subject, frame.data["image"], truth_light)
+        row["psnr"], row["ssim"] = relight_scores(translate(out["relit"], shift), subject.frontal, region)
+        row["psnr_unmoved"], _ = relight_scores(out["relit"], subject.frontal, region)
+        # exposure: the relit face's mean level against the real frontal photo's (no gain): the same
+        # face relit from every input light should come out alike
+        row["relit_level"] = float(np.mean(np.nan_to_num(out["relit"])[region]) / np.mean(subject.frontal[region]))
         row["psnr_input"], row["ssim_input"] = relight_scores(frame.data["image"], subject.frontal, region)
+        truth = shadow_truth(subject, frame.data["image"], truth_light)
+        row["shadow_iou"] = _iou(truth & region, ~out["lit"] & region)
         if bounds:
             al = frame.data["alignment"]
             row["err_floor"] = _mean_error(model_floor_normals(gt.normals, gt.valid, model, al), gt.normals, region)
@@ -151,12 +217,13 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
             m = np.nanmean(np.stack(others), axis=0)
             others_mean = m / np.linalg.norm(m, axis=-1, keepdims=True)
         rows.extend(evaluate_subject(s, model, options, others_mean, lights, estimate_light))
-    return {"rows": rows, "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
+    frontal = [frontal_self_relight(s, model, options) for s in subjects]
+    return {"rows": rows, "frontal": frontal, "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
 
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Means over subjects per input light, and over (+-A, E) pairs."""
-    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_input", "ssim",
+    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_unmoved", "relit_level", "shadow_iou", "psnr_input", "ssim",
             "ssim_input", "light_err_deg", "iterations", "seconds"]
     groups: dict[str, list[dict]] = {}
     for r in rows:

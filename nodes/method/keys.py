@@ -9,6 +9,7 @@ from __future__ import annotations
 # frame.data: key -> (what it holds, the node that writes it)
 DATA: dict[str, tuple[str, str]] = {
     "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given"),
+    "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given"),
     "light": ("(3,) unit light, input camera frame", "load, or given"),
     "alignment": ("``Alignment``: model pixel -> input pixel", "load, or given"),
     "grid_image": ("(Hm, Wm) the input resampled to the model grid", "load, or on_model_grid"),
@@ -26,6 +27,12 @@ DATA: dict[str, tuple[str, str]] = {
     "albedo_source": ("(Hm, Wm) uint8: 0 off-face, 1 measured, 2 mirrored, 3 filled", "albedo"),
     "relit": ("(Hm, Wm) the face under ``MethodOptions.relight_light``", "relight"),
     "novel_view": ("(Hm, Wm) the surface turned about the vertical axis", "relight"),
+    "photo_albedo": ("(H, W, C) albedo on the photo grid, C = 3 for a colour photo, NaN off the face",
+                     "relight_photo"),
+    "photo_shadow": ("(H, W) bool, the face's cast and attached shadows at the photo's resolution",
+                     "relight_photo"),
+    "photo_relit": ("list of (light (3,), (H, W, C) photo relit by it): ``relight_light``, ``extra_lights``",
+                    "relight_photo"),
 }
 
 # frame.meta: key -> (what it holds, who writes it); all JSON-friendly, summarised in summary.json

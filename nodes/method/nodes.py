@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+from scipy import ndimage
 
 from ...flow.frame import Frame, FrameFailed
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
@@ -19,19 +20,25 @@ from ..photo.align import (
     centred_alignment,
     eyes_alignment,
     inside_input,
+    mask_to_input,
+    normals_to_input,
+    scalar_to_input,
     stretch_vertically,
     to_model_grid,
 )
 from ..photo.eyes import detect_eyes
-from ..photo.loader import MIN_SIDE, InputError, load_image, read_sidecar, yaleb_light
+from ..photo.loader import MIN_SIDE, InputError, load_photo, luminance, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
+from .photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
 from .relight import FRONTAL, novel_view, relight
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
-from .shadow import confirm_with_image, shadow_maps
+from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, shadow_maps
 
+PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocular distances
+PHOTO_FEATHER = 0.5  # the relit face's light fades into the photo over this many interocular distances
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 
 
@@ -55,7 +62,8 @@ class MethodOptions:
     # line (``photo.mouth``) when the eyes were detected and the model knows its mouth; "off" keeps the
     # eyes' similarity; a number is the stretch itself
     face_length: str | float = "auto"
-    relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())
+    relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
+    extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
 
 
@@ -99,7 +107,9 @@ class LoadNode:
     def __call__(self, frame: Frame) -> Frame:
         from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
         if from_file:
-            frame.data["image"] = load_image(frame.source)
+            frame.data["image"], colour = load_photo(frame.source)
+            if colour is not None:
+                frame.data["colour"] = colour
         image = frame.data["image"]
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
@@ -284,11 +294,16 @@ class ShadowNode:
         self.mode, self.dark_threshold = mode, dark_threshold
 
     def __call__(self, frame: Frame) -> Frame:
-        dark = frame.data["remapped"] <= self.dark_threshold if self.mode == "confirmed" else None
-        # a confirmed cast shadow is dark in the image: only dark pixels need a ray traced
-        maps = shadow_maps(frame.data["depth"], frame.data["normals"], frame.data["grid_light"], candidates=dark)
+        d = frame.data
+        dark = far_dark = None
         if self.mode == "confirmed":
-            maps = confirm_with_image(maps, frame.data["remapped"], self.dark_threshold)
+            shading = np.nan_to_num(d["normals"]) @ np.asarray(d["grid_light"], np.float64)
+            far_dark = far_darker(d["remapped"], shading, np.isfinite(d["depth"]))
+            dark = (d["remapped"] <= self.dark_threshold) | far_dark
+        # a confirmed cast shadow is dark in the image: only dark pixels need a ray traced
+        maps = shadow_maps(d["depth"], d["normals"], d["grid_light"], candidates=dark)
+        if self.mode == "confirmed":
+            maps = confirm_with_image(maps, d["remapped"], self.dark_threshold, far_dark)
         frame.data["shadow"] = maps
         return frame
 
@@ -322,6 +337,48 @@ class RelightNode:
         return frame
 
 
+class PhotoRelightNode:
+    """The relit photo at its own resolution, in colour when the input is (``photo_relight``): the
+    photo-grid albedo, and the face under ``relight_light`` and each of ``extra_lights`` feathered
+    back into the photo."""
+
+    name = "relight_photo"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+        self.iod = float(np.linalg.norm(np.subtract(*model.eyes)))  # model pixels
+
+    def __call__(self, frame: Frame) -> Frame:
+        d, m = frame.data, self.model
+        al: Alignment = d["alignment"]
+        shape = d["image"].shape[:2]
+        photo = d["colour"] if "colour" in d else d["image"][..., None]
+        face = mask_to_input(m.mask, al, shape)
+        normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape))
+        shading = np.clip(normals @ np.asarray(d["light"], np.float64), 0.0, None)
+        coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
+        shadow = photo_shadows(luminance(photo[..., 0] if photo.shape[-1] == 1 else photo), shading,
+                               face & ~coarse_lit, face)
+        px = max(al.scale, 1.0)  # photo pixels per model pixel
+        # a shadow's soft edge (penumbra) is not lit skin either
+        lit = face & ~ndimage.binary_dilation(shadow, iterations=max(1, int(round(1.5 * px))))
+        coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
+        weight = trusted_weight(photo, shading, lit & face, face, 1.5 * px)
+        albedo = photo_albedo(photo, shading, weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
+        feather = PHOTO_FEATHER * self.iod * al.scale
+        gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
+        relit = []  # (light, image)
+        for light in (self.options.relight_light, *self.options.extra_lights):
+            s = np.asarray(light, np.float64) / np.linalg.norm(light)
+            cast = cast_shadow(d["depth"], al.vector_to_model(s))
+            cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
+            new_shading = np.where(cast_in, 0.0, np.clip(normals @ s, 0.0, None))
+            relit.append((np.asarray(light, np.float64),
+                          composite(gain * photo, gain * albedo * new_shading[..., None], face, feather)))
+        d["photo_albedo"], d["photo_relit"], d["photo_shadow"] = albedo, relit, shadow
+        return frame
+
+
 def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
                  with_views: bool = True) -> list:
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo);
@@ -337,5 +394,5 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         AlbedoNode(model),
     ]
     if with_views:
-        nodes.append(RelightNode(options))
+        nodes += [RelightNode(options), PhotoRelightNode(model, options)]
     return nodes

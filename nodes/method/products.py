@@ -10,7 +10,10 @@ from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
 
 
 def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
-    """The frame's results on the INPUT image's pixel grid (see ``conventions.md``)."""
+    """The frame's results on the INPUT image's pixel grid (see ``conventions.md``): mask,
+    normals, weights, depth (input pixels), lit (H, W); albedo (H, W) or (H, W, 3) for a colour
+    photo, NaN off the face; relit: the photo relit by ``relight_light`` (H, W[, 3]), the face
+    feathered into the untouched photo; relit_extra: ``(light, image)`` for each of ``extra_lights``."""
     d = frame.data
     al = d["alignment"]
     shape = d["image"].shape[:2]
@@ -24,8 +27,14 @@ def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray
         "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
         "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
         "depth": np.where(mask, depth, np.nan).astype(np.float32),
-        "albedo": np.where(mask, scalar_to_input(d["albedo"], m, al, shape), np.nan),
-        "lit": mask & (np.nan_to_num(lit) >= 0.5),
-        "relit": np.where(mask, scalar_to_input(d["relit"], m, al, shape), np.nan),
+        "albedo": _squeeze(d["photo_albedo"]),
+        "lit": mask & ~d["photo_shadow"] if "photo_shadow" in d else mask & (np.nan_to_num(lit) >= 0.5),
+        "relit": _squeeze(d["photo_relit"][0][1]),
+        "relit_extra": [(light, _squeeze(r)) for light, r in d["photo_relit"][1:]],
     }
     return out
+
+
+def _squeeze(image: np.ndarray) -> np.ndarray:
+    """(H, W, 1) -> (H, W); colour (H, W, 3) stays."""
+    return image[..., 0] if image.ndim == 3 and image.shape[2] == 1 else image

@@ -83,7 +83,26 @@ def shadow_maps(depth: np.ndarray, normals: np.ndarray, light: np.ndarray, bias:
     return ShadowMaps(cast=cast, attached=attached)
 
 
-def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: float) -> ShadowMaps:
+def far_darker(intensity: np.ndarray, shading: np.ndarray, face: np.ndarray, relative: float = 0.45,
+               min_shading: float = 0.4, floor: float = 0.0) -> np.ndarray:
+    """(H, W) bool: face pixels far darker than the shape lets them be, ``I < relative x rho x S``,
+    with ``rho`` the face's typical albedo (the median of ``I / S`` where ``S >= min_shading``)
+    and ``S = max(n . s, 0)``. A photo's shadows keep some ambient light, so they are far darker
+    than predicted without being black; dark skin (brows, beard) is too, and is told apart from
+    shadow by connection to the shape's own shadows (``confirm_with_image``).
+    intensity, shading (H, W); face (H, W) bool. floor: the shading is taken as at least this, so a
+    pixel facing away from the light is dark only when it is dark in absolute terms too."""
+    I = np.nan_to_num(np.asarray(intensity, np.float64))
+    S = np.clip(np.nan_to_num(np.asarray(shading, np.float64)), 0.0, None)
+    bright = face & (S >= min_shading)
+    if bright.sum() < 20:
+        return np.zeros_like(face)
+    rho = float(np.median(I[bright] / S[bright]))
+    return face & (I < relative * rho * np.maximum(S, floor))
+
+
+def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: float,
+                       far_dark: np.ndarray | None = None) -> ShadowMaps:
     """Reconcile traced cast shadows with the image they must explain.
 
     A pixel clearly lit in the image (``intensity > dark_threshold``) cannot be in cast
@@ -91,11 +110,37 @@ def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: 
     through dark pixels) to a traced cast shadow joins it. Dark pixels NOT connected to any
     traced shadow stay lit: they are dark albedo (brows, beard), the distinction the
     paper draws with the recovered shape. intensity (H, W) remapped brightness.
+    far_dark (H, W) bool (``far_darker``): pixels far darker than predicted count as dark too, so
+    a photo's real shadows, which ambient light keeps above ``dark_threshold``, are found; dark
+    regions that run on from the attached side join the attached shadow (the real surface turns
+    from the light sooner than the fitted one).
     """
     dark = np.asarray(intensity) <= dark_threshold
-    cast = maps.cast & dark
+    if far_dark is not None:
+        dark = dark | far_dark
     candidates = dark & ~maps.attached
     labels, _ = ndimage.label(candidates, structure=np.ones((3, 3), bool))
-    seeds = np.unique(labels[cast])
-    grown = np.isin(labels, seeds[seeds > 0])
-    return ShadowMaps(cast=grown & candidates, attached=maps.attached)
+    seeds = np.unique(labels[maps.cast & dark])
+    cast = np.isin(labels, seeds[seeds > 0]) & candidates
+    attached = maps.attached
+    if far_dark is not None:  # dark regions running on from the attached side: the surface turns away sooner
+        beside = np.unique(labels[ndimage.binary_dilation(maps.attached) & candidates & ~cast])
+        attached = attached | (np.isin(labels, beside[beside > 0]) & candidates & ~cast)
+    return ShadowMaps(cast=cast, attached=attached)
+
+
+# a pixel the fitted shape turns from the light is in shadow on the photo when it is darker than 0.45 x
+# this x the typical albedo: real attached shadows keep only ambient light; skin the fit turned too far is brighter
+PHOTO_SHADOW_FLOOR = 0.3
+
+
+def photo_shadows(intensity: np.ndarray, shading: np.ndarray, coarse: np.ndarray, face: np.ndarray,
+                  relative: float = 0.45) -> np.ndarray:
+    """(H, W) bool: the shadows at the photo's resolution. The model grid's shadows (``coarse``,
+    mapped to the photo) say where; the photo says exactly which pixels: those far darker than
+    predicted (``far_darker``) in regions that meet the coarse shadows. A coarse shadow pixel the
+    photo shows lit is lit. intensity, shading (H, W) on the photo grid; coarse, face (H, W) bool."""
+    dark = far_darker(intensity, shading, face, relative, floor=PHOTO_SHADOW_FLOOR)
+    labels, _ = ndimage.label(dark, structure=np.ones((3, 3), bool))
+    seeds = np.unique(labels[ndimage.binary_dilation(coarse) & dark])
+    return np.isin(labels, seeds[seeds > 0]) & face

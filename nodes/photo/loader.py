@@ -90,8 +90,23 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
     return np.clip(arr, 0.0, 1.0).astype(np.float32)
 
 
+LUMA = np.array([0.299, 0.587, 0.114], np.float32)  # ITU-R BT.601 weights of R, G, B (OpenCV's BGR2GRAY)
+
+
+def luminance(image: np.ndarray) -> np.ndarray:
+    """(H, W) brightness of an RGB image (H, W, 3); a grey (H, W) image is returned as it is."""
+    a = np.asarray(image)
+    return a @ LUMA if a.ndim == 3 else a
+
+
 def load_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image as (H, W) float32 brightness in [0, 1].
+    """Read an image as (H, W) float32 brightness in [0, 1] (``load_photo`` without its colour)."""
+    return load_photo(path)[0]
+
+
+def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read an image as ``(grey (H, W) float32 brightness in [0, 1], colour (H, W, 3) float32 RGB in
+    [0, 1] or None for a grey image)``.
 
     PNG / JPEG / PGM / TIFF / BMP, 8 or 16 bit or float, grey, colour or palette (to luminance,
     ITU-R BT.601 weights as OpenCV's ``BGR2GRAY``), an alpha channel ignored, EXIF orientation
@@ -102,6 +117,7 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     """
     p = Path(path)
     data = _read_file(p)
+    colour = None
     if p.suffix.lower() == ".npy":
         img = _load_npy(p, data)
     else:
@@ -120,7 +136,12 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
         raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
         if raw is None:
             raise InputError(f"{p}: corrupt or truncated {kind} data")
+        colour_raw = None
         if raw.ndim == 3:
+            if raw.shape[2] == 4:
+                raw = raw[..., :3]
+            if not (np.array_equal(raw[..., 0], raw[..., 1]) and np.array_equal(raw[..., 1], raw[..., 2])):
+                colour_raw = raw[..., ::-1]  # BGR -> RGB; a grey image stored as RGB stays grey
             raw = cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY)
         if raw.dtype == np.uint8:
             img = raw.astype(np.float32) / 255.0
@@ -133,10 +154,13 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
         else:
             raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
         img = np.clip(img, 0.0, 1.0)
+        if colour_raw is not None:
+            scale = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(colour_raw.dtype, 1.0)
+            colour = np.clip(np.nan_to_num(colour_raw.astype(np.float32) / scale), 0.0, 1.0)
     lo, hi = float(img.min()), float(img.max())
     if hi - lo < 1.0 / 255.0:
         raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
-    return img
+    return img, colour
 
 
 def yaleb_angles(path: str | os.PathLike) -> tuple[int, int]:

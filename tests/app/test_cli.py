@@ -37,9 +37,14 @@ def test_run_writes_the_conventions_layout(demo_run):
         for name in ("weights.npy", "depth.npy"):
             a = np.load(folder / name, allow_pickle=False)
             assert a.shape == (h, w) and np.all(np.isnan(a[~mask])) and np.all(np.isfinite(a[mask]))
-        for name in ("albedo.png", "shadow.png", "relit.png"):
+        for name in ("albedo.png", "shadow.png"):
             img = cv2.imread(str(folder / name), cv2.IMREAD_UNCHANGED)
             assert img.shape == (h, w) and img.dtype == np.uint8 and not img[~mask].any()
+        # relit.png is the whole photo, the face relit and put back: grey in, grey out, same size;
+        # the black background of these renders stays black
+        relit = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
+        assert relit.shape == (h, w) and relit.dtype == np.uint8
+        assert not relit[(src == 0) & ~mask].any() and relit[mask].mean() > 40
         assert rec["light_source"] == "sidecar" and rec["converged"] in (True, False)
         assert rec["iterations"] >= 1 and rec["final_sigma"] > 0
 
@@ -62,9 +67,13 @@ def test_run_recovers_the_demo_faces(demo_run):
         err = np.mean(angle_deg(n[ok], scene.normals[ok]))
         relit = cv2.imread(str(folder / "relit.png"), 0) / 255.0
         truth = albedo * np.clip(scene.normals[..., 2], 0, 1)
-        relit_err = np.mean(np.abs(relit[ok] - truth[ok]))
+        gain = np.sum(relit[ok] * truth[ok]) / np.sum(relit[ok] ** 2)  # relit.png is auto-exposed
+        relit_err = np.mean(np.abs(gain * relit[ok] - truth[ok]))
         shadow = cv2.imread(str(folder / "shadow.png"), 0) == 255
-        agree = np.mean(shadow[ok] == scene.shadows.lit[ok])
+        # shadow.png is found on the photo (far darker than the shape predicts): at grazing light,
+        # n.s under 0.1, a pixel is near black either way and counts as neither
+        clear = ok & (np.abs(np.nan_to_num(scene.normals) @ s) >= 0.1)
+        agree = np.mean(shadow[clear] == scene.shadows.lit[clear])
         # held-out ICT identities, default (ICT) model: its floor on such faces is 5.6 deg (`shadowflow eval
         # --source ict --model ict`), the ears and nostrils it cannot represent at K = 60
         assert err < 8.0 and relit_err < 0.06 and agree > 0.95, (err, relit_err, agree)
