@@ -1,0 +1,97 @@
+"""Relighting on the photo's grid: albedo measured where lit and filled without a seam, the face put
+back into the photo, exposure independent of the lamp, shadows found on the photo."""
+import numpy as np
+import pytest
+from shadowflow.nodes.method.photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
+from shadowflow.nodes.method.shadow import far_darker, photo_shadows
+
+
+def _sphere(n=120, r=50.0):
+    """Unit normals (n, n, 3) of a hemisphere, camera frame (y up), and its disc."""
+    rows, cols = np.mgrid[0:n, 0:n].astype(float)
+    x, y = (cols - n / 2 + 0.5) / r, -(rows - n / 2 + 0.5) / r
+    face = x**2 + y**2 < 0.95
+    z = np.sqrt(np.clip(1 - x**2 - y**2, 0, None))
+    return np.dstack([x, y, z]) * face[..., None], face
+
+
+def _albedo(face, rng):
+    """A textured albedo: smooth level and colour plus fine detail (pores), RGB."""
+    n = face.shape[0]
+    yy, xx = np.mgrid[0:n, 0:n] / n
+    level = 0.6 + 0.15 * np.sin(3 * xx) * np.cos(2 * yy)
+    detail = 1 + 0.08 * rng.standard_normal(face.shape)
+    return np.dstack([level * detail * c for c in (1.0, 0.8, 0.65)])
+
+
+def test_lit_skin_keeps_its_detail_and_the_shadowed_side_takes_the_matched_fill():
+    rng = np.random.default_rng(0)
+    n, face = _sphere()
+    truth = _albedo(face, rng)
+    s = np.array([-0.6, 0.0, 0.8])
+    shading = np.clip(n @ s, 0, None)
+    photo = truth * shading[..., None]
+    lit = face & (shading > 0)
+    w = trusted_weight(photo, shading, lit, face, 2.0)
+    coarse = 0.7 * truth.mean(axis=-1)  # the fit's albedo: grey, smooth in truth, wrong in level
+    albedo = photo_albedo(photo, shading, w, coarse, face, 6.0)
+    full = face & (w > 0.999)
+    np.testing.assert_allclose(albedo[full], truth[full], rtol=1e-4)  # measured: every pore kept
+    dark = face & (shading < 0.05)
+    rel = np.abs(albedo[dark] / truth[dark] - 1)
+    assert np.median(rel) < 0.12  # level and colour carried over from the lit side
+    # no seam: along a row, the albedo changes across the trust boundary no more than inside the lit part
+    row = albedo[60, :, 0]
+    steps = np.abs(np.diff(row[np.isfinite(row)]))
+    assert steps.max() < 0.25
+
+
+def test_the_relit_face_goes_back_into_the_photo_without_a_seam():
+    rng = np.random.default_rng(1)
+    _, face = _sphere()
+    photo = rng.uniform(0.2, 0.4, face.shape + (3,))
+    relit_face = np.where(face[..., None], 0.7, np.nan)
+    out = composite(photo, relit_face, face, feather_px=10.0)
+    np.testing.assert_allclose(out[face], 0.7, atol=1e-6)
+    far = ~np.pad(face, 0)  # beyond the feather the photo is untouched
+    from scipy import ndimage
+    dist = ndimage.distance_transform_edt(~face)
+    np.testing.assert_allclose(out[dist > 10.5], photo[dist > 10.5], atol=1e-6)
+    assert far.any()
+    # inside the feather the photo is brightened toward the face's level, most at the face's edge
+    edge = (dist > 0) & (dist <= 2)
+    assert np.median(out[edge] / photo[edge]) > 1.5
+
+
+def test_exposure_does_not_depend_on_the_lamp():
+    """The same face photographed under a lamp 1.5x stronger: its albedo estimate is 1.5x, the
+    relit photo's exposure is the same."""
+    rng = np.random.default_rng(2)
+    n, face = _sphere()
+    truth = _albedo(face, rng)
+    gains = [exposure_gain(k * truth, n, face) for k in (1.0, 1.5)]
+    assert gains[0] == pytest.approx(1.5 * gains[1], rel=1e-9)
+    relit_median = np.median(gains[0] * truth[face].mean(axis=-1) * n[face][:, 2])
+    assert relit_median == pytest.approx(0.6, rel=0.01)
+
+
+def test_shadows_on_the_photo_are_the_far_darker_regions_that_meet_the_shapes_shadows():
+    """Lit from the side with 8 % ambient light: the attached side and a cast shadow (a band the
+    traced map puts a little off) are found at the photo's resolution; a dark brow (under a third of
+    the skin's albedo) in the light is not a shadow."""
+    rng = np.random.default_rng(3)
+    n, face = _sphere()
+    albedo = np.full(face.shape, 0.7)
+    albedo[30:36, 40:80] = 0.2  # the brow: far darker than skin
+    s = np.array([-0.6, 0.0, 0.8])
+    shading = np.clip(n @ s, 0, None)
+    cast = face & (np.abs(np.mgrid[0:120, 0:120][0] - 75) < 4) & (shading > 0.3)
+    photo = albedo * (np.where(cast, 0.0, shading) + 0.08) * (1 + 0.02 * rng.standard_normal(face.shape))
+    coarse = (face & (shading <= 0)) | np.roll(cast, 2, axis=0)  # the model grid's idea, 2 px off
+    found = photo_shadows(photo, shading, coarse, face)
+    truth = (face & (shading <= 0)) | cast
+    clear = ~((shading > 0) & (shading < 0.1))  # grazing light: near black either way, counts as neither
+    iou = np.count_nonzero(found & truth & clear) / np.count_nonzero((found | truth) & clear)
+    assert iou > 0.9, iou
+    assert not found[30:36, 40:60].any()  # the brow, on the lit side
+    assert far_darker(photo, shading, face)[cast].mean() > 0.95
