@@ -38,7 +38,7 @@ from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, shadow_maps
 
 PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocular distances
-PHOTO_FEATHER = 0.5  # the relit face's light fades into the photo over this many interocular distances
+PHOTO_FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 
 

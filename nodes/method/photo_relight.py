@@ -20,6 +20,10 @@ from scipy import ndimage
 # relight) a ramp from 0.2 relit 0.3 / 0.3 / 0.0 dB worse: the division amplifies the normals' errors.
 TRUST_SHADING = (0.4, 0.6)
 CLIPPED = 0.995  # brightness at or above this in any channel: the skin's value is unknown
+MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
+# outside the face the photo follows the face's change of light at most this far (a face's shadowed side
+# brightened 5x would otherwise light its dark background up as a halo)
+RATIO_OUTSIDE = (0.5, 1.6)
 EXPOSURE_PERCENTILE = 50.0  # the relit face's median ...
 EXPOSURE_TARGET = 0.6  # ... is exposed at this level (``exposure_gain``)
 
@@ -46,10 +50,16 @@ def weighted_blur(values: np.ndarray, weights: np.ndarray, sigma: float) -> tupl
 def trusted_weight(photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, face: np.ndarray,
                    feather_px: float) -> np.ndarray:
     """(H, W) in [0, 1]: how far the measured albedo ``I / S`` is trusted. Zero off the face, in
-    cast or attached shadow (``lit`` False), where any channel is clipped, and where the shading is
-    under ``TRUST_SHADING``; feathered over ``feather_px`` so the blend has no edge."""
-    clipped = np.any(np.atleast_3d(photo) >= CLIPPED, axis=-1)
+    cast or attached shadow (``lit`` False), where any channel is clipped, where a colour photo is
+    not the face's skin colour, and where the shading is under ``TRUST_SHADING``; feathered over
+    ``feather_px`` so the blend has no edge."""
+    img = np.atleast_3d(photo)
+    clipped = np.any(img >= CLIPPED, axis=-1)
     hard = face & lit & ~clipped
+    if img.shape[-1] == 3 and hard.sum() > 50:  # not skin-coloured (hair, background inside the model's face)
+        chroma = img / np.maximum(img.sum(axis=-1, keepdims=True), 1e-6)
+        skin = np.median(chroma[hard], axis=0)
+        hard &= np.linalg.norm(chroma - skin, axis=-1) < MAX_CHROMA_DISTANCE
     soft = ndimage.gaussian_filter(hard.astype(np.float64), feather_px, mode="nearest")
     soft = np.where(hard, soft, 0.0)  # feather inward only: nothing outside the trusted set
     return np.clip(2.0 * soft - 0.5, 0.0, 1.0) * smoothstep(shading, *TRUST_SHADING)
@@ -111,7 +121,7 @@ def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feath
     sigma = max(feather_px / 2.0, 1.0)
     num, support = weighted_blur(relit, face, sigma)
     den, _ = weighted_blur(img, face, sigma)
-    ratio = np.clip(num / np.maximum(den, 1e-3), 0.0, 8.0)
+    ratio = np.clip(num / np.maximum(den, 1e-3), *RATIO_OUTSIDE)
     distance = ndimage.distance_transform_edt(~face)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     outside = img * (1.0 + fade * (ratio - 1.0))

@@ -63,3 +63,54 @@ def test_fit_takes_an_array_as_the_file_loader_reads_it(tmp_path, procedural_mod
         shadowflow.fit(np.zeros((4, 4, 4, 4)), model=procedural_model)
     with pytest.raises(InputError, match="no contrast"):
         shadowflow.fit(np.full((200, 200), 0.5), model=procedural_model)
+
+
+def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_relit(tmp_path, procedural_model):
+    """A face lit from the left, skin-coloured, in a larger frame with a coloured background: the
+    relit photo is that frame, in colour, the face lit from the front, the background untouched
+    but for the one exposure gain."""
+    import json
+
+    import cv2
+
+    face_png = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(8), light_from_angles(50))
+    grey = cv2.imread(str(face_png), cv2.IMREAD_GRAYSCALE) / 255.0
+    h, w = 260, 300
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    frame = np.dstack([0.2 + 0.3 * xx, 0.5 - 0.2 * yy, 0.3 + 0.1 * xx * yy])  # RGB background
+    top, left = 60, 90
+    region = frame[top:top + 128, left:left + 128]
+    on_face = grey > 0
+    region[on_face] = grey[on_face][:, None] * np.array([1.0, 0.78, 0.62])  # skin
+    photo = tmp_path / "portrait.png"
+    cv2.imwrite(str(photo), (np.clip(frame, 0, 1)[..., ::-1] * 255 + 0.5).astype(np.uint8))
+    side = json.loads(face_png.with_suffix(".json").read_text())
+    eyes = (np.array(side["eyes"]) + [left, top]).tolist()
+    photo.with_suffix(".json").write_text(json.dumps({"light": side["light"], "eyes": eyes}))
+
+    result = shadowflow.fit(photo, model=procedural_model)
+    relit = result.relit
+    assert relit.shape == (h, w, 3) and result.albedo.shape == (h, w, 3)
+    face = result.mask
+    rgb = relit[face].mean(axis=0)
+    assert rgb[0] > rgb[1] > rgb[2]  # still skin-coloured
+    # the background, far from the face, is the photo times one gain
+    from scipy import ndimage
+
+    far = ndimage.distance_transform_edt(~face) > 40
+    original = cv2.imread(str(photo))[..., ::-1] / 255.0
+    ratio = relit[far] / np.maximum(original[far], 1e-3)
+    assert far.sum() > 10000 and np.std(ratio) < 0.01 * np.mean(ratio)
+    # lit from the front: the face's two halves come out about as bright; in the photo the far one is dark
+    cols = np.nonzero(face.any(axis=0))[0]
+    mid = (cols.min() + cols.max()) // 2
+    left_half, right_half = face.copy(), face.copy()
+    left_half[:, mid:] = False
+    right_half[:, :mid] = False
+    lum = relit.mean(axis=-1)
+    before = original.mean(axis=-1)
+    assert before[right_half].mean() < 0.6 * before[left_half].mean()
+    assert 0.8 < lum[right_half].mean() / lum[left_half].mean() < 1.25
+    result.save(tmp_path / "out")
+    saved = cv2.imread(str(tmp_path / "out" / "relit.png"), cv2.IMREAD_UNCHANGED)
+    assert saved.shape == (h, w, 3)

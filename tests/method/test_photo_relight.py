@@ -2,6 +2,7 @@
 back into the photo, exposure independent of the lamp, shadows found on the photo."""
 import numpy as np
 import pytest
+from scipy import ndimage
 from shadowflow.nodes.method.photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
 from shadowflow.nodes.method.shadow import far_darker, photo_shadows
 
@@ -53,11 +54,9 @@ def test_the_relit_face_goes_back_into_the_photo_without_a_seam():
     relit_face = np.where(face[..., None], 0.7, np.nan)
     out = composite(photo, relit_face, face, feather_px=10.0)
     np.testing.assert_allclose(out[face], 0.7, atol=1e-6)
-    far = ~np.pad(face, 0)  # beyond the feather the photo is untouched
-    from scipy import ndimage
-    dist = ndimage.distance_transform_edt(~face)
+    dist = ndimage.distance_transform_edt(~face)  # beyond the feather the photo is untouched
+    assert (dist > 10.5).any()
     np.testing.assert_allclose(out[dist > 10.5], photo[dist > 10.5], atol=1e-6)
-    assert far.any()
     # inside the feather the photo is brightened toward the face's level, most at the face's edge
     edge = (dist > 0) & (dist <= 2)
     assert np.median(out[edge] / photo[edge]) > 1.5
