@@ -79,6 +79,18 @@ def _face_length(text: str) -> str | float:
     return f
 
 
+def _view_angle(deg: float) -> float:
+    if not -90.0 <= deg <= 90.0:
+        raise ValueError(f"--view-angle turns the face by -90 to 90 degrees, not {deg:g}")
+    return deg
+
+
+def _view_size(px: int | None) -> int | None:
+    if px is not None and not 32 <= px <= 4096:
+        raise ValueError(f"--view-size is a side of 32 to 4096 pixels, not {px}")
+    return px
+
+
 def _load_model(spec: str | None):
 
     return resolve_model(spec)
@@ -130,7 +142,9 @@ def cmd_run(args: argparse.Namespace) -> int:
                                             args.cone_trust),
                             integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
                             detect_eyes=args.eyes == "auto", shadows=args.shadows,
-                            face_length=_face_length(args.face_length))
+                            face_length=_face_length(args.face_length),
+                            extra_lights=tuple(parse_light(x) for x in args.relight or ()),
+                            novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size))
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
@@ -314,6 +328,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--eyes", default="auto",
                    help="auto (detect; default) | centre (a frontal crop framed like the model) | "
                         "X1,Y1,X2,Y2 input eye centres, image-left eye first; a sidecar's eyes win")
+    r.add_argument("--relight", action="append", metavar="X,Y,Z",
+                   help="also relight toward this light (camera frame; repeatable): relit_A<az>E<el>.png per light, "
+                        "beside relit.png (frontal)")
+    r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
+                   help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
+    r.add_argument("--view-size", type=int, metavar="PX",
+                   help="novel_view.png's height and width in pixels (default: the model grid's)")
     r.add_argument("--record", default="rerun,mcap", help="rerun,mcap | rerun | mcap | none (files run.rrd, run.mcap in --out)")
     r.add_argument("--record-every", type=int, default=1, metavar="N",
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")

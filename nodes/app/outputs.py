@@ -140,6 +140,7 @@ def summary_record(frame: Frame) -> dict:
         "source": frame.source,
         "stem": m.get("stem"),
         "status": frame.status,
+        "quality": m.get("quality"),
         "light": m.get("light"),
         "light_source": m.get("light_source"),
         "alignment": m.get("alignment"),
@@ -150,6 +151,9 @@ def summary_record(frame: Frame) -> dict:
     }
     if frame.failed_in:
         rec["failed_in"] = frame.failed_in
+    flags = (m.get("quality") or {}).get("flags")
+    if frame.ok and flags:  # outputs written, but the user should look before trusting them
+        rec["status"] = "doubtful: " + "; ".join(flags)
     return rec
 
 

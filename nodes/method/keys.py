@@ -12,6 +12,7 @@ DATA: dict[str, tuple[str, str]] = {
     "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given"),
     "light": ("(3,) unit light, input camera frame", "load, or given"),
     "alignment": ("``Alignment``: model pixel -> input pixel", "load, or given"),
+    "eyes_found": ("how the eyes were placed: detected | one mirrored | given | centre asked | none", "load"),
     "grid_image": ("(Hm, Wm) the input resampled to the model grid", "load, or on_model_grid"),
     "grid_valid": ("(Hm, Wm) bool, model pixels inside the photo (absent: all)", "load"),
     "grid_light": ("(3,) the light in the model's camera frame", "load, or on_model_grid"),
@@ -47,6 +48,7 @@ META: dict[str, tuple[str, str]] = {
     "iterations": ("fit iterations", "robust_fit"),
     "converged": ("whether the fit met its stopping rule", "robust_fit"),
     "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
+    "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
     "timings": ("seconds per node", "the flow engine"),
 }

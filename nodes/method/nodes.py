@@ -32,7 +32,8 @@ from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
 from .photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
-from .relight import FRONTAL, novel_view, relight
+from .quality import assess, core_face, explained_variance
+from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, shadow_maps
@@ -65,6 +66,7 @@ class MethodOptions:
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
+    novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
 
 
 class FitObserver(Protocol):
@@ -115,10 +117,11 @@ class LoadNode:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
         if "alignment" in frame.data:  # given: e.g. a render put in a photo's place
+            frame.data["eyes_found"] = "given"
             al = eyes_al = frame.data["alignment"]
             grid_image = eyes_grid = to_model_grid(image, al, self.model.grid)
         else:
-            eyes_al, detected = self._eyes_alignment(image, side)
+            eyes_al, detected, frame.data["eyes_found"] = self._eyes_alignment(image, side)
             eyes_grid = to_model_grid(image, eyes_al, self.model.grid)
             al = self._face_length(eyes_grid, eyes_al, detected)
             grid_image = eyes_grid if al is eyes_al else to_model_grid(image, al, self.model.grid)
@@ -134,20 +137,22 @@ class LoadNode:
         frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
         return frame
 
-    def _eyes_alignment(self, image: np.ndarray, side) -> tuple[Alignment, bool]:
-        """The similarity from the eyes (sidecar, given or detected; else a centred crop) and
-        whether they were detected."""
+    def _eyes_alignment(self, image: np.ndarray, side) -> tuple[Alignment, bool, str]:
+        """The similarity from the eyes (sidecar, given or detected; else a centred crop), whether
+        they were detected, and how they were placed (``eyes_found``)."""
         if side is not None and side.eyes is not None:
-            return eyes_alignment(side.eyes, self.model.eyes, "sidecar eyes"), False
+            return eyes_alignment(side.eyes, self.model.eyes, "sidecar eyes"), False, "given"
         if self.options.eyes is not None:
-            return eyes_alignment(self.options.eyes, self.model.eyes, "given eyes"), False
-        why = "eye detection off"
+            return eyes_alignment(self.options.eyes, self.model.eyes, "given eyes"), False, "given"
+        why, found = "eye detection off", "centre asked"
         if self.options.detect_eyes:
             eyes, why = detect_eyes(image)
             if eyes is not None:
-                return eyes_alignment(eyes, self.model.eyes, why), True
+                found = "detected" if why == "eyes found" else "one mirrored"
+                return eyes_alignment(eyes, self.model.eyes, why), True, found
+            found = "none"
         al = centred_alignment(image.shape, self.model.grid)
-        return Alignment(al.matrix, f"{al.how} ({why})"), False
+        return Alignment(al.matrix, f"{al.how} ({why})"), False, found
 
     def _face_length(self, eyes_grid: np.ndarray, al: Alignment, detected: bool) -> Alignment:
         """``al`` stretched to the face's length (``MethodOptions.face_length``); eyes_grid: the
@@ -333,7 +338,10 @@ class RelightNode:
         light = al.vector_to_model(self.options.relight_light)
         frame.data["relit"] = relight(frame.data["albedo"], np.nan_to_num(shading_normals(frame)), light,
                                       frame.data["depth"])
-        frame.data["novel_view"] = novel_view(frame.data["depth"], frame.data["albedo"], self.options.novel_yaw_deg)
+        depth, albedo = frame.data["depth"], frame.data["albedo"]
+        if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
+            depth, albedo = resample_surface(depth, albedo, self.options.novel_size)
+        frame.data["novel_view"] = novel_view(depth, albedo, self.options.novel_yaw_deg)
         return frame
 
 
@@ -379,6 +387,35 @@ class PhotoRelightNode:
         return frame
 
 
+class QualityNode:
+    """Is there a face and did the fit work (``quality``): ``meta["quality"]`` holds the score,
+    flags and signals; a frame with no face fails with that reason."""
+
+    name = "quality"
+
+    def __init__(self, model: ShapeModel):
+        self.model = model
+        self.core = core_face(model)[model.mask]
+
+    def __call__(self, frame: Frame) -> Frame:
+        d, m = frame.data, self.model
+        seen = seen_pixels(frame, m)
+        r = d["fit"]
+        shading = np.clip(r.model_normals @ np.asarray(d["grid_light"], np.float64), 0.0, None)
+        use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~d.get("saturated", np.zeros(m.n_pixels, bool))
+        al: Alignment = d["alignment"]
+        h, w = d["image"].shape[:2]
+        q = assess(eyes=d.get("eyes_found", "given"),
+                   explained=explained_variance(d["remapped"][m.mask], shading, use),
+                   downweighted=float(np.mean(r.weights[seen] < 0.5)) if seen.any() else 1.0,
+                   clipped=float(np.mean(d.get("saturated", np.zeros(1, bool))[seen])) if seen.any() else 0.0,
+                   face_area=float(m.n_pixels * al.scale**2 / (h * w)), inside=float(np.mean(seen[self.core])))
+        frame.meta["quality"] = q.record()
+        if q.no_face:
+            raise FrameFailed(f"{frame.source}: no face found ({'; '.join(q.flags)})")
+        return frame
+
+
 def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
                  with_views: bool = True) -> list:
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo);
@@ -395,4 +432,5 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
     ]
     if with_views:
         nodes += [RelightNode(options), PhotoRelightNode(model, options)]
+    nodes.append(QualityNode(model))
     return nodes

@@ -50,6 +50,22 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
     return np.nan_to_num(np.clip(img, 0.0, 1.0)).astype(np.float32)
 
 
+def resample_surface(depth: np.ndarray, albedo: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """The surface (heights in pixels, NaN off it) and its albedo resampled to ``size`` x ``size``
+    (a square grid, as the model's): heights scale with the pixels."""
+    import cv2
+
+    h, w = depth.shape
+    factor = size / max(h, w)
+    out_hw = (max(1, int(round(w * factor))), max(1, int(round(h * factor))))
+    valid = np.isfinite(depth).astype(np.float32)
+    cover = cv2.resize(valid, out_hw, interpolation=cv2.INTER_LINEAR)
+    d = cv2.resize(np.nan_to_num(depth).astype(np.float32), out_hw, interpolation=cv2.INTER_LINEAR)
+    a = cv2.resize(np.nan_to_num(albedo).astype(np.float32), out_hw, interpolation=cv2.INTER_LINEAR)
+    inside = cover >= 0.999
+    return np.where(inside, d * factor, np.nan), np.where(inside, a, np.nan)
+
+
 def surface_mesh(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:
     """Mesh of a height field (NaN off the surface): vertices (V, 3) float32 (x = column,
     y = -row, z = height, pixels), triangles (T, 3) uint32 wound counter-clockwise seen from +z,

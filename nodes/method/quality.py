@@ -1,0 +1,100 @@
+"""Is there a face, and did the fit work? Per-frame signals, a score and flags.
+
+Signals (all measured on what the method already computed):
+- ``eyes``: how the eyes were placed: detected (a pair, or one mirrored), given, or none found;
+- ``explained``: the share of the face's brightness variation the fitted shape explains, ``1 -
+  var(I - rho S) / var(I)`` over the lit face (``S`` the fitted model's shading, ``rho`` the
+  median albedo): faces give 0.55-0.95; noise, patterns, text, landscapes and faces turned away
+  from the model's orientation give less;
+- ``downweighted``: the share of the face the robust fit did not trust (weight under 0.5);
+- ``clipped``: the share of the face clipped by over-exposure;
+- ``face_area``: the face's share of the frame; ``inside``: the share of the face's core (brows to
+  mouth between the outer eye corners, ``core_face``) inside the frame: tight crops such as Yale B's
+  keep all of it though the model's forehead and chin run past them.
+
+The score is ``explained`` scaled down by each problem, and halved by each flag; ``flags`` name
+the problems. A frame with
+no eyes found whose fit explains little has no face: it fails with that reason. A frame with a flag
+is doubtful: its outputs are written and its status says why.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# thresholds, measured on the demo faces, procedural renders and Yale B photos (good) against the
+# hostile corpus of tests/method/test_quality.py (bad); see README, "Quality"
+# explained: Yale B photos 0.33-0.82, rendered faces 0.90-0.96; non-faces -12.8-0.28, faces upside down 0.31
+MIN_EXPLAINED = 0.25  # a face's shading explains at least this much of its brightness
+NO_FACE_EXPLAINED = 0.6  # without eyes found, the fit must explain this much to count as a face
+MAX_DOWNWEIGHTED = 0.7  # Yale B 0.28-0.48, rendered faces 0.35-0.54
+MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles (the 27 %-clipped face of tests/app/test_hostile.py fits)
+MIN_FACE_AREA = 0.08  # of the frame
+MIN_INSIDE = 0.75  # of the face's core inside the frame: Yale B crops keep 0.88-1, a face cut by the edge 0.32
+
+
+@dataclass
+class Quality:
+    """score in [0, 1]; flags: the problems, one phrase each; signals: the measurements; no_face:
+    the frame holds no face the method can use."""
+
+    score: float
+    flags: list[str] = field(default_factory=list)
+    signals: dict[str, float | str] = field(default_factory=dict)
+    no_face: bool = False
+
+    def record(self) -> dict:
+        return {"score": round(self.score, 3), "flags": list(self.flags),
+                **{k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.signals.items()}}
+
+
+def core_face(model) -> np.ndarray:
+    """(Hm, Wm) bool: the model's face from the brows to below the mouth, between the outer eye
+    corners: what a usable photo shows whole."""
+    eyes = np.asarray(model.eyes, np.float64)
+    iod = float(np.linalg.norm(eyes[1] - eyes[0]))
+    rows, cols = np.mgrid[0:model.grid[0], 0:model.grid[1]]
+    eye_row = float(eyes[:, 1].mean())
+    box = ((cols >= eyes[0, 0] - 0.4 * iod) & (cols <= eyes[1, 0] + 0.4 * iod)
+           & (rows >= eye_row - 0.5 * iod) & (rows <= eye_row + 1.4 * iod))
+    return box & model.mask
+
+
+def explained_variance(intensity: np.ndarray, shading: np.ndarray, use: np.ndarray) -> float:
+    """``1 - var(I - rho S) / var(I)`` over the ``use`` pixels, ``rho`` the median of ``I / S``
+    where ``S >= 0.3``. intensity, shading, use: (N,). Returns a number <= 1 (0 when nothing fits)."""
+    I, S = np.asarray(intensity, np.float64)[use], np.asarray(shading, np.float64)[use]
+    if I.size < 50 or np.var(I) < 1e-8:
+        return 0.0
+    bright = S >= 0.3
+    rho = float(np.median(I[bright] / S[bright])) if bright.sum() >= 20 else float(np.mean(I) / max(np.mean(S), 1e-6))
+    return float(1.0 - np.var(I - rho * S) / np.var(I))
+
+
+def assess(eyes: str, explained: float, downweighted: float, clipped: float, face_area: float,
+           inside: float) -> Quality:
+    """The score and flags of one frame from its signals (module docstring)."""
+    signals = {"eyes": eyes, "explained": explained, "downweighted": downweighted, "clipped": clipped,
+               "face_area": face_area, "inside": inside}
+    flags = []
+    if eyes == "none":
+        flags.append("no eyes found")
+    if explained < MIN_EXPLAINED:
+        flags.append(f"the fitted face explains {100 * max(explained, 0):.0f} % of the image's shading")
+    if downweighted > MAX_DOWNWEIGHTED:
+        flags.append(f"{100 * downweighted:.0f} % of the face down-weighted")
+    if clipped > MAX_CLIPPED:
+        flags.append(f"{100 * clipped:.0f} % of the face clipped")
+    if face_area < MIN_FACE_AREA:
+        flags.append(f"the face fills {100 * face_area:.1f} % of the frame")
+    if inside < MIN_INSIDE:
+        flags.append(f"{100 * (1 - inside):.0f} % of the face outside the frame")
+    score = float(np.clip(explained, 0.0, 1.0))
+    score *= 0.5 if eyes == "none" else 1.0
+    score *= 1.0 - 0.5 * max(0.0, downweighted - 0.3)
+    score *= 1.0 - max(0.0, clipped - 0.05)
+    score *= min(1.0, face_area / MIN_FACE_AREA) * min(1.0, inside / MIN_INSIDE) ** 4
+    score *= 0.5 ** len(flags)  # a doubtful frame never outscores a clean one of the same fit
+    no_face = eyes == "none" and explained < NO_FACE_EXPLAINED
+    return Quality(score, flags, signals, no_face)
