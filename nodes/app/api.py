@@ -37,9 +37,12 @@ class Products:
     """What ``fit`` recovers from one photo. Images are on the photo's pixel grid (H, W), NaN (or
     False) off the face, camera frame (x right, y down, z toward the camera; conventions.md).
 
-    normals (H, W, 3) float32 unit; depth (H, W) float32 heights in input pixels; albedo (H, W);
-    weights (H, W) the fit's robust weights in [0, 1]; lit (H, W) bool, not in cast or attached
-    shadow under the input light; relit (H, W) the face lit from ``MethodOptions.relight_light``;
+    normals (H, W, 3) float32 unit; depth (H, W) float32 heights in input pixels; albedo (H, W), or
+    (H, W, 3) RGB for a colour photo, at the photo's resolution; weights (H, W) the fit's robust
+    weights in [0, 1]; lit (H, W) bool, not in cast or attached shadow under the input light; relit
+    (H, W[, 3]) the whole photo with the face lit from ``MethodOptions.relight_light`` and put back
+    (auto-exposed on the face); relit_extra: ``(light, photo)`` for each of
+    ``MethodOptions.extra_lights``; quality: score, flags and signals (``method/quality.py``);
     mask (H, W) bool face; novel_view (Hm, Wm) model grid, the surface turned about the vertical
     axis; light (3,) the light used (input camera frame); history: one dict of scalars per fit
     iteration (sigma, residual_mean, residual_median, downweighted_fraction, change_deg);
@@ -53,6 +56,8 @@ class Products:
     weights: np.ndarray
     lit: np.ndarray
     relit: np.ndarray
+    relit_extra: list
+    quality: dict
     mask: np.ndarray
     novel_view: np.ndarray
     light: np.ndarray
@@ -71,7 +76,7 @@ class Products:
     def mesh(self) -> dict[str, np.ndarray]:
         """The face as a mesh: vertices (V, 3) float32 (column, -row, height), triangles (T, 3),
         colours (V, 3) uint8 grey albedo; ``mesh.ply`` holds the same."""
-        return surface_mesh(self.depth, self.albedo)
+        return surface_mesh(self.depth, luminance(self.albedo))
 
     def save(self, folder: str | os.PathLike) -> dict[str, str]:
         """Write the files of one ``shadowflow run`` output folder (conventions.md) into ``folder``,
@@ -150,7 +155,7 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     p = input_grid_products(frame, shape_model)
     r = frame.data["fit"]
     return Products(normals=p["normals"], depth=p["depth"], albedo=p["albedo"], weights=p["weights"], lit=p["lit"],
-                    relit=p["relit"], mask=p["mask"], novel_view=frame.data["novel_view"],
+                    relit=p["relit"], relit_extra=p["relit_extra"], quality=frame.meta["quality"], mask=p["mask"], novel_view=frame.data["novel_view"],
                     light=np.asarray(frame.data["light"], np.float64), history=list(r.history),
                     iterations=r.iterations, converged=r.converged, frame=frame, model=shape_model)
 

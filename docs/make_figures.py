@@ -1,0 +1,69 @@
+"""Regenerate the README's figures from faces the project renders (ICT-FaceKit identities), never
+from evaluation data: ``python docs/make_figures.py`` (writes docs/demo.png, docs/portrait.png)."""
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+import shadowflow
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+DOCS = Path(__file__).resolve().parent
+
+
+def _grey8(img: np.ndarray) -> np.ndarray:
+    g = np.clip(np.nan_to_num(img), 0, 1)
+    if g.ndim == 3:
+        g = g[..., ::-1]  # RGB -> BGR
+    else:
+        g = cv2.cvtColor(g.astype(np.float32), cv2.COLOR_GRAY2BGR)
+    return (g * 255 + 0.5).astype(np.uint8)
+
+
+def demo_figure(folder: Path) -> np.ndarray:
+    """The three --demo faces: input, shadow map, robust weights, relit frontally, novel view, albedo."""
+    rng = np.random.default_rng(2024)  # the --demo inputs' generator
+    rows = []
+    for az, el in [(45, 0), (-60, 0), (30, 25)]:
+        path = write_shadowed_face(folder / f"demo_{az}_{el}.png", rng, light_from_angles(az, el), source="ict")
+        r = shadowflow.fit(path)
+        weights = np.where(r.mask, np.nan_to_num(r.weights), 0)
+        view = cv2.resize(r.novel_view, r.mask.shape[::-1])
+        photo = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE) / 255.0
+        rows.append(np.hstack([_grey8(x) for x in (photo, ~r.shadow & r.mask, weights, r.relit, view, r.albedo)]))
+    return np.vstack(rows)
+
+
+def portrait_figure(folder: Path) -> np.ndarray:
+    """A colour portrait in a larger frame, lit from the side: the photo, relit frontally and put
+    back, relit from the other side (``--relight``), and the albedo."""
+    face_png = write_shadowed_face(folder / "face.png", np.random.default_rng(8), light_from_angles(50), source="ict")
+    grey = cv2.imread(str(face_png), cv2.IMREAD_GRAYSCALE) / 255.0
+    h, w = 200, 240
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    frame = np.dstack([0.25 + 0.3 * xx, 0.45 - 0.15 * yy, 0.35 + 0.15 * xx * yy])
+    top, left = 40, 56
+    region = frame[top:top + 128, left:left + 128]
+    on = grey > 0
+    region[on] = grey[on][:, None] * np.array([1.0, 0.78, 0.62])
+    photo = folder / "portrait.png"
+    cv2.imwrite(str(photo), _grey8(frame))
+    side = json.loads(face_png.with_suffix(".json").read_text())
+    eyes = (np.array(side["eyes"]) + [left, top]).tolist()
+    photo.with_suffix(".json").write_text(json.dumps({"light": side["light"], "eyes": eyes}))
+    options = shadowflow.MethodOptions(extra_lights=(light_from_angles(-45),))
+    r = shadowflow.fit(photo, options=options)
+    other = r.frame.data["photo_relit"][1][1]
+    return np.hstack([_grey8(frame), _grey8(r.relit), _grey8(other), _grey8(np.where(r.mask[..., None], r.albedo, 0))])
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory() as tmp:
+        cv2.imwrite(str(DOCS / "demo.png"), demo_figure(Path(tmp)))
+        cv2.imwrite(str(DOCS / "portrait.png"), portrait_figure(Path(tmp)))
+    print(f"wrote {DOCS / 'demo.png'} and {DOCS / 'portrait.png'}")
