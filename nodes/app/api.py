@@ -21,8 +21,7 @@ from ...flow.chain import Chain
 from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
-from ..method.products import input_grid_products
-from ..method.relight import surface_mesh
+from ..method.products import input_grid_products, photo_mesh
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, luminance
@@ -74,9 +73,10 @@ class Products:
 
     @property
     def mesh(self) -> dict[str, np.ndarray]:
-        """The face as a mesh: vertices (V, 3) float32 (column, -row, height), triangles (T, 3),
-        colours (V, 3) uint8 grey albedo; ``mesh.ply`` holds the same."""
-        return surface_mesh(self.depth, luminance(self.albedo))
+        """The face as a mesh at the fit's resolution in the photo's pixel frame: vertices (V, 3)
+        float32 (column, -row, height), triangles (T, 3), colours (V, 3) uint8 grey albedo;
+        ``mesh.ply`` holds the same (``method.products.photo_mesh``)."""
+        return photo_mesh(self.frame, self.model)
 
     def save(self, folder: str | os.PathLike) -> dict[str, str]:
         """Write the files of one ``shadowflow run`` output folder (conventions.md) into ``folder``,

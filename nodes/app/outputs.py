@@ -14,10 +14,8 @@ import numpy as np
 
 from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
-from ..method.products import input_grid_products
-from ..method.relight import surface_mesh
+from ..method.products import input_grid_products, photo_mesh
 from ..model.shape_model import ShapeModel
-from ..photo.loader import luminance
 
 OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
                 "relit.png", "novel_view.png", "mesh.ply")
@@ -62,11 +60,10 @@ def _png_bytes(img8: np.ndarray) -> bytes:
     return enc.tobytes()
 
 
-def mesh_ply_bytes(depth: np.ndarray, albedo: np.ndarray) -> bytes:
-    """``surface_mesh(depth, albedo)`` as a binary PLY with vertex colours."""
+def mesh_ply_bytes(m: dict[str, np.ndarray]) -> bytes:
+    """A mesh (``surface_mesh``'s dict) as a binary PLY with vertex colours."""
     import trimesh
 
-    m = surface_mesh(depth, albedo)
     colours = np.column_stack([m["colours"], np.full(len(m["colours"]), 255, np.uint8)])
     mesh = trimesh.Trimesh(vertices=m["vertices"], faces=m["triangles"], vertex_colors=colours, process=False)
     return mesh.export(file_type="ply")
@@ -107,7 +104,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     }
     for light, relit in p["relit_extra"]:
         files[f"relit_{light_name(light)}.png"] = _png_bytes(to_8bit(relit))
-    files["mesh.ply"] = mesh_ply_bytes(p["depth"], luminance(p["albedo"]))
+    files["mesh.ply"] = mesh_ply_bytes(photo_mesh(frame, model))  # the fit's resolution, the photo's frame
     written = {}
     for name, data in files.items():
         atomic_write_bytes(folder / name, data)

@@ -7,6 +7,7 @@ import numpy as np
 from ...flow.frame import Frame
 from ..model.shape_model import ShapeModel
 from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
+from .relight import surface_mesh
 
 
 def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
@@ -38,3 +39,18 @@ def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray
 def _squeeze(image: np.ndarray) -> np.ndarray:
     """(H, W, 1) -> (H, W); colour (H, W, 3) stays."""
     return image[..., 0] if image.ndim == 3 and image.shape[2] == 1 else image
+
+
+def photo_mesh(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
+    """The recovered surface as a mesh at the fit's own resolution (one vertex per model pixel, so
+    its size is what the fit knows, whatever the photo's), placed in the photo's pixel frame:
+    vertices (V, 3) float32 (x = input column, y = -input row, z = height in input pixels),
+    triangles (T, 3) uint32, colours (V, 3) uint8 grey albedo."""
+    d = frame.data
+    al = d["alignment"]
+    mesh = surface_mesh(d["depth"], d["albedo"])
+    v = mesh["vertices"].astype(np.float64)
+    cols, rows = v[:, 0], -v[:, 1]
+    x, y = (al.matrix @ np.vstack([cols, rows, np.ones_like(cols)]))
+    mesh["vertices"] = np.column_stack([x, -y, v[:, 2] * al.scale]).astype(np.float32)
+    return mesh
