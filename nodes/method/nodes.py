@@ -9,7 +9,6 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from scipy import ndimage
 
 from ...flow.frame import Frame, FrameFailed
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
@@ -19,6 +18,7 @@ from ..photo.align import (
     Alignment,
     centred_alignment,
     eyes_alignment,
+    face_box,
     inside_input,
     mask_to_input,
     normals_to_input,
@@ -31,7 +31,7 @@ from ..photo.loader import MIN_SIDE, InputError, load_photo, luminance, read_sid
 from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
-from .photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
+from .photo_relight import composite, exposure_gain, grow, photo_albedo, trusted_weight
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -358,9 +358,15 @@ class PhotoRelightNode:
 
     def __call__(self, frame: Frame) -> Frame:
         d, m = frame.data, self.model
-        al: Alignment = d["alignment"]
-        shape = d["image"].shape[:2]
-        photo = d["colour"] if "colour" in d else d["image"][..., None]
+        full: Alignment = d["alignment"]
+        full_photo = d["colour"] if "colour" in d else d["image"][..., None]
+        feather = PHOTO_FEATHER * self.iod * full.scale
+        # everything happens in the box around the face (plus the feather): a large photo's background
+        # costs nothing; outside the box the relit photo is the photo times the exposure gain
+        y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * feather + 4)
+        al = Alignment(full.matrix - np.array([[0.0, 0.0, x0], [0.0, 0.0, y0]]), full.how)
+        photo = full_photo[y0:y1, x0:x1]
+        shape = photo.shape[:2]
         face = mask_to_input(m.mask, al, shape)
         normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape))
         shading = np.clip(normals @ np.asarray(d["light"], np.float64), 0.0, None)
@@ -369,11 +375,10 @@ class PhotoRelightNode:
                                face & ~coarse_lit, face)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         # a shadow's soft edge (penumbra) is not lit skin either
-        lit = face & ~ndimage.binary_dilation(shadow, iterations=max(1, int(round(1.5 * px))))
+        lit = face & ~grow(shadow, 1.5 * px)
         coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
         weight = trusted_weight(photo, shading, lit & face, face, 1.5 * px)
         albedo = photo_albedo(photo, shading, weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
-        feather = PHOTO_FEATHER * self.iod * al.scale
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
         relit = []  # (light, image)
         for light in (self.options.relight_light, *self.options.extra_lights):
@@ -381,9 +386,14 @@ class PhotoRelightNode:
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
             new_shading = np.where(cast_in, 0.0, np.clip(normals @ s, 0.0, None))
-            relit.append((np.asarray(light, np.float64),
-                          composite(gain * photo, gain * albedo * new_shading[..., None], face, feather)))
-        d["photo_albedo"], d["photo_relit"], d["photo_shadow"] = albedo, relit, shadow
+            image = (gain * full_photo).astype(np.float32)
+            image[y0:y1, x0:x1] = composite(gain * photo, gain * albedo * new_shading[..., None], face, feather)
+            relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))
+        full_albedo = np.full(full_photo.shape, np.nan, np.float32)
+        full_albedo[y0:y1, x0:x1] = albedo
+        full_shadow = np.zeros(full_photo.shape[:2], bool)
+        full_shadow[y0:y1, x0:x1] = shadow
+        d["photo_albedo"], d["photo_relit"], d["photo_shadow"] = full_albedo, relit, full_shadow
         return frame
 
 

@@ -153,3 +153,16 @@ def normals_to_model(normals: np.ndarray, valid: np.ndarray, al: Alignment,
     n = al.vector_to_model(comps)
     n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
     return np.where(known[..., None], n, np.nan).astype(np.float32), known
+
+
+def face_box(mask: np.ndarray, al: Alignment, shape: tuple[int, int], margin: float = 0.0) -> tuple[int, int, int, int]:
+    """``(row0, row1, col0, col1)``: the input pixels the model-grid ``mask`` (Hm, Wm) covers under
+    ``al``, grown by ``margin`` pixels and cut to the input ``shape`` (H, W)."""
+    rows, cols = np.nonzero(mask)
+    corners = np.array([[cols.min(), rows.min()], [cols.max(), rows.min()], [cols.min(), rows.max()],
+                        [cols.max(), rows.max()]], np.float64)
+    mapped = corners @ al.matrix[:, :2].T + al.matrix[:, 2]
+    lo, hi = mapped.min(axis=0) - margin - 1, mapped.max(axis=0) + margin + 2
+    c0, r0 = int(max(0, np.floor(lo[0]))), int(max(0, np.floor(lo[1])))
+    c1, r1 = int(min(shape[1], np.ceil(hi[0]))), int(min(shape[0], np.ceil(hi[1])))
+    return r0, max(r1, r0 + 1), c0, max(c1, c0 + 1)
