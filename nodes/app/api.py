@@ -90,9 +90,10 @@ class Products:
         return write_outputs(self.frame, self.model, folder)
 
 
-def _as_image(image: np.ndarray) -> np.ndarray:
-    """An array as the loader gives a file: (H, W) float32 brightness in [0, 1]. Accepts (H, W) or
-    (H, W, 3) RGB (or (H, W, 4) RGBA), uint8, uint16 or floats in [0, 1]."""
+def _as_image(image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """An array as the loader gives a file: ``(grey (H, W) float32 in [0, 1], colour (H, W, 3)
+    float32 RGB or None)``. Accepts (H, W) or (H, W, 3) RGB (or (H, W, 4) RGBA), uint8, uint16 or
+    floats in [0, 1]."""
     a = np.asarray(image)
     if a.ndim == 3 and a.shape[2] in (3, 4):
         a = a[..., :3]
@@ -108,12 +109,11 @@ def _as_image(image: np.ndarray) -> np.ndarray:
             raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
     else:
         raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
-    if f.ndim == 3:
-        f = luminance(f)
-    f = np.clip(f, 0.0, 1.0)
-    if float(f.max() - f.min()) < 1.0 / 255.0:
+    colour = np.clip(f, 0.0, 1.0) if f.ndim == 3 else None
+    grey = np.clip(luminance(f), 0.0, 1.0)
+    if float(grey.max() - grey.min()) < 1.0 / 255.0:
         raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
-    return f
+    return grey, colour
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
@@ -148,7 +148,8 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     if isinstance(image, (str, os.PathLike)):
         frame = Frame(0, str(image))
     else:
-        frame = Frame(0, ARRAY_SOURCE, data={"image": _as_image(image)})
+        grey, colour = _as_image(image)
+        frame = Frame(0, ARRAY_SOURCE, data={"image": grey} if colour is None else {"image": grey, "colour": colour})
     frame = Chain([LoadNode(shape_model, opts), *method_nodes(shape_model, opts)]).process(frame)
     if not frame.ok:
         raise InputError(frame.status)

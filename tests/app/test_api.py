@@ -59,6 +59,7 @@ def test_fit_takes_an_array_as_the_file_loader_reads_it(tmp_path, procedural_mod
     eyes = np.array([[46.0, 48.0], [82.0, 48.0]])  # the sidecar's: where the generator put them
     from_array = shadowflow.fit(rgb, light=from_file.light, eyes=eyes, model=procedural_model)
     np.testing.assert_allclose(from_array.normals, from_file.normals, atol=1e-5)
+    assert from_array.relit.shape == rgb.shape  # colour in, colour out
     with pytest.raises(InputError, match="shape"):
         shadowflow.fit(np.zeros((4, 4, 4, 4)), model=procedural_model)
     with pytest.raises(InputError, match="no contrast"):
