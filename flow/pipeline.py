@@ -91,10 +91,14 @@ def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
 
 @dataclass(frozen=True)
 class Stage:
-    """A node and how many worker threads run it."""
+    """A node and how many worker threads run it (at least one: none would never finish a frame)."""
 
     node: object
     workers: int = 1
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.workers, int) or self.workers < 1:
+            raise ValueError(f"a stage needs at least one worker, not {self.workers!r}")
 
 
 class Pipeline:

@@ -79,6 +79,27 @@ def _face_length(text: str) -> str | float:
     return f
 
 
+def _check_run_arguments(args: argparse.Namespace) -> None:
+    """One line and exit 2 for an argument that cannot work, before anything runs."""
+    import math
+
+    if args.workers < 1:
+        raise ValueError(f"--workers must be 1 or more, not {args.workers}")
+    if args.max_iterations is not None and args.max_iterations < 1:
+        raise ValueError(f"--max-iterations must be 1 or more, not {args.max_iterations}")
+    if args.record_every < 1:
+        raise ValueError(f"--record-every must be 1 or more, not {args.record_every}")
+    if args.frame_timeout is not None and not (args.frame_timeout > 0 and math.isfinite(args.frame_timeout)):
+        raise ValueError(f"--frame-timeout must be a positive, finite number of seconds (leave it out for no limit), "
+                         f"not {args.frame_timeout}")
+    if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
+        raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
+    _view_angle(args.view_angle)
+    _view_size(args.view_size)
+    for light in args.relight or ():
+        parse_light(light)
+
+
 def _view_angle(deg: float) -> float:
     if not -90.0 <= deg <= 90.0:
         raise ValueError(f"--view-angle turns the face by -90 to 90 degrees, not {deg:g}")
@@ -114,8 +135,15 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
 def cmd_run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
-    if args.frame_timeout is not None and not args.frame_timeout > 0:
-        raise ValueError(f"--frame-timeout must be a positive number of seconds, not {args.frame_timeout}")
+    _check_run_arguments(args)  # before any work or any file is written
+    eyes = None
+    if args.eyes not in ("auto", "centre"):
+        try:
+            eyes = np.array([float(t) for t in args.eyes.split(",")], np.float64).reshape(2, 2)
+        except ValueError:
+            raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
+        if not np.all(np.isfinite(eyes)) or np.linalg.norm(eyes[1] - eyes[0]) < 1.0:
+            raise ValueError(f"--eyes {args.eyes!r}: four finite numbers, two distinct eye centres")
     check_writable(out)
     inputs = list(args.inputs)
     if args.demo:
@@ -131,12 +159,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     light: str | np.ndarray = args.light
     if args.light not in ("auto", "yaleb"):
         light = parse_light(args.light)
-    eyes = None
-    if args.eyes not in ("auto", "centre"):
-        try:
-            eyes = np.array([float(t) for t in args.eyes.split(",")], np.float64).reshape(2, 2)
-        except ValueError:
-            raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
                                             args.cone_trust),

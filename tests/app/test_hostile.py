@@ -368,3 +368,29 @@ def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
             assert proc.returncode == 2, (name, cmd[0], proc.stdout, proc.stderr)
             lines = proc.stderr.strip().splitlines()
             assert len(lines) == 1 and name in lines[0], (name, proc.stderr)
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--workers", "0"], "--workers must be 1 or more"),
+    (["--max-iterations", "0"], "--max-iterations must be 1 or more"),
+    (["--frame-timeout", "inf"], "--frame-timeout must be a positive, finite"),
+    (["--record-every", "0"], "--record-every must be 1 or more"),
+    (["--eyes", "nan,1,2,3"], "four finite numbers"),
+    (["--eyes", "5,5,5,5"], "two distinct eye centres"),
+    (["--view-angle", "120"], "--view-angle"),
+])
+def test_arguments_that_cannot_work_are_refused_before_any_work(tmp_path, args, says):
+    """Each once hung (--workers 0), failed every frame (--frame-timeout inf, --max-iterations 0)
+    or was taken (--eyes nan): now one line, exit 2, and nothing written."""
+    out = tmp_path / "out"
+    proc = subprocess.run(CLI + ["run", "--demo", "--out", str(out), "--quiet", *args], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2 and says in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert not out.exists()
+
+
+def test_a_stage_without_workers_is_refused_by_the_engine():
+    from shadowflow.flow.pipeline import Stage
+
+    with pytest.raises(ValueError, match="at least one worker"):
+        Stage(lambda f: f, 0)
