@@ -61,6 +61,30 @@ def _read_file(p: Path) -> bytes:
         raise InputError(f"{p}: cannot be read ({exc.strerror or exc})") from None
 
 
+def _read_binary_pnm(data: bytes) -> tuple[np.ndarray, int] | None:
+    """A binary PGM (P5) or PPM (P6) as ``(samples (H, W) or (H, W, 3) BGR as OpenCV gives them,
+    uint8 or uint16, maxval)``, read by the format's own rules (samples over 255 are two bytes,
+    big-endian, on the scale 0..maxval); None when the header or the data is malformed."""
+    import re as _re
+
+    m = _re.match(rb"(P[56])(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)\s",
+                  data[:1024])
+    if m is None:
+        return None
+    width, height, maxval = int(m.group(2)), int(m.group(3)), int(m.group(4))
+    if not 0 < maxval < 65536:
+        return None
+    channels = 3 if m.group(1) == b"P6" else 1
+    dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
+    count = width * height * channels
+    body = data[m.end():m.end() + count * dtype.itemsize]
+    if len(body) < count * dtype.itemsize:
+        return None
+    samples = np.frombuffer(body, dtype).reshape((height, width, channels) if channels == 3 else (height, width))
+    samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
+    return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
+
+
 def _check_size(p: Path, width: int, height: int) -> None:
     if width * height > MAX_PIXELS:
         raise InputError(f"{p}: {width}x{height} pixels exceeds the {MAX_PIXELS // 1_000_000}-megapixel limit; "
@@ -133,7 +157,13 @@ def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
         except (OSError, ValueError, SyntaxError):
             raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
         _check_size(p, width, height)
-        raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
+        pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
+        if pnm is not None:  # by its own maxval: OpenCV reads 10- and 12-bit PNM with the bytes swapped
+            raw, maxval = pnm
+            if maxval not in (255, 65535):
+                raw = (raw.astype(np.float32) / maxval).astype(np.float32)
+        else:
+            raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
         if raw is None:
             raise InputError(f"{p}: corrupt or truncated {kind} data")
         colour_raw = None

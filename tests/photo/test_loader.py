@@ -3,7 +3,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from shadowflow.nodes.photo.loader import InputError, load_image, parse_light, read_sidecar, yaleb_light
+from shadowflow.nodes.photo.loader import InputError, load_image, load_photo, parse_light, read_sidecar, yaleb_light
 
 
 @pytest.fixture
@@ -75,3 +75,27 @@ def test_light_sources(tmp_path):
     (tmp_path / "face.json").write_text("{not json")
     with pytest.raises(InputError, match="face.png: malformed sidecar face.json"):
         read_sidecar(img)
+
+
+def _pnm(path, samples: np.ndarray, maxval: int, magic: bytes = b"P5") -> None:
+    """Write a binary PGM/PPM by the format's rules: two bytes big-endian per sample over 255."""
+    h, w = samples.shape[:2]
+    body = samples.astype(">u2" if maxval > 255 else np.uint8).tobytes()
+    path.write_bytes(magic + f"\n# made by the test\n{w} {h}\n{maxval}\n".encode() + body)
+
+
+@pytest.mark.parametrize("maxval", [1023, 4095, 255, 65535])
+def test_pgm_of_any_maxval_is_read_on_its_own_scale(tmp_path, maxval):
+    """10- and 12-bit PGM were read with their bytes swapped (normals 32 deg off); every maxval now
+    reads as sample / maxval."""
+    rng = np.random.default_rng(maxval)
+    samples = rng.integers(0, maxval + 1, (40, 50))
+    path = tmp_path / "deep.pgm"
+    _pnm(path, samples, maxval)
+    np.testing.assert_allclose(load_image(path), samples / maxval, atol=1e-6)
+    colour = rng.integers(0, maxval + 1, (40, 50, 3))
+    ppm = tmp_path / "deep.ppm"
+    _pnm(ppm, colour, maxval, b"P6")
+    grey, rgb = load_photo(ppm)
+    np.testing.assert_allclose(rgb, colour / maxval, atol=1e-6)
+    np.testing.assert_allclose(grey, (colour / maxval) @ np.array([0.299, 0.587, 0.114]), atol=2e-3)
