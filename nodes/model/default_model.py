@@ -62,11 +62,14 @@ def built_in_model(name: str = DEFAULT) -> ShapeModel:
         raise ValueError(f"unknown built-in model {name!r}: {' or '.join(BUILT_IN)}")
     recipe = RECIPES[name]
     path = cache_dir() / f"{name}-{_cache_key(recipe)}.npz"
-    if path.exists():
+    if path.exists() or path.is_symlink():
         try:
             return load_model(path)
-        except ValueError:
-            pass  # a damaged cache entry is rebuilt below
+        except ValueError:  # damaged (truncated, a flipped bit), or not a regular file: rebuilt below
+            try:
+                path.unlink()
+            except OSError:
+                pass
     model = train_from_recipe(recipe)
     try:
         save_model(model, path)

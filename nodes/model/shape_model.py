@@ -219,24 +219,58 @@ def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
     return atomic_write_bytes(path, buf.getvalue())
 
 
+MAX_MODEL_BYTES = 1 << 30  # a model's members may unpack to at most 1 GiB (a 256^2, K = 99 one is ~40 MB)
+
+
 def load_model(path: str | os.PathLike) -> ShapeModel:
-    """Read a model written by ``save_model``; raises ``ValueError`` naming what is wrong."""
+    """Read a model written by ``save_model`` without trusting it: a regular file, an intact zip
+    whose members declare no more than ``MAX_MODEL_BYTES`` in all, numeric arrays (no pickles) of
+    the shapes the grid and mask imply, all finite. Raises ``ValueError`` naming what is wrong."""
+    import zipfile
+    import zlib
+
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{path}: not a regular file")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with zipfile.ZipFile(p) as zf:
+            if zf.testzip() is not None:
+                raise ValueError("a member fails its checksum")
+            declared = sum(i.file_size for i in zf.infolist())
+            if declared > MAX_MODEL_BYTES:
+                raise ValueError(f"its members unpack to {declared} bytes, over the {MAX_MODEL_BYTES}-byte limit")
+        with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"{path}: not a readable model file ({exc})") from None
     required = ("grid", "eyes", "mask", "mean_normals", "mean_proj", "modes", "eigenvalues")
     missing = [k for k in required if k not in data]
     if missing:
         raise ValueError(f"{path}: model file lacks {', '.join(missing)}")
-    version = int(data.get("version", 0))
-    if version > MODEL_FORMAT_VERSION:
-        raise ValueError(f"{path}: model format {version} is newer than this shadowflow ({MODEL_FORMAT_VERSION})")
+    for k, v in data.items():
+        if v.dtype.kind not in "biuf" and k != "source":
+            raise ValueError(f"{path}: '{k}' holds {v.dtype}, not numbers")
+    version = data.get("version", np.array(0))
+    if version.shape != () or version.dtype.kind not in "iu":
+        raise ValueError(f"{path}: 'version' must be one integer")
+    if int(version) > MODEL_FORMAT_VERSION:
+        raise ValueError(f"{path}: model format {int(version)} is newer than this shadowflow ({MODEL_FORMAT_VERSION})")
     mask = data["mask"].astype(bool)
     n = int(mask.sum())
-    if data["mean_normals"].shape != (n, 3) or data["modes"].shape[0] != 2 * n:
-        raise ValueError(f"{path}: model arrays do not match its mask ({n} pixels)")
+    grid = data["grid"]
+    if grid.shape != (2,) or tuple(int(x) for x in grid) != mask.shape:
+        raise ValueError(f"{path}: 'grid' {grid.tolist()} does not match the mask's shape {list(mask.shape)}")
+    modes = data["modes"]
+    if modes.ndim != 2 or modes.shape[1] < 1:
+        raise ValueError(f"{path}: 'modes' must be a (2N, K) array")
+    k = modes.shape[1]
+    expected = {"mean_normals": (n, 3), "mean_proj": (n, 2), "modes": (2 * n, k), "eigenvalues": (k,), "eyes": (2, 2)}
+    for name, shape in expected.items():
+        if data[name].shape != shape:
+            raise ValueError(f"{path}: '{name}' is {list(data[name].shape)}, its mask and modes say {list(shape)}")
+    for name in expected:
+        if not np.all(np.isfinite(data[name])):
+            raise ValueError(f"{path}: '{name}' holds NaN or infinite values")
     mouth = data.get("mouth")
     if mouth is not None and (mouth.shape != (2,) or not np.all(np.isfinite(mouth))):
         raise ValueError(f"{path}: 'mouth' must be two finite numbers [x, y]")

@@ -75,3 +75,59 @@ def test_closest_coefficients_recover_a_needle_map_from_the_pixels_that_are_know
     error, mean_error = np.mean(angle_deg(closest, unseen)), np.mean(angle_deg(m.mean_normals, unseen))
     assert 0.05 < error < 0.5 * mean_error, (error, mean_error)
     assert not m.closest_coefficients(n, np.zeros(m.n_pixels, bool)).any()
+
+
+def _model_arrays(model, folder) -> dict:
+    with np.load(save_model(model, folder / "model.npz"), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("change, says", [
+    (lambda a: a["mean_normals"].__setitem__((3, 1), np.nan), "NaN"),
+    (lambda a: a["eigenvalues"].__setitem__(0, np.inf), "NaN or infinite"),
+    (lambda a: a.__setitem__("eyes", np.zeros((3, 2))), "'eyes'"),
+    (lambda a: a.__setitem__("grid", np.array([64, 65])), "'grid'"),
+    (lambda a: a.__setitem__("mean_proj", a["mean_proj"][:-1]), "'mean_proj'"),
+    (lambda a: a.__setitem__("eigenvalues", a["eigenvalues"][:-1]), "'eigenvalues'"),
+    (lambda a: a.__setitem__("version", np.array([1, 2])), "'version'"),
+])
+def test_a_damaged_model_is_refused_at_load_naming_what_is_wrong(tmp_path, procedural_model, change, says):
+    """A NaN used to give 'ok' frames with all-NaN normals; wrong shapes, tracebacks mid-fit."""
+    arrays = _model_arrays(procedural_model.truncated(6), tmp_path)
+    change(arrays)
+    path = tmp_path / "damaged.npz"
+    np.savez(path, **arrays)
+    with pytest.raises(ValueError, match=says):
+        load_model(path)
+
+
+def test_a_corrupt_or_odd_cache_entry_is_rebuilt_and_a_zip_bomb_refused(tmp_path, monkeypatch, procedural_model):
+    """A truncated or bit-flipped cache entry, or a FIFO in its place, used to fail (or hang) every run
+    until deleted by hand: now it is rebuilt. A model whose members unpack past the limit is refused
+    before anything is read."""
+    import os
+
+    import shadowflow.nodes.model.default_model as dm
+    from shadowflow.nodes.model import shape_model
+
+    monkeypatch.setenv("SHADOWFLOW_CACHE", str(tmp_path))
+    monkeypatch.setitem(dm.RECIPES, "tiny", {"source": "procedural", "n": 12, "seed": 0, "modes": 4, "size": [32, 32]})
+    good = dm.built_in_model("tiny")
+    entry = next(tmp_path.glob("tiny-*.npz"))
+    blob = entry.read_bytes()
+    for damaged in (blob[: len(blob) // 2], blob[:200] + bytes([blob[200] ^ 0x10]) + blob[201:]):
+        entry.write_bytes(damaged)
+        with pytest.raises(ValueError, match="not a readable model file"):
+            load_model(entry)
+        rebuilt = dm.built_in_model("tiny")
+        np.testing.assert_array_equal(rebuilt.modes, good.modes)
+        assert entry.read_bytes() == blob
+    entry.unlink()
+    os.mkfifo(entry)
+    with pytest.raises(ValueError, match="not a regular file"):
+        load_model(entry)
+    np.testing.assert_array_equal(dm.built_in_model("tiny").modes, good.modes)
+    assert entry.is_file()
+    monkeypatch.setattr(shape_model, "MAX_MODEL_BYTES", 1000)
+    with pytest.raises(ValueError, match="over the 1000-byte limit"):
+        load_model(save_model(procedural_model, tmp_path / "big.npz"))
