@@ -212,11 +212,15 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
 
 
 def _previous_summary(out: Path) -> dict[str, dict]:
+    """The records of an earlier run's ``summary.json`` by stem; anything else in it (not a list,
+    records that are not objects or have no string stem) is ignored: those frames are redone."""
     try:
         recs = json.loads((out / "summary.json").read_text())
-        return {r["stem"]: r for r in recs if isinstance(r, dict) and r.get("stem")}
     except (OSError, ValueError):
         return {}
+    if not isinstance(recs, list):
+        return {}
+    return {r["stem"]: r for r in recs if isinstance(r, dict) and isinstance(r.get("stem"), str) and r["stem"]}
 
 
 def expand_inputs(items: list[str], note=print) -> list[str]:

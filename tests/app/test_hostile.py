@@ -394,3 +394,23 @@ def test_a_stage_without_workers_is_refused_by_the_engine():
 
     with pytest.raises(ValueError, match="at least one worker"):
         Stage(lambda f: f, 0)
+
+
+@pytest.mark.parametrize("summary", ["null", "5", '[{"stem": ["a"], "status": "ok"}]', '{"stem": "x"}', '[null, 3]'])
+def test_resume_over_a_mangled_summary_redoes_what_it_cannot_trust(tmp_path, summary):
+    """--resume used to end in a traceback when summary.json held null, a number or a list stem."""
+    src = tmp_path / "in"
+    src.mkdir()
+    face = src / "face.png"
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    write_shadowed_face(face, np.random.default_rng(1), light_from_angles(30))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text(summary)
+    proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--quiet", "--record", "none"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    records = json.loads((out / "summary.json").read_text())
+    assert [r["status"] for r in records] == ["ok"] and (out / "face" / "normals.npy").is_file()
