@@ -122,6 +122,9 @@ class WriteNode:
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
+        for path in (folder, *(folder / n for n in OUTPUT_FILES)):
+            if path.is_symlink():  # would write outside --out, or over whatever the link names
+                raise ValueError(f"{frame.source}: {path} is a symbolic link; refusing to write through it")
         clash = [n for n in OUTPUT_FILES if real_path(folder / n) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {folder / clash[0]} would overwrite an input")

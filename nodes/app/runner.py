@@ -63,6 +63,13 @@ class StorageError(OSError):
     """The output folder cannot take more data (full, read-only, over quota)."""
 
 
+def refuse_link(path: Path) -> None:
+    """``ValueError`` when ``path`` is a symbolic link: nothing under ``--out`` is written through one."""
+    if path.is_symlink():
+        raise ValueError(f"{path}: is a symbolic link; shadowflow writes nothing through links in --out "
+                         "(remove it, or choose another --out)")
+
+
 def check_writable(out: Path) -> None:
     """Create ``out`` if needed and prove a file can be written there; else ``StorageError``."""
     try:
@@ -124,6 +131,8 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     check_writable(out)
     previous = _previous_summary(out) if run.resume else {}
     sinks = []
+    for suffix in ("mcap", "rrd"):  # a link planted in --out would send the recording elsewhere
+        refuse_link(_recording_path(out, suffix, run.resume))
     if "mcap" in run.record:
         sinks.append(McapSink(_recording_path(out, "mcap", run.resume)))
     if "rerun" in run.record:

@@ -414,3 +414,33 @@ def test_resume_over_a_mangled_summary_redoes_what_it_cannot_trust(tmp_path, sum
     assert proc.returncode == 0, proc.stderr
     records = json.loads((out / "summary.json").read_text())
     assert [r["status"] for r in records] == ["ok"] and (out / "face" / "normals.npy").is_file()
+
+
+def test_links_planted_in_out_are_never_written_through(tmp_path):
+    """A run.mcap, run.rrd or OUT/<stem> that is a symbolic link to a file or folder outside --out
+    was followed, and what it named overwritten."""
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src = tmp_path / "in"
+    src.mkdir()
+    write_shadowed_face(src / "face.png", np.random.default_rng(2), light_from_angles(30))
+    victim = tmp_path / "precious.txt"
+    victim.write_text("keep me")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    for planted in ("run.mcap", "run.rrd"):
+        out = tmp_path / f"out-{planted}"
+        out.mkdir()
+        (out / planted).symlink_to(victim)
+        proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--quiet"], capture_output=True, text=True,
+                              timeout=300)
+        assert proc.returncode == 2 and "symbolic link" in proc.stderr, proc.stderr
+        assert victim.read_text() == "keep me"
+    out = tmp_path / "out-stem"
+    out.mkdir()
+    (out / "face").symlink_to(elsewhere, target_is_directory=True)
+    proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--quiet", "--record", "none"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "symbolic link" in proc.stderr, proc.stderr
+    assert list(elsewhere.iterdir()) == []
