@@ -5,7 +5,7 @@
 Everything comes from the project's own code: a 64x64 model trained on 30 procedural faces
 (seed 0, 12 modes), two held-out procedural faces (seed 77) lit from 45 degrees left and 60
 degrees right, 6 fit iterations, MCAP only. ``golden_inputs`` and ``golden_run`` are shared
-with ``tests/test_recordings.py`` so the test re-runs exactly this.
+with ``tests/app/test_recordings.py`` so the test re-runs exactly this.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The frame contract: every entry the method's nodes read or write, in one table.
 
 ``Hm, Wm`` = the model grid, ``N`` = the model's face pixels, ``H, W`` = the input photo.
-A node reads only entries of the nodes before it; ``tests/test_frame_contract.py`` runs a photo
+A node reads only entries of the nodes before it; ``tests/method/test_frame_contract.py`` runs a photo
 and a render through every node and checks that each entry a node writes is listed here.
 """
 from __future__ import annotations
