@@ -33,7 +33,7 @@ from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint
-from .runner import RunOptions, check_writable, expand_inputs, run_stream, watch_folder
+from .runner import RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream, watch_folder
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -426,7 +426,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with one_blas_thread():  # train, eval: the same small matrices
+            return int(args.func(args) or 0)
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"shadowflow {args.command}: {exc}", file=sys.stderr)
         return 2

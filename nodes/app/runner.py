@@ -7,6 +7,7 @@ import glob
 import json
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -121,6 +122,18 @@ class RunResult:
     storage_error: str | None = None
 
 
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """Run BLAS (OpenBLAS, MKL) on one thread inside: the fit's matrices are small (K <= 100) and the
+    pipeline already runs frames on several threads, so BLAS's own threads only contend. Measured on
+    this 2-core machine: 16 demo faces 1.7-1.9 s against 3.4-4.5 s, one fit 51-55 ms against
+    166-210 ms (``benchmarks/bench_nodes.py`` without ``OPENBLAS_NUM_THREADS=1``)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
 def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
                run: RunOptions, total: int | None = None) -> RunResult:
     """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``.
@@ -203,8 +216,9 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
 
     pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
     try:
-        for _ in pipeline.run(frames(), handle_signals=True):
-            pass
+        with one_blas_thread():
+            for _ in pipeline.run(frames(), handle_signals=True):
+                pass
     finally:
         progress.close()
         if recorder is not None:
