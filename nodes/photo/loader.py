@@ -241,8 +241,13 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
     """``<stem>.json`` beside ``path``, if any. Raises ``InputError`` when it is malformed."""
     p = Path(path)
     side = p.with_suffix(".json")
-    if not side.is_file():
-        return Sidecar()
+    try:
+        if not side.is_file():
+            return Sidecar()
+    except OSError as exc:
+        if exc.errno == errno.ENAMETOOLONG:  # a 255-byte image name: its sidecar's name cannot exist
+            return Sidecar()
+        raise InputError(f"{p}: cannot look for its sidecar {side.name} ({exc.strerror or exc})") from None
     try:
         data = json.loads(side.read_text(encoding="utf-8"))
         if not isinstance(data, dict):

@@ -99,3 +99,14 @@ def test_pgm_of_any_maxval_is_read_on_its_own_scale(tmp_path, maxval):
     grey, rgb = load_photo(ppm)
     np.testing.assert_allclose(rgb, colour / maxval, atol=1e-6)
     np.testing.assert_allclose(grey, (colour / maxval) @ np.array([0.299, 0.587, 0.114]), atol=2e-3)
+
+
+def test_an_image_whose_name_is_as_long_as_names_go_has_no_sidecar(tmp_path):
+    """A 255-byte name: its sidecar's (``.json`` for ``.png``) would be 256 bytes, which no file
+    system allows. The frame used to fail with ``File name too long``."""
+    import cv2
+
+    path = tmp_path / ("a" * 251 + ".png")
+    cv2.imwrite(str(path), (np.arange(64 * 64).reshape(64, 64) % 251).astype(np.uint8))
+    side = read_sidecar(path)
+    assert side.light is None and side.eyes is None
