@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import sys
 import time
@@ -81,8 +82,6 @@ def _face_length(text: str) -> str | float:
 
 def _check_run_arguments(args: argparse.Namespace) -> None:
     """One line and exit 2 for an argument that cannot work, before anything runs."""
-    import math
-
     if args.workers < 1:
         raise ValueError(f"--workers must be 1 or more, not {args.workers}")
     if args.max_iterations is not None and args.max_iterations < 1:

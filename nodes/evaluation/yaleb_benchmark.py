@@ -74,11 +74,19 @@ def model_floor_normals(stereo_normals: np.ndarray, stereo_valid: np.ndarray, mo
                             stereo_valid.shape)
 
 
-def camera_shift(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> tuple[float, float]:
+def stereo_shift(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> tuple[float, float]:
+    """(dx, dy) pixels ``photo`` (taken under ``light``) lies off the stereo surface rendered under
+    that light (phase correlation)."""
+    return register_translation(photo, render(subject.stereo, light))[1]
+
+
+def camera_shift(subject: YaleSubject, photo: np.ndarray, light: np.ndarray,
+                 frontal: tuple[float, float] | None = None) -> tuple[float, float]:
     """(dx, dy) pixels that move ``photo`` (taken under ``light``) onto the subject's frontal photo:
-    each is registered to the stereo surface rendered under its own light (phase correlation)."""
-    _, (dx_in, dy_in) = register_translation(photo, render(subject.stereo, light))
-    _, (dx_f, dy_f) = register_translation(subject.frontal, render(subject.stereo, light_from_angles(0, 0)))
+    each is registered to the stereo surface rendered under its own light. frontal: the frontal
+    photo's ``stereo_shift``, if known already."""
+    dx_in, dy_in = stereo_shift(subject, photo, light)
+    dx_f, dy_f = frontal or stereo_shift(subject, subject.frontal, light_from_angles(0, 0))
     return dx_f - dx_in, dy_f - dy_in
 
 
@@ -145,6 +153,7 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
     gt = subject.stereo
     chain = Chain([LoadNode(model, options), *method_nodes(model, options)])
     auto = Chain([LoadNode(model, dataclasses.replace(options, light="auto"))])
+    frontal_shift = stereo_shift(subject, subject.frontal, light_from_angles(0, 0))  # once per subject
     rows = []
     for az, el in lights:
         path = subject.image_path(az, el)
@@ -168,7 +177,7 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         }
         # the input and the frontal exposure were taken moments apart and moved by 0.5-3 px: score the
         # relit photo (on the input's grid) moved into the frontal photo's place (camera_shift)
-        shift = camera_shift(subject, frame.data["image"], truth_light)
+        shift = camera_shift(subject, frame.data["image"], truth_light, frontal_shift)
         row["psnr"], row["ssim"] = relight_scores(translate(out["relit"], shift), subject.frontal, region)
         row["psnr_unmoved"], _ = relight_scores(out["relit"], subject.frontal, region)
         # exposure: the relit face's mean level against the real frontal photo's (no gain): the same

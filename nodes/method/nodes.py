@@ -377,17 +377,18 @@ class PhotoRelightNode:
         # a shadow's soft edge (penumbra) is not lit skin either
         lit = face & ~grow(shadow, 1.5 * px)
         coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
-        weight = trusted_weight(photo, shading, lit & face, face, 1.5 * px)
+        weight = trusted_weight(photo, shading, lit, face, 1.5 * px)
         albedo = photo_albedo(photo, shading, weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
+        exposed_photo, exposed = (gain * full_photo).astype(np.float32), gain * photo
         relit = []  # (light, image)
         for light in (self.options.relight_light, *self.options.extra_lights):
             s = np.asarray(light, np.float64) / np.linalg.norm(light)
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
             new_shading = np.where(cast_in, 0.0, np.clip(normals @ s, 0.0, None))
-            image = (gain * full_photo).astype(np.float32)
-            image[y0:y1, x0:x1] = composite(gain * photo, gain * albedo * new_shading[..., None], face, feather)
+            image = exposed_photo.copy()
+            image[y0:y1, x0:x1] = composite(exposed, gain * albedo * new_shading[..., None], face, feather)
             relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))
         full_albedo = np.full(full_photo.shape, np.nan, np.float32)
         full_albedo[y0:y1, x0:x1] = albedo
@@ -412,13 +413,14 @@ class QualityNode:
         seen = seen_pixels(frame, m)
         r = d["fit"]
         shading = np.clip(r.model_normals @ np.asarray(d["grid_light"], np.float64), 0.0, None)
-        use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~d.get("saturated", np.zeros(m.n_pixels, bool))
+        saturated = d["saturated"]
+        use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~saturated
         al: Alignment = d["alignment"]
         h, w = d["image"].shape[:2]
         q = assess(eyes=d.get("eyes_found", "given"),
                    explained=explained_variance(d["remapped"][m.mask], shading, use),
                    downweighted=float(np.mean(r.weights[seen] < 0.5)) if seen.any() else 1.0,
-                   clipped=float(np.mean(d.get("saturated", np.zeros(1, bool))[seen])) if seen.any() else 0.0,
+                   clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
                    face_area=float(m.n_pixels * al.scale**2 / (h * w)), inside=float(np.mean(seen[self.core])))
         frame.meta["quality"] = q.record()
         if q.no_face:
@@ -439,8 +441,8 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         IntegrateNode(model, options.integrator),
         ShadowNode(options.shadows, options.fit.dark_threshold),
         AlbedoNode(model),
+        QualityNode(model),  # before the relighting: a frame with no face fails without paying for it
     ]
     if with_views:
         nodes += [RelightNode(options), PhotoRelightNode(model, options)]
-    nodes.append(QualityNode(model))
     return nodes

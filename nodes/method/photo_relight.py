@@ -139,9 +139,10 @@ def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feath
     img = np.atleast_3d(np.asarray(photo, np.float64))
     relit = np.nan_to_num(np.atleast_3d(face_image))
     sigma = max(feather_px / 2.0, 1.0)
-    num, support = weighted_blur(relit, face, sigma)
-    den, _ = weighted_blur(img, face, sigma)
-    ratio = np.clip(num / np.maximum(den, 1e-3), *RATIO_OUTSIDE)
+    w = face.astype(np.float32)[..., None]
+    support = blur(face.astype(np.float32), sigma)
+    ratio = np.clip(blur(relit * w, sigma) / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None]),
+                    *RATIO_OUTSIDE)
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     outside = img * (1.0 + fade * (ratio - 1.0))

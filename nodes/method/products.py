@@ -22,14 +22,13 @@ def input_grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray
     mask = mask_to_input(m, al, shape)
     weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, shape)
     depth = scalar_to_input(d["depth"], m, al, shape) * al.scale
-    lit = scalar_to_input(d["shadow"].lit.astype(np.float32), m, al, shape, nearest=True)
     out = {
         "mask": mask,
         "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
         "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
         "depth": np.where(mask, depth, np.nan).astype(np.float32),
         "albedo": _squeeze(d["photo_albedo"]),
-        "lit": mask & ~d["photo_shadow"] if "photo_shadow" in d else mask & (np.nan_to_num(lit) >= 0.5),
+        "lit": mask & ~d["photo_shadow"],
         "relit": _squeeze(d["photo_relit"][0][1]),
         "relit_extra": [(light, _squeeze(r)) for light, r in d["photo_relit"][1:]],
     }

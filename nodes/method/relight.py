@@ -1,6 +1,7 @@
 """Relighting, novel views and the textured mesh of a recovered face."""
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from ..geometry.normals import normals_from_depth
@@ -53,8 +54,6 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
 def resample_surface(depth: np.ndarray, albedo: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     """The surface (heights in pixels, NaN off it) and its albedo resampled to ``size`` x ``size``
     (a square grid, as the model's): heights scale with the pixels."""
-    import cv2
-
     h, w = depth.shape
     factor = size / max(h, w)
     out_hw = (max(1, int(round(w * factor))), max(1, int(round(h * factor))))

@@ -65,9 +65,7 @@ def _read_binary_pnm(data: bytes) -> tuple[np.ndarray, int] | None:
     """A binary PGM (P5) or PPM (P6) as ``(samples (H, W) or (H, W, 3) BGR as OpenCV gives them,
     uint8 or uint16, maxval)``, read by the format's own rules (samples over 255 are two bytes,
     big-endian, on the scale 0..maxval); None when the header or the data is malformed."""
-    import re as _re
-
-    m = _re.match(rb"(P[56])(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)\s",
+    m = re.match(rb"(P[56])(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)\s",
                   data[:1024])
     if m is None:
         return None
