@@ -51,7 +51,6 @@ def train_from_recipe(recipe: dict) -> ShapeModel:
 def _cache_key(recipe: dict) -> str:
     h = hashlib.sha1(json.dumps(recipe, sort_keys=True).encode())
     if recipe["source"] == "ict":
-
         h.update(SHIPPED.read_bytes())
     return h.hexdigest()[:12]
 
