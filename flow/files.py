@@ -1,9 +1,13 @@
 """Writing files so that a reader never sees a partial one."""
 from __future__ import annotations
 
+import errno
+import fcntl
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -30,3 +34,37 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
             raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
     return path
+
+
+class FolderBusy(RuntimeError):
+    """Another process holds the folder's lock."""
+
+
+@contextmanager
+def exclusive_folder(folder: str | os.PathLike, holder: str) -> Iterator[None]:
+    """Hold an exclusive lock on ``folder`` (``folder/.lock``, ``flock``) for the ``with`` body.
+
+    ``holder`` (e.g. a process id and command line) is written into the lock file so that a
+    second process is told who holds it: ``FolderBusy`` with that text, at once (never waits).
+    The kernel drops the lock when the holder exits, however it ends (kill -9 included), so a
+    stale lock file is never an obstacle. The lock file is opened without following links.
+    """
+    path = Path(folder) / ".lock"
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666 & ~_UMASK)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise OSError(exc.errno, "is a symbolic link; refusing to follow it", str(path)) from None
+        raise
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            who = os.pread(fd, 4096, 0).decode("utf-8", "replace").strip() or "unknown process"
+            raise FolderBusy(f"{folder}: in use by another run ({who}); wait for it to finish "
+                             "or choose another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, holder.encode("utf-8", "replace")[:4000], 0)
+        yield
+    finally:
+        os.close(fd)  # closing the descriptor releases the lock

@@ -2,9 +2,12 @@
 write outputs and recordings, keep ``summary.json`` current after every frame."""
 from __future__ import annotations
 
+import dataclasses
 import errno
 import glob
 import json
+import os
+import socket
 import sys
 import time
 from contextlib import contextmanager
@@ -12,8 +15,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ...flow.files import atomic_write_bytes
+from ...flow.files import atomic_write_bytes, exclusive_folder
 from ...flow.frame import Frame
+from ...flow.manifest import (
+    JOURNAL_NAME,
+    MANIFEST_NAME,
+    InputEntry,
+    Journal,
+    RunManifest,
+    config_hash,
+    content_hash,
+    file_identity,
+    input_key,
+)
 from ...flow.pipeline import Pipeline, Stage
 from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
@@ -134,22 +148,83 @@ def one_blas_thread() -> Iterator[None]:
         yield
 
 
+def tool_version() -> str:
+    """The installed package's version ("unknown" when run from a tree that was never installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("shadowflow")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def run_config(model: ShapeModel, options: MethodOptions) -> dict:
+    """What decides a run's outputs (the manifest's ``config``): tool version, model fingerprint and
+    the method's options. Threads, timeouts, verbosity and what is recorded do not (a resumed job's
+    recording parts may differ in what they keep)."""
+    return json.loads(json.dumps({
+        "tool": "shadowflow", "version": tool_version(), "model": model.fingerprint, "model_source": model.source,
+        "options": dataclasses.asdict(options)}, default=_jsonable))
+
+
+def _jsonable(x):
+    return x.tolist() if hasattr(x, "tolist") else str(x)
+
+
+def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
+    """The keys (dotted) whose values differ between two JSON objects."""
+    out = []
+    for k in sorted(set(a) | set(b)):
+        va, vb = a.get(k), b.get(k)
+        if isinstance(va, dict) and isinstance(vb, dict):
+            out += _differences(va, vb, f"{prefix}{k}.")
+        elif va != vb:
+            out.append(f"{prefix}{k}")
+    return out
+
+
 def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
                run: RunOptions, total: int | None = None) -> RunResult:
     """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``.
 
-    A full, read-only or over-quota output folder stops the run (frames written so far stay
-    complete, ``summary.json`` lists them); ``--resume`` finishes the job once there is room.
+    One run at a time per ``out`` (a second one gets ``FolderBusy``). A full, read-only or
+    over-quota output folder stops the run (frames written so far stay complete, ``summary.json``
+    lists them); ``--resume`` finishes the job once there is room.
     """
     check_writable(out)
-    previous = _previous_summary(out) if run.resume else {}
+    holder = f"pid {os.getpid()} on {socket.gethostname()}, started {time.strftime('%Y-%m-%d %H:%M:%S')}"
+    with exclusive_folder(out, holder):
+        return _run_locked(paths, out, model, options, run, total)
+
+
+def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
+                run: RunOptions, total: int | None) -> RunResult:
+    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+    config = run_config(model, options)
+    config_id = config_hash(config)
+    previous = RunManifest.load(out) if run.resume else None
+    if run.resume and previous is None and (out / "summary.json").exists():
+        note(f"note: {out} has no readable {MANIFEST_NAME} from the earlier run: every input is redone")
+    if previous is not None and previous.config_id != config_id and previous.entries:
+        changed = ", ".join(_differences(previous.config, config)[:6])
+        note(f"note: the model or options differ from the earlier run in {out} ({changed}): its frames are redone")
+    manifest = RunManifest(config, list(previous.recordings) if previous else [],
+                           dict(previous.entries) if previous else {})
+
     sinks = []
-    for suffix in ("mcap", "rrd"):  # a link planted in --out would send the recording elsewhere
-        refuse_link(_recording_path(out, suffix, run.resume))
+    parts = {suffix: _recording_path(out, suffix, run.resume) for suffix in ("mcap", "rrd")}
+    for path in parts.values():  # a link planted in --out would send the recording elsewhere
+        refuse_link(path)
+    for name in (MANIFEST_NAME, JOURNAL_NAME, "summary.json"):
+        refuse_link(out / name)
     if "mcap" in run.record:
-        sinks.append(McapSink(_recording_path(out, "mcap", run.resume)))
+        sinks.append(McapSink(parts["mcap"]))
+        manifest.recordings.append(parts["mcap"].name)
     if "rerun" in run.record:
-        sinks.append(RerunSink(_recording_path(out, "rrd", run.resume), blueprint=default_blueprint()))
+        sinks.append(RerunSink(parts["rrd"], blueprint=default_blueprint()))
+        manifest.recordings.append(parts["rrd"].name)
+    manifest.save(out)  # the job's parts and inputs so far, before any frame
+    journal = Journal(out)
     recorder = Recorder(sinks, run.record_options) if sinks else None
     observer = FitRecorder(model, recorder) if recorder else None
 
@@ -164,6 +239,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     records: list[dict] = []
     progress = Progress(total, not run.quiet)
     storage: list[str] = []  # the first storage failure, which stops the run
+    summary_clock = {"last": time.monotonic(), "cost": 0.0}
 
     def out_of_storage(why: str) -> None:
         if not storage:
@@ -171,23 +247,64 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
         pipeline.stop()
 
-    def save_summary() -> None:
+    def save_summary(force: bool = False) -> None:
+        """summary.json, rewritten whole: at the end, and meanwhile no more often than keeps its cost
+        under 5 % of the run (the journal already holds every finished frame)."""
+        now = time.monotonic()
+        if not force and now - summary_clock["last"] < max(1.0, 20.0 * summary_clock["cost"]):
+            return
+        t0 = time.perf_counter()
         try:
             write_summary(out, records)
         except OSError as exc:
             out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
+        summary_clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
 
     def frames() -> Iterator[Frame]:
-        taken: set[str] = set()
-        for i, path in enumerate(paths):
-            stem = safe_stem(path, taken)
+        taken = manifest.names()
+        assigned: dict[str, tuple[str, int, tuple[int, int] | None]] = {}  # this run: key -> name, id, identity
+        next_id = manifest.next_frame()
+        for path in paths:
+            key, identity = input_key(path), file_identity(path)
+            earlier = manifest.entries.get(key)
+            if key in assigned:
+                if assigned[key][2] == identity:
+                    note(f"{path}: given more than once; processed once")
+                    continue
+                name, fid = assigned[key][:2]  # changed since this run took it (a watched folder): redone
+                earlier = None
+            elif earlier is not None:
+                name, fid = earlier.name, earlier.frame
+                taken.add(name.lower())
+            else:
+                name, fid = safe_stem(path, taken), next_id
+                next_id += 1
+            assigned[key] = (name, fid, identity)
             protected.add(real_path(path))
-            frame = Frame(i, path)
-            frame.meta["stem"] = stem
-            if run.resume and stem in previous and previous[stem].get("status") == "ok" and complete(out / stem):
-                frame.skipped = True
-                frame.meta["previous"] = previous[stem]
+            frame = Frame(fid, path)
+            frame.meta.update(stem=name, input_key=key, identity=identity)
+            if run.resume and earlier is not None and earlier.record is not None \
+                    and earlier.record.get("status") == "ok":
+                if earlier.config != config_id:
+                    pass  # said once above
+                elif not earlier.same_file(path, identity):
+                    note(f"note: {path} changed since the earlier run: redone")
+                elif complete(out / name):
+                    frame.skipped = True
+                    frame.meta["previous"] = earlier.record
+            if not frame.skipped:  # what the frame is made from, for a later --resume to recognise
+                frame.meta["sha256"] = content_hash(path)
             yield frame
+
+    def journal_entry(frame: Frame, rec: dict) -> None:
+        size, mtime = frame.meta.get("identity") or (-1, -1)
+        entry = InputEntry(frame.meta["input_key"], size, mtime, frame.meta["stem"], frame.id, config_id, rec,
+                           frame.meta.get("sha256", ""))
+        manifest.entries[entry.path] = entry
+        try:
+            journal.append(entry)
+        except OSError as exc:
+            out_of_storage(f"{out / JOURNAL_NAME}: cannot be written ({exc.strerror or exc})")
 
     def done(frame: Frame) -> None:
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
@@ -205,9 +322,11 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
         rec = summary_record(frame)
         records.append(rec)
         if recorder is not None:
-            recorder.frame_done(frame.id, rec, wait=True)  # recorded before summary.json says done
+            recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
             if recorder.error is not None:
                 out_of_storage(f"{out}: recording failed ({recorder.error})")
+        if not storage:
+            journal_entry(frame, rec)
         save_summary()
         progress.update(frame.ok)
         if not frame.ok:
@@ -221,6 +340,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
                 pass
     finally:
         progress.close()
+        journal.close()
         if recorder is not None:
             try:
                 recorder.close()
@@ -228,22 +348,15 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
                 if not storage:
                     raise
                 print(f"note: {exc}", file=sys.stderr)
+        save_summary(force=True)
+        try:
+            manifest.save(out)
+        except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both
+            print(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})", file=sys.stderr)
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
     return RunResult(records, pipeline.stopped and not storage, storage[0] if storage else None)
-
-
-def _previous_summary(out: Path) -> dict[str, dict]:
-    """The records of an earlier run's ``summary.json`` by stem; anything else in it (not a list,
-    records that are not objects or have no string stem) is ignored: those frames are redone."""
-    try:
-        recs = json.loads((out / "summary.json").read_text())
-    except (OSError, ValueError):
-        return {}
-    if not isinstance(recs, list):
-        return {}
-    return {r["stem"]: r for r in recs if isinstance(r, dict) and isinstance(r.get("stem"), str) and r["stem"]}
 
 
 def expand_inputs(items: list[str], note=print) -> list[str]:

@@ -6,6 +6,7 @@ gives the modes. A needle-map is then ``v = vbar + P b`` with ``P`` the (2N, K) 
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 from dataclasses import dataclass, field
@@ -74,6 +75,19 @@ class ShapeModel:
             p = self.modes.astype(np.float64).reshape(self.n_pixels, 2, -1)
             self._derived["normal_variance"] = np.einsum("nak,k->n", p**2, self.eigenvalues.astype(np.float64))
         return self._derived["normal_variance"]
+
+    @property
+    def fingerprint(self) -> str:
+        """A hash of everything the fit reads from the model (16 hex digits): equal models, equal text."""
+        if "fingerprint" not in self._derived:
+            h = hashlib.sha256(repr(self.grid).encode())
+            for a in (self.eyes, self.mask, self.mean_normals, self.mean_proj, self.modes, self.eigenvalues,
+                      np.zeros(0) if self.mouth is None else self.mouth):
+                a = np.ascontiguousarray(a)
+                h.update(f"{a.dtype.str}{a.shape}".encode())
+                h.update(a.tobytes())
+            self._derived["fingerprint"] = h.hexdigest()[:16]
+        return self._derived["fingerprint"]
 
     @property
     def n_pixels(self) -> int:

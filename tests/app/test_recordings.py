@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import rrd_rows
+from shadowflow.flow.manifest import RunManifest
 from shadowflow.flow.recording import Event, McapSink, RecordingError, RecordOptions, encode_array, read_mcap
 from shadowflow.flow.replay import diff_recordings
 from shadowflow.nodes.app.outputs import OUTPUT_FILES
@@ -61,15 +62,16 @@ def _golden_copies(src: Path, n: int) -> None:
         Path(p).with_suffix(".json").unlink()
 
 
+def _done(out: Path) -> list[dict]:
+    """The records of the frames a run in ``out`` has finished so far (its manifest and journal)."""
+    man = RunManifest.load(out)
+    return [] if man is None else [e.record for e in sorted(man.entries.values(), key=lambda e: e.frame)]
+
+
 def _wait_for_records(out: Path, n: int, timeout: float = 120.0) -> None:
-    """Wait until ``out/summary.json`` lists at least ``n`` frames."""
+    """Wait until the run in ``out`` has finished at least ``n`` frames."""
     deadline = time.time() + timeout
-    while time.time() < deadline:
-        try:
-            if len(json.loads((out / "summary.json").read_text())) >= n:
-                return
-        except (OSError, ValueError):
-            pass
+    while time.time() < deadline and len(_done(out)) < n:
         time.sleep(0.05)
 
 
@@ -266,8 +268,10 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     _wait_for_records(out, 2)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    done_before = json.loads((out / "summary.json").read_text())
+    done_before = _done(out)  # the journal: every frame is there once its files and recording are
     assert 2 <= len(done_before) < 16
+    listed = json.loads((out / "summary.json").read_text())  # rewritten about once a second: may lag
+    assert [r["stem"] for r in listed] == [r["stem"] for r in done_before[:len(listed)]]
     rec = read_mcap(out / "run.mcap")
     assert len(rec.finished_frames()) >= len(done_before) - 1  # the last flush may be cut by the kill
     for fr in rec.finished_frames():
@@ -311,6 +315,7 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     assert proc.returncode == 130 and "--resume" in err
     summary = json.loads((out / "summary.json").read_text())
     assert 2 <= len(summary) < 12 and all(r["status"] == "ok" for r in summary)
+    assert summary == _done(out)  # written in full at the stop
     rec = read_mcap(out / "run.mcap")
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")

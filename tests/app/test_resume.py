@@ -1,0 +1,160 @@
+"""One run per --out, and --resume that knows what made each output: a lock, a run manifest
+(model, options, tool version, each input's identity <-> its output name and frame id), and
+folder-mode recordings that merge only the job's own parts (issue 18 #1, #2, #3, #7)."""
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shadowflow.flow.files import FolderBusy, exclusive_folder
+from shadowflow.flow.manifest import MANIFEST_NAME, RunManifest
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+FAST = ["--max-iterations", "8", "--record", "mcap", "--light", "0.5,0,0.87"]
+
+
+def _face(path: Path, seed: int) -> Path:
+    return write_shadowed_face(path, np.random.default_rng(seed), light_from_angles(30, 0))
+
+
+def _run(inputs, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(CLI + ["run", *map(str, inputs), "--out", str(out), *FAST, *extra],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _mtimes(out: Path) -> dict[str, int]:
+    return {p.parent.name: p.stat().st_mtime_ns for p in out.glob("*/normals.npy")}
+
+
+def test_a_second_run_into_a_busy_out_says_who_holds_it_and_exits_2(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    _face(src / "face.png", 1)
+    out = tmp_path / "out"
+    out.mkdir()
+    with exclusive_folder(out, "pid 4242 on testhost"):
+        with pytest.raises(FolderBusy, match="pid 4242 on testhost"):
+            with exclusive_folder(out, "me"):
+                pass
+        busy = _run([src], out)
+        assert busy.returncode == 2, busy.stderr
+        assert len(busy.stderr.strip().splitlines()) == 1 and "in use by another run (pid 4242 on testhost)" in busy.stderr
+        assert not (out / "summary.json").exists() and not (out / "run.mcap").exists()
+    after = _run([src], out)  # the lock went with its holder; the file left behind is no obstacle
+    assert after.returncode == 0, after.stderr
+    assert (out / ".lock").is_file()
+
+
+def test_resume_after_changing_the_options_redoes_every_frame_and_says_why(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in range(2):
+        _face(src / f"face{k}.png", k)
+    out = tmp_path / "out"
+    assert _run([src], out).returncode == 0
+    man = json.loads((out / MANIFEST_NAME).read_text())
+    assert man["config"]["options"]["fit"]["max_iterations"] == 8 and len(man["config"]["model"]) == 16
+    assert [e["name"] for e in man["inputs"]] == ["face0", "face1"] and man["recordings"] == ["run.mcap"]
+    before = _mtimes(out)
+    same = _run([src], out, "--resume")
+    assert same.returncode == 0 and _mtimes(out) == before  # nothing changed: nothing redone
+    changed = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--record", "mcap",
+                                    "--max-iterations", "9", "--light", "0.5,0,0.87"],
+                             capture_output=True, text=True, timeout=300)
+    assert changed.returncode == 0, changed.stderr
+    assert "differ from the earlier run" in changed.stderr and "options.fit.max_iterations" in changed.stderr
+    assert all(_mtimes(out)[k] > before[k] for k in before)  # both redone under the new options
+    model = tmp_path / "other.npz"
+    trained = subprocess.run(CLI + ["train", "--source", "procedural", "--n", "12", "--modes", "6", "--size", "64,64",
+                                    "--out", str(model)], capture_output=True, text=True, timeout=300)
+    assert trained.returncode == 0, trained.stderr
+    again = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--record", "mcap", "--max-iterations",
+                                  "9", "--light", "0.5,0,0.87", "--model", str(model)],
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "config.model" not in again.stderr and "model" in again.stderr, again.stderr
+
+
+def test_resume_knows_inputs_by_identity_not_by_sort_order(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    _face(src / "a_b.png", 1)
+    _face(src / "m.png", 2)
+    out = tmp_path / "out"
+    assert _run([src], out).returncode == 0
+    before = _mtimes(out)
+    # a file whose name folds to a taken one, and one that sorts first
+    _face(src / "a b.png", 3)
+    _face(src / "0first.png", 4)
+    resumed = _run([src], out, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    summary = {r["source"]: r["stem"] for r in json.loads((out / "summary.json").read_text())}
+    assert summary == {str(src / "0first.png"): "0first", str(src / "a b.png"): "a_b-2",
+                       str(src / "a_b.png"): "a_b", str(src / "m.png"): "m"}
+    after = _mtimes(out)
+    assert {k: after[k] for k in before} == before  # the old ones were not redone
+    assert set(after) == {"0first", "a_b", "a_b-2", "m"}
+    man = RunManifest.load(out)
+    ids = {e.name: e.frame for e in man.entries.values()}
+    assert ids == {"a_b": 0, "m": 1, "0first": 2, "a_b-2": 3}  # old ids kept, new ones after them
+    # a fresh run numbers them in sort order; diff pairs frames by name, so the runs are the same
+    fresh = tmp_path / "fresh"
+    assert _run([src], fresh).returncode == 0
+    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 4 frames"), diff.stdout + diff.stderr
+    # an input replaced under the same name is redone, under its old name and frame id
+    shutil.copy(src / "m.png", tmp_path / "m-old.png")
+    _face(src / "m.png", 9)
+    replaced = _run([src], out, "--resume", "--record", "none")
+    assert replaced.returncode == 0 and "m.png changed since the earlier run" in replaced.stderr
+    assert _mtimes(out)["m"] > after["m"] and _mtimes(out)["a_b"] == after["a_b"]
+    assert {e.name: e.frame for e in RunManifest.load(out).entries.values()} == ids
+    # the same bytes copied back (a new mtime) are recognised by content
+    _face(src / "m.png", 2)
+    restored = _run([src], out, "--resume", "--record", "none")
+    assert "m.png changed" in restored.stderr  # content differs from the seed-9 face: redone
+    stamp = _mtimes(out)["m"]
+    shutil.copyfile(src / "m.png", tmp_path / "m-copy.png")
+    shutil.copyfile(tmp_path / "m-copy.png", src / "m.png")  # same bytes, new mtime
+    again = _run([src], out, "--resume", "--record", "none")
+    assert "changed" not in again.stderr and _mtimes(out)["m"] == stamp
+
+
+def test_folder_diff_merges_only_the_parts_of_its_own_job(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    _face(src / "face.png", 1)
+    _face(src / "other.png", 2)
+    old = tmp_path / "old"
+    assert _run([src / "other.png"], old).returncode == 0
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(old / "run.mcap", out / "run.part2.mcap")  # a stray part of an older job
+    shutil.copy(old / "run.mcap", out / "stray.mcap")
+    assert _run([src / "face.png"], out).returncode == 0
+    fresh = tmp_path / "fresh"
+    assert _run([src / "face.png"], fresh).returncode == 0
+    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 1 frames"), diff.stdout + diff.stderr
+    (out / MANIFEST_NAME).unlink()  # without a manifest every .mcap of the folder is merged in
+    merged = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert merged.returncode == 1
+
+
+def test_a_manifest_that_cannot_be_trusted_means_every_input_is_redone(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    _face(src / "face.png", 1)
+    out = tmp_path / "out"
+    assert _run([src], out).returncode == 0
+    before = _mtimes(out)
+    for text in ["null", "[]", '{"format": 1, "config": [], "inputs": 5}', "{" * 100000, "\x00\xff"]:
+        (out / MANIFEST_NAME).write_text(text)
+        proc = _run([src], out, "--resume")
+        assert proc.returncode == 0, proc.stderr
+        assert _mtimes(out)["face"] > before["face"]
+        before = _mtimes(out)
