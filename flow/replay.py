@@ -8,12 +8,13 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Callable, Iterable, Iterator, Mapping
 
 import cv2
 import numpy as np
 
-from .recording import Event, FrameRecording, Kind, Recording, RecordingError, RerunSink, read_mcap
+from .manifest import recording_parts
+from .recording import Event, FrameRecording, FrameStream, Kind, Recording, RecordingError, RerunSink
 
 
 def _part_number(path: Path) -> int:
@@ -21,37 +22,68 @@ def _part_number(path: Path) -> int:
     return int(m.group(1)) if m else 1
 
 
-def merge_recordings(parts: list[Recording], path: Path) -> Recording:
-    """One recording from the parts of an interrupted and resumed job, in order.
+class JobStream:
+    """The frames of one job's recording, streamed (``FrameStream``): one file, or the parts of an
+    interrupted and resumed job in order. A frame finished in a later part replaces any earlier
+    copy (a frame cut short by a kill, or redone because its input or the options changed, is
+    recorded again by the resumed run); an unfinished frame is kept only if no part finished it.
+    With several parts a first pass reads only their records to decide this, so memory still
+    holds one frame at a time. ``truncated`` (after iterating): the last part ended early."""
 
-    A frame finished in a later part replaces any earlier copy (a frame cut short by a kill is
-    redone by the resumed run); an unfinished frame is kept only if no part finished it.
-    """
-    frames: dict[int, FrameRecording] = {}
-    for rec in parts:
-        for fid, fr in rec.frames.items():
-            if fr.finished or fid not in frames or not frames[fid].finished:
-                frames[fid] = fr
-    return Recording(path, dict(sorted(frames.items())), bool(parts) and parts[-1].truncated)
+    def __init__(self, path: Path, parts: list[Path], arrays: bool = True):
+        self.path, self.parts, self.arrays, self.truncated = path, parts, arrays, False
+
+    def __iter__(self) -> Iterator[FrameRecording]:
+        if len(self.parts) == 1:
+            stream = FrameStream(self.parts[0], self.arrays)
+            yield from stream
+            self.truncated = stream.truncated
+            return
+        owner: dict[int, tuple[int, bool]] = {}  # frame id -> (part, finished there)
+        for k, part in enumerate(self.parts):
+            for fr in FrameStream(part, arrays=False):
+                if fr.finished or fr.frame not in owner or not owner[fr.frame][1]:
+                    owner[fr.frame] = (k, fr.finished)
+        for k, part in enumerate(self.parts):
+            stream = FrameStream(part, self.arrays)
+            for fr in stream:
+                if owner.get(fr.frame, (k,))[0] == k:
+                    yield fr
+            self.truncated = stream.truncated
 
 
-def open_recording(path: str | Path) -> Recording:
-    """Open an MCAP recording (``.mcap``) for walking frame -> iteration -> arrays.
+def open_frames(path: str | Path, arrays: bool = True) -> JobStream:
+    """The frames of an MCAP recording (``.mcap``) as a stream, for walking frame -> iteration ->
+    arrays; ``arrays=False`` skips the arrays (tables, plots).
 
-    A folder opens the recordings of one job in it, ``run.mcap`` then ``run.part2.mcap``,
-    ``run.part3.mcap``... (written by ``--resume``), merged by ``merge_recordings``.
-    ``.rrd`` files hold display forms (images, plots), not the exact arrays: replay them in
-    the Rerun viewer, and use the MCAP twin written beside them for tables and diffs.
+    A folder opens the recordings of the job in it, in order (``run.mcap``, then the
+    ``run.part2.mcap``... a resumed run adds): the parts its ``manifest.json`` names, so a stray
+    or older ``.mcap`` beside them is never merged in (every ``*.mcap`` of the folder when it
+    has no manifest). ``.rrd`` files hold display forms (images, plots), not the exact arrays:
+    ``run.rrd`` opens the MCAP twin written beside it.
     """
     path = Path(path)
     if path.is_dir():
-        files = sorted(path.glob("*.mcap"), key=lambda p: (_part_number(p), p.name))
+        files = recording_parts(path, "mcap")
+        if files is None:
+            files = sorted(path.glob("*.mcap"), key=lambda p: (_part_number(p), p.name))
         if not files:
             raise RecordingError(f"{path}: no .mcap recording in this folder")
-        return merge_recordings([read_mcap(f) for f in files], path)
+        return JobStream(path, files, arrays)
     if path.suffix.lower() == ".rrd":
-        raise RecordingError(f"{path}: tables and diffs read the exact MCAP recording (run.mcap beside it)")
-    return read_mcap(path)
+        twin = path.with_suffix(".mcap")
+        if not twin.is_file():
+            raise RecordingError(f"{path}: tables and diffs read the exact MCAP recording, and there is no "
+                                 f"{twin.name} beside it (record with --record mcap)")
+        path = twin
+    return JobStream(path, [path], arrays)
+
+
+def open_recording(path: str | Path) -> Recording:
+    """The whole of ``open_frames(path)`` in memory, by frame id."""
+    stream = open_frames(path)
+    frames = {fr.frame: fr for fr in stream}
+    return Recording(Path(path), dict(sorted(frames.items())), stream.truncated)
 
 
 @dataclass
@@ -66,22 +98,30 @@ class ConvergenceRow:
     converged: bool | None
 
 
-def convergence_table(rec: Recording, channel: str) -> list[ConvergenceRow]:
-    """One row per recorded frame: iterations, final ``sigma``, ``residual_mean`` first -> last, from
-    the per-iteration scalars of ``channel``."""
-    rows = []
-    for fid, fr in sorted(rec.frames.items()):
-        series = fr.scalars.get(channel, {})
-        its = sorted(i for i in series if i is not None)
-        first = series[its[0]] if its else {}
-        last = series[its[-1]] if its else {}
-        record = fr.record or {}
-        rows.append(ConvergenceRow(
-            frame=fid, source=str(record.get("source", "?")),
-            status=str(record.get("status", "unfinished")), iterations=int(record.get("iterations") or len(its)),
-            final_sigma=last.get("sigma"), residual_first=first.get("residual_mean"),
-            residual_last=last.get("residual_mean"), converged=record.get("converged")))
-    return rows
+def _number(x) -> float | None:
+    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+
+
+def convergence_row(fr: FrameRecording, channel: str) -> ConvergenceRow:
+    """A frame's iterations, final ``sigma``, ``residual_mean`` first -> last, from the per-iteration
+    scalars of ``channel`` and its record (anything of the wrong type in them reads as unknown)."""
+    series = fr.scalars.get(channel, {})
+    its = sorted(i for i in series if i is not None)
+    first = series[its[0]] if its else {}
+    last = series[its[-1]] if its else {}
+    record = fr.record or {}
+    iterations = record.get("iterations")
+    return ConvergenceRow(
+        frame=fr.frame, source=str(record.get("source", "?")), status=str(record.get("status", "unfinished")),
+        iterations=iterations if isinstance(iterations, int) and not isinstance(iterations, bool) else len(its),
+        final_sigma=_number(last.get("sigma")), residual_first=_number(first.get("residual_mean")),
+        residual_last=_number(last.get("residual_mean")),
+        converged=record.get("converged") if isinstance(record.get("converged"), bool) else None)
+
+
+def convergence_table(frames: Iterable[FrameRecording], channel: str) -> list[ConvergenceRow]:
+    """One ``convergence_row`` per frame, in frame id order (a ``Recording`` or any stream of frames)."""
+    return sorted((convergence_row(fr, channel) for fr in frames), key=lambda r: r.frame)
 
 
 def format_table(rows: list[ConvergenceRow]) -> str:
@@ -97,32 +137,34 @@ def format_table(rows: list[ConvergenceRow]) -> str:
     return "\n".join(lines)
 
 
-def plot_convergence(rec: Recording, path: str | Path, channel: str, keys: tuple[str, ...],
+def plot_convergence(series: Iterable[tuple[int, Mapping]], path: str | Path, keys: tuple[str, ...],
                      size=(900, 300)) -> Path:
-    """PNG with one panel per scalar ``keys`` of ``channel`` (log scale), one line per frame, against
-    iteration."""
+    """PNG with one panel per scalar of ``keys`` (log scale), one line per frame, against iteration.
+    series: (frame id, {iteration: {name: value}}) per frame, e.g. ``fr.scalars[channel]``; values
+    that are missing, not numbers or not positive are left out."""
+    series = list(series)
     w, h = size
     panels = []
     colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
     for key in keys:
         img = np.full((h, w // len(keys), 3), 255, np.uint8)
         pw, ph = img.shape[1], img.shape[0]
-        series = []
-        for fid, fr in sorted(rec.frames.items()):
-            s = fr.scalars.get(channel, {})
-            pts = [(i, s[i][key]) for i in sorted(k for k in s if k is not None) if s[i].get(key, 0) > 0]
+        lines = []
+        for fid, s in sorted(series, key=lambda fs: fs[0]):
+            pts = [(i, _number(s[i].get(key))) for i in sorted(k for k in s if k is not None)]
+            pts = [(i, v) for i, v in pts if v is not None and np.isfinite(v) and v > 0]
             if pts:
-                series.append((fid, np.array(pts, float)))
+                lines.append((fid, np.array(pts, float)))
         cv2.putText(img, key, (40, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-        if series:
-            xmax = max(s[:, 0].max() for _, s in series)
-            ys = np.log10(np.concatenate([s[:, 1] for _, s in series]))
+        if lines:
+            xmax = max(s[:, 0].max() for _, s in lines)
+            ys = np.log10(np.concatenate([s[:, 1] for _, s in lines]))
             lo, hi = float(ys.min()), float(ys.max()) + 1e-9
             cv2.putText(img, f"1e{lo:.1f}", (2, ph - 28), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (90, 90, 90), 1)
             cv2.putText(img, f"1e{hi:.1f}", (2, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (90, 90, 90), 1)
             cv2.putText(img, f"iteration 1..{int(xmax)}", (pw // 2 - 40, ph - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
                         (90, 90, 90), 1)
-            for k, (_, s) in enumerate(series):
+            for k, (_, s) in enumerate(lines):
                 x = 40 + (s[:, 0] - 1) / max(xmax - 1, 1) * (pw - 50)
                 y = (ph - 24) - (np.log10(s[:, 1]) - lo) / (hi - lo) * (ph - 50)
                 pts = np.column_stack([x, y]).astype(np.int32).reshape(-1, 1, 2)
@@ -133,14 +175,15 @@ def plot_convergence(rec: Recording, path: str | Path, channel: str, keys: tuple
     return path
 
 
-def relog_to_rerun(rec: Recording, rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,
+def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,
                    blueprint=None) -> Path:
-    """Write a recording's frames and iterations into a Rerun ``.rrd`` file. kinds: how to show an
-    array by the last part of its path (e.g. ``{"depth": Kind.DEPTH}``); others are images when
-    2-D, arrays otherwise."""
+    """Write frames and their iterations (a ``Recording`` or a stream) into a Rerun ``.rrd`` file,
+    one frame at a time. kinds: how to show an array by the last part of its path (e.g.
+    ``{"depth": Kind.DEPTH}``); others are images when 2-D, arrays otherwise."""
     kinds = kinds or {}
     sink = RerunSink(rrd_path, blueprint=blueprint)
-    for fid, fr in sorted(rec.frames.items()):
+    for fr in frames:
+        fid = fr.frame
         for path, by_it in fr.arrays.items():
             name = path.rsplit("/", 1)[-1]
             if "/mesh/" in f"/{path}":
@@ -160,55 +203,103 @@ def relog_to_rerun(rec: Recording, rrd_path: str | Path, kinds: Mapping[str, Kin
 
 @dataclass
 class Difference:
-    frame: int
+    frame: int | str  # the frame's key (its id, or the caller's name for it)
     iteration: int | None
     channel: str
     max_abs: float
     what: str = "values differ"
 
 
-def diff_recordings(a: Recording, b: Recording, atol: float = 0.0, rtol: float = 0.0) -> list[Difference]:
-    """Channel-by-channel, iteration-by-iteration comparison of two recordings.
+@dataclass
+class DiffReport:
+    """differences: in the order the runs split (frame, then iteration, then channel); frames:
+    how many were compared; iterations: distinct iterations over the frames compared."""
 
-    Arrays (and scalars) match when ``|a - b| <= atol + rtol |b|`` everywhere (NaN equals
-    NaN); a channel, iteration or frame present in one and not the other is a difference.
-    Returned in (frame, iteration, channel) order: the first is the first divergence.
-    """
-    out: list[Difference] = []
-    for fid in sorted(set(a.frames) | set(b.frames)):
-        fa, fb = a.frames.get(fid), b.frames.get(fid)
-        if fa is None or fb is None:
-            out.append(Difference(fid, None, "*", float("inf"), f"frame only in {'B' if fa is None else 'A'}"))
-            continue
-        keys = set()
-        for kind in ("arrays", "scalars"):
-            for ch in set(getattr(fa, kind)) | set(getattr(fb, kind)):
-                for it in set(getattr(fa, kind).get(ch, {})) | set(getattr(fb, kind).get(ch, {})):
-                    keys.add((-1 if it is None else it, ch, kind))
-        for it, ch, kind in sorted(keys):
-            itv = None if it == -1 else it
-            va = getattr(fa, kind).get(ch, {}).get(itv)
-            vb = getattr(fb, kind).get(ch, {}).get(itv)
-            if va is None or vb is None:
-                out.append(Difference(fid, itv, ch, float("inf"), f"only in {'B' if va is None else 'A'}"))
+    differences: list[Difference]
+    frames: int
+    iterations: int
+
+
+def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol: float = 0.0, rtol: float = 0.0,
+                 key: Callable[[FrameRecording], object] | None = None) -> DiffReport:
+    """Channel-by-channel, iteration-by-iteration comparison of two streams of frames, holding only
+    the frames one stream has reached and the other not yet (one each when both run in the same
+    order). Frames pair up by ``key(frame)`` (default: the frame id); a frame, channel or
+    iteration present on one side only is a difference. Arrays (and scalars) match when
+    ``|a - b| <= atol + rtol |b|`` everywhere (NaN equals NaN)."""
+    key = key or (lambda fr: fr.frame)
+    pending: tuple[dict, dict] = ({}, {})
+    out: list[tuple[tuple, Difference]] = []
+    compared = iterations = 0
+    streams = [iter(a), iter(b)]
+    while any(s is not None for s in streams):
+        for side in (0, 1):
+            if streams[side] is None:
                 continue
-            if kind == "scalars":
-                names = sorted(set(va) | set(vb))
-                if set(va) != set(vb):
-                    out.append(Difference(fid, itv, ch, float("inf"), "different scalar names"))
-                    continue
-                xa = np.array([va[n] for n in names], float)
-                xb = np.array([vb[n] for n in names], float)
-            else:
-                xa, xb = va, vb
-                if xa.shape != xb.shape or xa.dtype != xb.dtype:
-                    out.append(Difference(fid, itv, ch, float("inf"), f"{xa.dtype}{list(xa.shape)} vs {xb.dtype}{list(xb.shape)}"))
-                    continue
-            d = _max_violation(np.asarray(xa, np.float64), np.asarray(xb, np.float64), atol, rtol)
-            if d is not None:
-                out.append(Difference(fid, itv, ch, d))
-        if (fa.record or {}).get("status") != (fb.record or {}).get("status"):
-            out.append(Difference(fid, None, "frames", float("inf"), "status differs"))
+            fr = next(streams[side], None)
+            if fr is None:
+                streams[side] = None
+                continue
+            k = key(fr)
+            waiting = pending[1 - side].get(k)
+            if not waiting:
+                pending[side].setdefault(k, []).append(fr)  # two frames with one key pair up in order
+                continue
+            other = waiting.pop(0)
+            fa, fb = (fr, other) if side == 0 else (other, fr)
+            compared += 1
+            iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
+                               if i is not None})
+            out += [((fa.frame,) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
+    for side, label in ((0, "A"), (1, "B")):
+        for k, frs in pending[side].items():
+            for fr in frs:
+                out.append(((fr.frame, -2, ""), Difference(k, None, "*", float("inf"), f"frame only in {label}")))
+    out.sort(key=lambda od: od[0])
+    return DiffReport([d for _, d in out], compared, iterations)
+
+
+def _order(d: Difference) -> tuple:
+    return (-1 if d.iteration is None else d.iteration, d.channel)
+
+
+def diff_recordings(a: Recording, b: Recording, atol: float = 0.0, rtol: float = 0.0,
+                    key: Callable[[FrameRecording], object] | None = None) -> list[Difference]:
+    """``diff_streams`` of two recordings read whole: the differences, the first divergence first."""
+    return diff_streams(a, b, atol, rtol, key).differences
+
+
+def _diff_frame(fid, fa: FrameRecording, fb: FrameRecording, atol: float, rtol: float) -> list[Difference]:
+    out: list[Difference] = []
+    keys = set()
+    for kind in ("arrays", "scalars"):
+        for ch in set(getattr(fa, kind)) | set(getattr(fb, kind)):
+            for it in set(getattr(fa, kind).get(ch, {})) | set(getattr(fb, kind).get(ch, {})):
+                keys.add((-1 if it is None else it, ch, kind))
+    for it, ch, kind in sorted(keys):
+        itv = None if it == -1 else it
+        va = getattr(fa, kind).get(ch, {}).get(itv)
+        vb = getattr(fb, kind).get(ch, {}).get(itv)
+        if va is None or vb is None:
+            out.append(Difference(fid, itv, ch, float("inf"), f"only in {'B' if va is None else 'A'}"))
+            continue
+        if kind == "scalars":
+            names = sorted(set(va) | set(vb))
+            if set(va) != set(vb):
+                out.append(Difference(fid, itv, ch, float("inf"), "different scalar names"))
+                continue
+            xa = np.array([np.nan if va[n] is None else va[n] for n in names], float)
+            xb = np.array([np.nan if vb[n] is None else vb[n] for n in names], float)
+        else:
+            xa, xb = va, vb
+            if xa.shape != xb.shape or xa.dtype != xb.dtype:
+                out.append(Difference(fid, itv, ch, float("inf"), f"{xa.dtype}{list(xa.shape)} vs {xb.dtype}{list(xb.shape)}"))
+                continue
+        d = _max_violation(np.asarray(xa, np.float64), np.asarray(xb, np.float64), atol, rtol)
+        if d is not None:
+            out.append(Difference(fid, itv, ch, d))
+    if (fa.record or {}).get("status") != (fb.record or {}).get("status"):
+        out.append(Difference(fid, None, "frames", float("inf"), "status differs"))
     return out
 
 

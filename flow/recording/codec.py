@@ -42,9 +42,10 @@ def encode_array(frame: int, iteration: int | None, arr: np.ndarray, mask: np.nd
     return ARRAY_MAGIC + struct.pack("<I", len(header)) + header + bits + a.tobytes()
 
 
-def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
+def decode_array(data: bytes, check_only: bool = False) -> tuple[dict, np.ndarray | None]:
     """Inverse of ``encode_array`` (a masked message comes back as the full array); raises
-    ``ValueError`` on anything malformed."""
+    ``ValueError`` on anything malformed. ``check_only``: validate the whole message the same
+    way, but build no array (None)."""
     if len(data) < 8 or data[:4] != ARRAY_MAGIC:
         raise ValueError("not a shadowflow array message")
     (hlen,) = struct.unpack("<I", data[4:8])
@@ -65,6 +66,8 @@ def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
     if not masked:
         if full != len(payload):
             raise ValueError(f"array payload is {len(payload)} bytes, header says {full}")
+        if check_only:
+            return header, None
         return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
     pixels = shape[0] * shape[1]
     nbits = (pixels + 7) // 8
@@ -75,6 +78,8 @@ def decode_array(data: bytes) -> tuple[dict, np.ndarray]:
     n = int(mask.sum()) * per_pixel * itemsize
     if n != len(payload) - nbits:
         raise ValueError(f"masked array values are {len(payload) - nbits} bytes, its mask says {n}")
+    if check_only:
+        return header, None
     values = np.frombuffer(payload[nbits:], dtype=dtype).reshape((-1, *shape[2:]))
     fill = np.nan if np.dtype(dtype).kind == "f" else 0
     return header, OnMask(values, mask).grid(fill)

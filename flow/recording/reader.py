@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -41,6 +42,9 @@ class Recording:
     frames: dict[int, FrameRecording]
     truncated: bool = False
 
+    def __iter__(self) -> Iterator[FrameRecording]:
+        return iter([f for _, f in sorted(self.frames.items())])
+
     def finished_frames(self) -> list[FrameRecording]:
         return [f for _, f in sorted(self.frames.items()) if f.finished]
 
@@ -49,61 +53,143 @@ class RecordingError(ValueError):
     """The file is not a readable shadowflow recording (the message says why, on one line)."""
 
 
-def read_mcap(path: str | Path) -> Recording:
-    """Read a shadowflow MCAP recording without trusting it.
+MAX_OPEN_BYTES = 2 << 30  # arrays held for frames not yet closed; a file needing more is refused
 
-    No pickle, no code: arrays are decoded only from the documented binary layout with a
-    whitelist of dtypes and a size check; a record claiming more than 1 GiB is refused. A
-    file cut short (killed run) yields what came before the cut, ``truncated=True``.
+
+class FrameStream:
+    """The frames of one MCAP recording, read as a stream: iterating yields each frame's
+    ``FrameRecording`` once its closing record has come and a message of another frame follows
+    (then forgets it; a frame's messages may come in any order, as in a file sorted by log
+    time), and at the end the frames never closed (a killed run), in id order. Only the frames still open are held
+    (one at a time when frames were recorded one after another).
+
+    arrays: False skips array messages (a table or a plot needs only scalars and records).
+    After iterating, ``truncated`` says whether the file ended early. Malformed content raises
+    ``RecordingError`` naming the file; running out of memory is never taken for truncation.
     """
-    from mcap.reader import NonSeekingReader
 
-    path = Path(path)
+    def __init__(self, path: str | Path, arrays: bool = True):
+        self.path, self.arrays, self.truncated = Path(path), arrays, False
+
+    def __iter__(self) -> Iterator[FrameRecording]:
+        from mcap.reader import NonSeekingReader
+
+        path = self.path
+        open_frames: dict[int, FrameRecording] = {}
+        held = {"bytes": 0}
+        closing: set[int] = set()  # frames whose closing record has come
+        seen_any = False
+        try:
+            fh = open(path, "rb")
+        except OSError as exc:
+            raise RecordingError(f"{path}: cannot open ({exc.strerror or exc})") from None
+        with fh:
+            if fh.read(8) != b"\x89MCAP0\r\n":
+                raise RecordingError(f"{path}: not an MCAP file")
+            fh.seek(0)
+            reader = NonSeekingReader(fh, record_size_limit=MAX_ARRAY_BYTES + (1 << 20))
+            it = reader.iter_messages(log_time_order=False)  # file order: stream, never buffer the file
+            while True:
+                try:
+                    schema, channel, message = next(it)
+                except StopIteration:
+                    break
+                except MemoryError:
+                    raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
+                except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors, EOF...: all mean a bad file
+                    if not seen_any:
+                        raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
+                    self.truncated = True
+                    break
+                seen_any = True
+                try:
+                    current, closed = _take(open_frames, held, channel.topic, channel.message_encoding, message.data,
+                                   self.arrays)
+                except MemoryError:
+                    raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
+                except (ValueError, KeyError, TypeError, OverflowError) as exc:
+                    raise RecordingError(f"{path}: bad message on {channel.topic} ({exc})") from None
+                if held["bytes"] > MAX_OPEN_BYTES:
+                    raise RecordingError(f"{path}: frames still open hold over {MAX_OPEN_BYTES >> 30} GiB of "
+                                         "arrays; refusing to read further")
+                for fid in [f for f in closing if current is not None and f != current]:  # its record came, and then another frame
+                    closing.discard(fid)
+                    fr = open_frames.pop(fid)
+                    held["bytes"] -= _nbytes(fr)
+                    yield fr
+                if closed:
+                    closing.add(current)
+        for fid in sorted(closing):
+            yield open_frames.pop(fid)
+        for fid in sorted(open_frames):
+            yield open_frames.pop(fid)
+
+
+def read_mcap(path: str | Path) -> Recording:
+    """Read a whole shadowflow MCAP recording into memory (``FrameStream`` reads one frame at a
+    time). No pickle, no code: arrays are decoded only from the documented binary layout with a
+    whitelist of dtypes and a size check; a record claiming more than 1 GiB is refused. A file
+    cut short (killed run) yields what came before the cut, ``truncated=True``.
+    """
+    stream = FrameStream(path)
     frames: dict[int, FrameRecording] = {}
-    truncated = False
-    try:
-        fh = open(path, "rb")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot open ({exc.strerror or exc})") from None
-    with fh:
-        head = fh.read(8)
-        if head != b"\x89MCAP0\r\n":
-            raise RecordingError(f"{path}: not an MCAP file")
-        fh.seek(0)
-        reader = NonSeekingReader(fh, record_size_limit=MAX_ARRAY_BYTES + (1 << 20))
-        it = reader.iter_messages(log_time_order=False)  # file order: stream, never buffer the file
-        while True:
-            try:
-                schema, channel, message = next(it)
-            except StopIteration:
-                break
-            except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors, EOF...: all mean a bad file
-                if not frames:
-                    raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
-                truncated = True
-                break
-            try:
-                _take(frames, channel.topic, channel.message_encoding, message.data)
-            except (ValueError, KeyError, TypeError) as exc:
-                raise RecordingError(f"{path}: bad message on {channel.topic} ({exc})") from None
-    return Recording(path, frames, truncated)
+    for fr in stream:  # a frame id seen twice (a file redone in one run): the later one
+        frames[fr.frame] = fr
+    return Recording(Path(path), dict(sorted(frames.items())), stream.truncated)
 
 
-def _take(frames: dict[int, FrameRecording], topic: str, encoding: str, data: bytes) -> None:
+def _nbytes(fr: FrameRecording) -> int:
+    return sum(a.nbytes for by_it in fr.arrays.values() for a in by_it.values())
+
+
+def _frame_id(x) -> int:
+    if not isinstance(x, int) or isinstance(x, bool) or not 0 <= x < 1 << 53:
+        raise ValueError(f"frame must be a whole number >= 0, not {x!r}")
+    return x
+
+
+def _iteration(x) -> int | None:
+    if x is not None and (not isinstance(x, int) or isinstance(x, bool) or not 0 <= x < 1 << 53):
+        raise ValueError(f"iteration must be a whole number >= 0 or null, not {x!r}")
+    return x
+
+
+def _scalars(x) -> dict:
+    if not isinstance(x, dict):
+        raise ValueError("values must be an object")
+    for k, v in x.items():
+        if v is not None and (not isinstance(v, (int, float)) or isinstance(v, bool)):
+            raise ValueError(f"scalar {k!r} must be a number or null, not {v!r}")
+    return dict(x)
+
+
+def _take(frames: dict[int, FrameRecording], held: dict, topic: str, encoding: str, data: bytes,
+          arrays: bool) -> tuple[int | None, bool]:
+    """File one message under its frame; returns (its frame id, whether it is the frame's closing record)."""
     if topic.endswith("/foxglove"):
-        return  # a display copy of an array recorded exactly beside it
+        return None, False  # a display copy of an array recorded exactly beside it
     path = topic.lstrip("/")
     if encoding == ARRAY_ENCODING:
-        header, arr = decode_array(data)
-        fr = frames.setdefault(int(header["frame"]), FrameRecording(int(header["frame"])))
-        fr.arrays.setdefault(path, {})[header["iteration"]] = arr
+        header, arr = decode_array(data, check_only=not arrays)
+        fid = _frame_id(header.get("frame"))
+        _iteration(header.get("iteration"))
+        fr = frames.setdefault(fid, FrameRecording(fid))
+        if arr is None:
+            return fid, False
+        fr.arrays.setdefault(path, {})[_iteration(header.get("iteration"))] = arr
+        held["bytes"] += arr.nbytes
     elif encoding == "json":
         body = json.loads(data)
-        frame = int(body["frame"])
-        fr = frames.setdefault(frame, FrameRecording(frame))
+        if not isinstance(body, dict):
+            raise ValueError("message is not a JSON object")
+        fid = _frame_id(body.get("frame"))
+        fr = frames.setdefault(fid, FrameRecording(fid))
         if path == "frames":
+            if not isinstance(body.get("values"), dict):
+                raise ValueError("a frame record's values must be an object")
             fr.record = dict(body["values"])
-        else:
-            fr.scalars.setdefault(path, {})[body.get("iteration")] = dict(body["values"])
+            return fid, True
+        fr.scalars.setdefault(path, {})[_iteration(body.get("iteration"))] = _scalars(body.get("values"))
     else:
         raise ValueError(f"unknown message encoding {encoding!r}")
+    return fid, False

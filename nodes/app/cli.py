@@ -16,10 +16,10 @@ from ...flow.files import atomic_write_bytes
 from ...flow.pipeline import wait_for_abandoned
 from ...flow.recording import RecordOptions
 from ...flow.replay import (
-    convergence_table,
-    diff_recordings,
+    convergence_row,
+    diff_streams,
     format_table,
-    open_recording,
+    open_frames,
     plot_convergence,
     relog_to_rerun,
 )
@@ -33,7 +33,7 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
-from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint
+from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
 from .runner import RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream, watch_folder
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -292,30 +292,43 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_replay(args: argparse.Namespace) -> int:
 
-    rec = open_recording(args.recording)
-    print(format_table(convergence_table(rec, CONVERGENCE)))
-    if rec.truncated:
+    stream = open_frames(args.recording, arrays=bool(args.rrd))  # one frame in memory at a time
+    rows, series = [], []
+
+    def tap(frames):
+        for fr in frames:
+            rows.append(convergence_row(fr, CONVERGENCE))
+            series.append((fr.frame, fr.scalars.get(CONVERGENCE, {})))
+            yield fr
+
+    if args.rrd:
+        relog_to_rerun(tap(stream), args.rrd, DISPLAY_KINDS, default_blueprint())
+    else:
+        for _ in tap(stream):
+            pass
+    print(format_table(sorted(rows, key=lambda r: r.frame)))
+    if stream.truncated:
         print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
     if args.plot:
-        print(f"plot: {plot_convergence(rec, args.plot, CONVERGENCE, CONVERGENCE_PLOTS)}")
+        print(f"plot: {plot_convergence(series, args.plot, CONVERGENCE_PLOTS)}")
     if args.rrd:
-        print(f"rerun: {relog_to_rerun(rec, args.rrd, DISPLAY_KINDS, default_blueprint())}")
+        print(f"rerun: {args.rrd}")
     return 0
 
 
 def cmd_diff(args: argparse.Namespace) -> int:
 
-    a, b = open_recording(args.a), open_recording(args.b)
-    diffs = diff_recordings(a, b, args.atol, args.rtol)
-    if not diffs:
-        n = sum(len(f.iterations(CONVERGENCE)) for f in a.frames.values())
-        print(f"same: {len(a.frames)} frames, {n} iterations within atol={args.atol:g} rtol={args.rtol:g}")
+    report = diff_streams(open_frames(args.a), open_frames(args.b), args.atol, args.rtol, key=frame_name)
+    if not report.differences:
+        print(f"same: {report.frames} frames, {report.iterations} iterations within atol={args.atol:g} "
+              f"rtol={args.rtol:g}")
         return 0
+    diffs = report.differences
     first = diffs[0]
     it = "-" if first.iteration is None else first.iteration
     print(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
           f"{first.what}, max |difference| {first.max_abs:.6g}")
-    frames = sorted({d.frame for d in diffs})
+    frames = {str(d.frame) for d in diffs}
     channels = sorted({d.channel for d in diffs})
     print(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}")
     return 1

@@ -5,10 +5,12 @@ Entity / topic paths are ``<node>/<name>``; arrays are on the model grid (``(Hm,
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from ...flow.frame import Frame
-from ...flow.recording import Event, Kind, OnMask, Recorder
+from ...flow.recording import Event, FrameRecording, Kind, OnMask, Recorder
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..model.shape_model import ShapeModel
@@ -104,3 +106,11 @@ def default_blueprint():
         ),
         collapse_panels=True,
     )
+
+
+def frame_name(fr: FrameRecording) -> str:
+    """What a recorded frame is called across runs: its input's file name once it finished (output
+    names and frame ids depend on what else a run was given), else ``#<frame id>``. ``diff`` pairs
+    the frames of two runs by it."""
+    source = (fr.record or {}).get("source")
+    return os.path.basename(source) if isinstance(source, str) and source else f"#{fr.frame}"
