@@ -34,7 +34,7 @@ from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, parse_light
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
-from .runner import RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream, watch_folder
+from .runner import FolderWatch, RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -91,6 +91,8 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     if args.frame_timeout is not None and not (args.frame_timeout > 0 and math.isfinite(args.frame_timeout)):
         raise ValueError(f"--frame-timeout must be a positive, finite number of seconds (leave it out for no limit), "
                          f"not {args.frame_timeout}")
+    if not (args.settle >= 0 and math.isfinite(args.settle)):
+        raise ValueError(f"--settle must be a finite number of seconds, not {args.settle}")
     if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
@@ -169,10 +171,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
+    watch = None
     if args.watch:
         paths = expand_inputs(inputs, note) if inputs else []
-        stream = (p for src in (paths, watch_folder(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit))
-                  for p in src)
+        watch = FolderWatch(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit, settle=args.settle)
+        stream = (p for src in (paths, watch) for p in src)
         total = None
     else:
         stream = expand_inputs(inputs, note)
@@ -183,7 +186,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     failures = sum(r["status"] != "ok" for r in records)
     note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
          f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
-    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None else 1
+    if watch is not None and watch.error:
+        print(f"error: {watch.error}", file=sys.stderr)
+    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None and not \
+        (watch is not None and watch.error) else 1
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
         print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
         sys.stdout.flush()
@@ -379,6 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")
     r.add_argument("--watch", metavar="DIR", help="keep processing new images that appear in DIR")
     r.add_argument("--idle-exit", type=float, metavar="SECONDS", help="with --watch: stop after this long with nothing new")
+    r.add_argument("--settle", type=float, default=1.0, metavar="SECONDS",
+                   help="with --watch: take a file once its size and time have not changed for this long (default 1)")
     r.add_argument("--quiet", action="store_true")
     r.set_defaults(func=cmd_run)
 

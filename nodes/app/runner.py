@@ -8,6 +8,7 @@ import glob
 import json
 import os
 import socket
+import stat
 import sys
 import time
 from contextlib import contextmanager
@@ -237,6 +238,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
     records: list[dict] = []
+    record_index: dict[str, int] = {}  # output name -> its record's place in records
     progress = Progress(total, not run.quiet)
     storage: list[str] = []  # the first storage failure, which stops the run
     summary_clock = {"last": time.monotonic(), "cost": 0.0}
@@ -311,6 +313,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             frame.data.clear()
             return
         if frame.skipped:
+            record_index[frame.meta["stem"]] = len(records)
             records.append(frame.meta["previous"])
             save_summary()
             progress.update(True)
@@ -320,7 +323,11 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             frame.data.clear()
             return
         rec = summary_record(frame)
-        records.append(rec)
+        if frame.meta["stem"] in record_index:  # taken again (it changed while watched): the newer record
+            records[record_index[frame.meta["stem"]]] = rec
+        else:
+            record_index[frame.meta["stem"]] = len(records)
+            records.append(rec)
         if recorder is not None:
             recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
             if recorder.error is not None:
@@ -382,26 +389,59 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
     return out
 
 
-def watch_folder(folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5) -> Iterator[str]:
-    """Yield image files in ``folder`` (sorted) and then each new one as it appears, once its
-    size has stopped changing; end after ``idle_exit`` seconds with nothing new (None: never,
-    until Ctrl-C)."""
-    seen: set[Path] = set()
-    sizes: dict[Path, int] = {}
-    last_new = time.monotonic()
-    while True:
-        fresh = []
-        for f in sorted(folder.iterdir()):
-            if f in seen or not f.is_file() or f.suffix.lower() not in suffixes:
+class FolderWatch:
+    """Image files in ``folder`` (sorted), then each new one as it appears; iterate it for paths.
+
+    A file is taken once its size and mtime have stayed the same for ``settle`` seconds (or its
+    mtime is already that old), so a file still being copied in is not read half-written. A
+    file taken before is taken again when it changes (replaced, or completed after a stalled
+    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new (None: never,
+    until Ctrl-C), or when the folder goes away: ``error`` then says why (one line)."""
+
+    def __init__(self, folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
+                 settle: float = 1.0):
+        self.folder, self.suffixes, self.idle_exit, self.poll, self.settle = folder, suffixes, idle_exit, poll, settle
+        self.error: str | None = None
+
+    def _listing(self) -> dict[Path, tuple[int, int, float]] | None:
+        """path -> (size, mtime_ns, mtime in s) of the image files now in the folder; None when it is gone."""
+        try:
+            names = sorted(self.folder.iterdir())
+        except OSError as exc:
+            self.error = f"--watch {self.folder}: {exc.strerror or exc}; stopped watching"
+            return None
+        found = {}
+        for f in names:
+            if f.suffix.lower() not in self.suffixes:
                 continue
-            size = f.stat().st_size
-            if sizes.get(f) == size and size > 0:
-                fresh.append(f)
-            sizes[f] = size
-        for f in fresh:
-            seen.add(f)
-            last_new = time.monotonic()
-            yield str(f)
-        if idle_exit is not None and time.monotonic() - last_new > idle_exit:
-            return
-        time.sleep(poll)
+            try:
+                st = f.stat()
+            except OSError:
+                continue  # gone again, or a dangling link: nothing to take yet
+            if stat.S_ISREG(st.st_mode):
+                found[f] = (st.st_size, st.st_mtime_ns, st.st_mtime)
+        return found
+
+    def __iter__(self) -> Iterator[str]:
+        taken: dict[Path, tuple[int, int]] = {}  # identity when last taken
+        since: dict[Path, tuple[tuple[int, int], float]] = {}  # identity first seen unchanged, and when
+        last_new = time.monotonic()
+        while True:
+            listing = self._listing()
+            if listing is None:
+                return
+            now, wall = time.monotonic(), time.time()
+            for f, (size, mtime_ns, mtime) in listing.items():
+                ident = (size, mtime_ns)
+                if taken.get(f) == ident:
+                    continue
+                if since.get(f, (None,))[0] != ident:
+                    since[f] = (ident, now)
+                settled = now - since[f][1] >= self.settle or wall - mtime >= self.settle
+                if size > 0 and settled:
+                    taken[f] = ident
+                    last_new = now
+                    yield str(f)
+            if self.idle_exit is not None and time.monotonic() - last_new > self.idle_exit:
+                return
+            time.sleep(self.poll)

@@ -143,3 +143,58 @@ def test_watch_processes_files_that_arrive_then_exits_when_idle(tmp_path, demo_r
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert [r["stem"] for r in summary] == ["first", "second"] and all(r["status"] == "ok" for r in summary)
+
+
+def test_watch_waits_for_a_slow_copy_and_takes_a_changed_file_again(tmp_path, demo_run, capsys):
+    """A file copied in slowly was read half-written and failed; one that failed was never retried."""
+    import threading
+    import time
+
+    good = sorted((demo_run / "demo-inputs").glob("*.png"))[0]
+    data = good.read_bytes()
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    for name in ("slow", "stall"):
+        shutil.copy(good.with_suffix(".json"), inbox / f"{name}.json")
+
+    def copy_in():
+        with open(inbox / "slow.png", "wb") as f:  # grows for 1.8 s, never still for a second
+            for k in range(6):
+                f.write(data[k * len(data) // 6:(k + 1) * len(data) // 6])
+                f.flush()
+                time.sleep(0.3)
+        (inbox / "stall.png").write_bytes(data[:len(data) // 2])  # a copy that stalls: taken, fails
+        time.sleep(3.0)
+        (inbox / "stall.png").write_bytes(data)  # completed: taken again
+
+    writer = threading.Thread(target=copy_in)
+    writer.start()
+    out = tmp_path / "out"
+    code = main(["run", "--watch", str(inbox), "--idle-exit", "4", "--out", str(out), "--record", "none"])
+    writer.join()
+    err = capsys.readouterr().err
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert {r["stem"]: r["status"] for r in summary} == {"slow": "ok", "stall": "ok"}
+    assert err.count("stall.png: corrupt or truncated") == 1 and "slow.png: corrupt" not in err
+
+
+def test_watch_stops_with_one_line_when_its_folder_is_removed(tmp_path, demo_run, capsys):
+    import threading
+    import time
+
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    shutil.copy(sorted((demo_run / "demo-inputs").glob("*.png"))[0], inbox / "a.png")
+
+    def remove():
+        time.sleep(2.0)
+        shutil.rmtree(inbox)
+
+    threading.Thread(target=remove).start()
+    out = tmp_path / "out"
+    code = main(["run", "--watch", str(inbox), "--out", str(out), "--record", "none", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err
+    assert f"error: --watch {inbox}: No such file or directory; stopped watching" in err
+    assert [r["stem"] for r in json.loads((out / "summary.json").read_text())] == ["a"]
