@@ -26,7 +26,7 @@ from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, luminance
 from .outputs import OUTPUT_FILES, real_path, write_outputs
-from .runner import RunOptions, RunResult, expand_inputs, one_blas_thread, run_stream
+from .runner import RunOptions, RunResult, expand_inputs, one_blas_thread, release_large_frees, run_stream
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 
@@ -150,6 +150,7 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     else:
         grey, colour = _as_image(image)
         frame = Frame(0, ARRAY_SOURCE, data={"image": grey} if colour is None else {"image": grey, "colour": colour})
+    release_large_frees()
     with one_blas_thread():
         frame = Chain([LoadNode(shape_model, opts), *method_nodes(shape_model, opts)]).process(frame)
     if not frame.ok:

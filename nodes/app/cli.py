@@ -32,7 +32,7 @@ from ..method.robust_fit import FitConfig
 from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
-from ..photo.loader import IMAGE_SUFFIXES, parse_light
+from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
 from .runner import FolderWatch, RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream
 
@@ -97,6 +97,7 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
     _view_size(args.view_size)
+    _max_pixels(args.max_megapixels)
     for light in args.relight or ():
         parse_light(light)
 
@@ -105,6 +106,15 @@ def _view_angle(deg: float) -> float:
     if not -90.0 <= deg <= 90.0:
         raise ValueError(f"--view-angle turns the face by -90 to 90 degrees, not {deg:g}")
     return deg
+
+
+def _max_pixels(megapixels: float) -> int | None:
+    """``--max-megapixels``: 0 means never reduce."""
+    if megapixels == 0:
+        return None
+    if not 0.1 <= megapixels <= 40:
+        raise ValueError(f"--max-megapixels is 0 (never reduce) or 0.1 to 40, not {megapixels:g}")
+    return int(megapixels * 1_000_000)
 
 
 def _view_size(px: int | None) -> int | None:
@@ -167,7 +177,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                             detect_eyes=args.eyes == "auto", shadows=args.shadows,
                             face_length=_face_length(args.face_length),
                             extra_lights=tuple(parse_light(x) for x in args.relight or ()),
-                            novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size))
+                            novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
+                            max_pixels=_max_pixels(args.max_megapixels))
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout)
@@ -375,6 +386,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
                    help="novel_view.png's height and width in pixels (default: the model grid's)")
+    r.add_argument("--max-megapixels", type=float, default=MAX_WORK_PIXELS / 1e6, metavar="MP",
+                   help="read larger photos reduced to this size, outputs at that size (default 4; 0: full size, "
+                        "memory grows with the photo, see README)")
     r.add_argument("--record", default="rerun,mcap", help="rerun,mcap | rerun | mcap | none (files run.rrd, run.mcap in --out)")
     r.add_argument("--record-every", type=int, default=1, metavar="N",
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")

@@ -89,25 +89,26 @@ def light_name(light: np.ndarray) -> str:
 
 
 def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
-    """Write every output file of one frame into ``folder``; returns name -> path."""
+    """Write every output file of one frame into ``folder``; returns name -> path. Each file is
+    encoded, written and let go before the next (a large photo's files are not all held at once)."""
     p = input_grid_products(frame, model)
-    mask = p["mask"]
-    files = {
-        "normals.npy": _npy_bytes(p["normals"]),
-        "mask.png": _png_bytes(np.where(mask, 255, 0).astype(np.uint8)),
-        "weights.npy": _npy_bytes(p["weights"]),
-        "depth.npy": _npy_bytes(p["depth"]),
-        "albedo.png": _png_bytes(to_8bit(p["albedo"], mask)),  # colour for a colour photo
-        "shadow.png": _png_bytes(np.where(p["lit"], 255, 0).astype(np.uint8)),
-        "relit.png": _png_bytes(to_8bit(p["relit"])),
-        "novel_view.png": _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
+    mask = p.pop("mask")
+    encoders = {
+        "normals.npy": lambda: _npy_bytes(p.pop("normals")),
+        "mask.png": lambda: _png_bytes(np.where(mask, 255, 0).astype(np.uint8)),
+        "weights.npy": lambda: _npy_bytes(p.pop("weights")),
+        "depth.npy": lambda: _npy_bytes(p.pop("depth")),
+        "albedo.png": lambda: _png_bytes(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
+        "shadow.png": lambda: _png_bytes(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
+        "relit.png": lambda: _png_bytes(to_8bit(p.pop("relit"))),
+        "novel_view.png": lambda: _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
     }
-    for light, relit in p["relit_extra"]:
-        files[f"relit_{light_name(light)}.png"] = _png_bytes(to_8bit(relit))
-    files["mesh.ply"] = mesh_ply_bytes(photo_mesh(frame, model))  # the fit's resolution, the photo's frame
+    for light, relit in p.pop("relit_extra"):
+        encoders[f"relit_{light_name(light)}.png"] = lambda relit=relit: _png_bytes(to_8bit(relit))
+    encoders["mesh.ply"] = lambda: mesh_ply_bytes(photo_mesh(frame, model))  # the fit's resolution, the photo's frame
     written = {}
-    for name, data in files.items():
-        atomic_write_bytes(folder / name, data)
+    for name, encode in encoders.items():
+        atomic_write_bytes(folder / name, encode())
         written[name] = str(folder / name)
     return written
 
@@ -149,6 +150,8 @@ def summary_record(frame: Frame) -> dict:
         "final_sigma": m.get("final_sigma"),
         "seconds": round(float(sum(m.get("timings", {}).values())), 4),
     }
+    if m.get("reduced"):
+        rec["reduced"] = m["reduced"]
     if frame.failed_in:
         rec["failed_in"] = frame.failed_in
     flags = (m.get("quality") or {}).get("flags")

@@ -40,6 +40,10 @@ DATA: dict[str, tuple[str, str]] = {
 META: dict[str, tuple[str, str]] = {
     "stem": ("the output folder's name", "runner"),
     "previous": ("the summary record of a frame skipped by --resume", "runner"),
+    "input_key": ("the input's absolute path, its key in the run manifest", "runner"),
+    "identity": ("(size, mtime_ns) of the input file when the run took it", "runner"),
+    "sha256": ("the input file's content hash, for a later --resume", "runner"),
+    "reduced": ("{from: [w, h], to: [w, h]}: the photo was read smaller (``max_pixels``)", "load"),
     "light": ("[x, y, z] the light used, input camera frame", "load"),
     "light_source": ("sidecar | given | yaleb name | estimated", "load"),
     "alignment": ("how the photo was aligned (eyes, mouth line, centred crop)", "load"),

@@ -27,7 +27,7 @@ from ..photo.align import (
     to_model_grid,
 )
 from ..photo.eyes import detect_eyes
-from ..photo.loader import MIN_SIDE, InputError, load_photo, luminance, read_sidecar, yaleb_light
+from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
@@ -67,6 +67,8 @@ class MethodOptions:
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
     novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
+    # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
+    max_pixels: int | None = MAX_WORK_PIXELS
 
 
 class FitObserver(Protocol):
@@ -108,10 +110,14 @@ class LoadNode:
 
     def __call__(self, frame: Frame) -> Frame:
         from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
+        scale = 1.0  # the image's pixels per pixel of the file: eyes given in file pixels follow it
         if from_file:
-            frame.data["image"], colour = load_photo(frame.source)
-            if colour is not None:
-                frame.data["colour"] = colour
+            photo = read_photo(frame.source, self.options.max_pixels)
+            frame.data["image"], scale = photo.grey, photo.scale
+            if photo.colour is not None:
+                frame.data["colour"] = photo.colour
+            if scale != 1.0:
+                frame.meta["reduced"] = {"from": list(photo.size), "to": [photo.grey.shape[1], photo.grey.shape[0]]}
         image = frame.data["image"]
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
@@ -121,7 +127,7 @@ class LoadNode:
             al = eyes_al = frame.data["alignment"]
             grid_image = eyes_grid = to_model_grid(image, al, self.model.grid)
         else:
-            eyes_al, detected, frame.data["eyes_found"] = self._eyes_alignment(image, side)
+            eyes_al, detected, frame.data["eyes_found"] = self._eyes_alignment(image, side, scale)
             eyes_grid = to_model_grid(image, eyes_al, self.model.grid)
             al = self._face_length(eyes_grid, eyes_al, detected)
             grid_image = eyes_grid if al is eyes_al else to_model_grid(image, al, self.model.grid)
@@ -137,13 +143,14 @@ class LoadNode:
         frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
         return frame
 
-    def _eyes_alignment(self, image: np.ndarray, side) -> tuple[Alignment, bool, str]:
+    def _eyes_alignment(self, image: np.ndarray, side, scale: float = 1.0) -> tuple[Alignment, bool, str]:
         """The similarity from the eyes (sidecar, given or detected; else a centred crop), whether
-        they were detected, and how they were placed (``eyes_found``)."""
+        they were detected, and how they were placed (``eyes_found``); scale: image pixels per
+        file pixel (given eyes are in file pixels)."""
         if side is not None and side.eyes is not None:
-            return eyes_alignment(side.eyes, self.model.eyes, "sidecar eyes"), False, "given"
+            return eyes_alignment(side.eyes * scale, self.model.eyes, "sidecar eyes"), False, "given"
         if self.options.eyes is not None:
-            return eyes_alignment(self.options.eyes, self.model.eyes, "given eyes"), False, "given"
+            return eyes_alignment(self.options.eyes * scale, self.model.eyes, "given eyes"), False, "given"
         why, found = "eye detection off", "centre asked"
         if self.options.detect_eyes:
             eyes, why = detect_eyes(image)
@@ -368,8 +375,8 @@ class PhotoRelightNode:
         photo = full_photo[y0:y1, x0:x1]
         shape = photo.shape[:2]
         face = mask_to_input(m.mask, al, shape)
-        normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape))
-        shading = np.clip(normals @ np.asarray(d["light"], np.float64), 0.0, None)
+        normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(np.float32)
+        shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32: photo-sized arrays
         coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
         shadow = photo_shadows(luminance(photo[..., 0] if photo.shape[-1] == 1 else photo), shading,
                                face & ~coarse_lit, face)
@@ -380,13 +387,14 @@ class PhotoRelightNode:
         weight = trusted_weight(photo, shading, lit, face, 1.5 * px)
         albedo = photo_albedo(photo, shading, weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
-        exposed_photo, exposed = (gain * full_photo).astype(np.float32), gain * photo
+        gain = np.float32(gain)
+        exposed_photo, exposed = gain * full_photo, gain * photo
         relit = []  # (light, image)
         for light in (self.options.relight_light, *self.options.extra_lights):
             s = np.asarray(light, np.float64) / np.linalg.norm(light)
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
-            new_shading = np.where(cast_in, 0.0, np.clip(normals @ s, 0.0, None))
+            new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             image = exposed_photo.copy()
             image[y0:y1, x0:x1] = composite(exposed, gain * albedo * new_shading[..., None], face, feather)
             relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))

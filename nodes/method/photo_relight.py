@@ -30,7 +30,7 @@ EXPOSURE_TARGET = 0.6  # ... is exposed at this level (``exposure_gain``)
 
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """0 below ``lo``, 1 above ``hi``, a smooth (C1) ramp between."""
-    t = np.clip((np.asarray(x, np.float64) - lo) / (hi - lo), 0.0, 1.0)
+    t = np.clip((np.asarray(x, np.float32) - np.float32(lo)) / np.float32(hi - lo), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
@@ -97,10 +97,11 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     coarse albedo over trusted pixels (wider averages where the shadow is large, the face's median
     where nothing near is trusted).
     """
-    img = np.atleast_3d(np.asarray(photo, np.float64))
-    measured = img / np.maximum(shading, 1e-3)[..., None]
-    w = np.where(face, weight, 0.0)
-    base = np.maximum(np.nan_to_num(coarse, nan=float(np.nanmedian(coarse[face])) if face.any() else 1.0), 1e-3)
+    img = np.atleast_3d(np.asarray(photo, np.float32))  # float32 throughout: a large photo's arrays are many
+    measured = img / np.maximum(np.asarray(shading, np.float32), np.float32(1e-3))[..., None]
+    w = np.where(face, np.asarray(weight, np.float32), np.float32(0.0))
+    fill = float(np.nanmedian(coarse[face])) if face.any() else 1.0
+    base = np.maximum(np.nan_to_num(np.asarray(coarse, np.float32), nan=fill), np.float32(1e-3))
     ratio = measured / base[..., None]
     trusted = w > 0.5
     if trusted.sum() < 20:
@@ -136,8 +137,8 @@ def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feath
     (H, W) bool; outside it the photo is scaled by the face's relighting ratio (relit / photo,
     averaged over the face's border) fading to 1 over ``feather_px``, so the change of light runs
     on into the hair and neck without a seam; beyond that the photo is untouched."""
-    img = np.atleast_3d(np.asarray(photo, np.float64))
-    relit = np.nan_to_num(np.atleast_3d(face_image))
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
     w = face.astype(np.float32)[..., None]
     support = blur(face.astype(np.float32), sigma)

@@ -34,7 +34,10 @@ class Sidecar:
 
 
 MIN_SIDE = 32  # pixels: the smallest image side that can hold a face to align
-MAX_PIXELS = 40_000_000  # larger images are refused before decoding (about 0.5 GB to decode)
+MAX_PIXELS = 40_000_000  # larger images are refused before decoding
+MAX_SIDE = 32_000  # OpenCV's warps stop at 32767 pixels a side
+MAX_ASPECT = 16  # a face photo is not a strip
+MAX_WORK_PIXELS = 4_000_000  # photos are processed at most this size (``read_photo``'s max_pixels)
 MAX_FILE_BYTES = 512 << 20
 
 
@@ -89,6 +92,11 @@ def _check_size(p: Path, width: int, height: int) -> None:
                          "downscale it first")
     if min(width, height) < MIN_SIDE:
         raise InputError(f"{p}: {width}x{height} pixels is too small for a face (each side needs >= {MIN_SIDE})")
+    if max(width, height) > MAX_SIDE:
+        raise InputError(f"{p}: {width}x{height} pixels: a side over {MAX_SIDE} pixels; downscale it first")
+    if max(width, height) > MAX_ASPECT * min(width, height):
+        raise InputError(f"{p}: {width}x{height} pixels is too long and thin for a photo of a face "
+                         f"(sides over {MAX_ASPECT}:1)")
 
 
 def _load_npy(p: Path, data: bytes) -> np.ndarray:
@@ -127,68 +135,174 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
 
 
 def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
-    """Read an image as ``(grey (H, W) float32 brightness in [0, 1], colour (H, W, 3) float32 RGB in
-    [0, 1] or None for a grey image)``.
+    """``read_photo`` at full size: ``(grey, colour)``."""
+    photo = read_photo(path)
+    return photo.grey, photo.colour
 
-    PNG / JPEG / PGM / TIFF / BMP, 8 or 16 bit or float, grey, colour or palette (to luminance,
-    ITU-R BT.601 weights as OpenCV's ``BGR2GRAY``), an alpha channel ignored, EXIF orientation
-    applied; or a ``.npy`` (H, W) array of finite floats in [0, 1] (read without pickles).
-    The header is checked before decoding: each side >= ``MIN_SIDE`` and at most ``MAX_PIXELS``
-    pixels, so a hostile file cannot exhaust memory. Images without contrast are refused.
-    Raises ``InputError`` (one line naming the file and the problem).
+
+@dataclass
+class Photo:
+    """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1], or None
+    for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
+    ``max_pixels``); size: the file's (width, height)."""
+
+    grey: np.ndarray
+    colour: np.ndarray | None
+    scale: float
+    size: tuple[int, int]
+
+
+TIFF_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+
+
+def read_photo(path: str | os.PathLike, max_pixels: int | None = None) -> Photo:
+    """Read an image (``Photo``), reduced to at most ``max_pixels`` pixels (area-averaged; a JPEG is
+    decoded at 1/2, 1/4 or 1/8 scale first, so a large one never exists at full size in memory).
+
+    PNG / JPEG / PNM / TIFF / BMP, 8 or 16 bit, float or other integer types, grey, colour or
+    palette (to luminance, ITU-R BT.601 weights as OpenCV's ``BGR2GRAY``), an alpha channel
+    ignored, EXIF orientation applied; or a ``.npy`` (H, W) array of finite floats in [0, 1]
+    (read without pickles). Samples are scaled by their real range: a PNM by its maxval, 8- and
+    16-bit by 255 and 65535, floats as [0, 1] unless they exceed 1, and those and other integer
+    types by the smallest of 2^8-1, 2^10-1, 2^12-1, 2^14-1 or 2^16-1 that holds them, else by their
+    largest sample. The
+    header is checked before decoding: each side >= ``MIN_SIDE`` and < ``MAX_SIDE``, at most
+    ``MAX_PIXELS`` pixels, a face's proportions, so a hostile file cannot exhaust memory. Images
+    without contrast are refused. Raises ``InputError`` (one line naming the file and the problem).
     """
     p = Path(path)
     data = _read_file(p)
     colour = None
     if p.suffix.lower() == ".npy":
         img = _load_npy(p, data)
-    else:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
+        small = _shrunk(img, max_pixels)
+        return Photo(small, None, small.shape[1] / img.shape[1], (img.shape[1], img.shape[0]))
+    tiff = data[:4] in TIFF_MAGIC
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
+            if tiff:
+                width, height, tiff_dtype = _tiff_header(data)
+                kind = "TIFF"
+            else:
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
                     width, height = probe.size
                     kind = probe.format or "image"
-        except Image.DecompressionBombError:
-            raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
-                             "downscale it first") from None
-        except (OSError, ValueError, SyntaxError):
-            raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
-        _check_size(p, width, height)
-        pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
-        if pnm is not None:  # by its own maxval: OpenCV reads 10- and 12-bit PNM with the bytes swapped
-            raw, maxval = pnm
-            if maxval not in (255, 65535):
-                raw = (raw.astype(np.float32) / maxval).astype(np.float32)
+    except Image.DecompressionBombError:
+        raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
+                         "downscale it first") from None
+    except (OSError, ValueError, SyntaxError, IndexError, KeyError):
+        raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
+    _check_size(p, width, height)
+    pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
+    reduce = 1
+    if pnm is not None:  # by its own maxval: OpenCV reads 10- and 12-bit PNM with the bytes swapped
+        raw, maxval = pnm
+        if maxval not in (255, 65535):
+            raw = (raw.astype(np.float32) / maxval).astype(np.float32)
+    else:
+        flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
+        if kind == "JPEG" and max_pixels:  # libjpeg decodes straight to 1/2, 1/4, 1/8 of the size
+            while reduce < 8 and width * height / (2 * reduce) ** 2 >= max_pixels:
+                reduce *= 2
+            flags = {1: flags, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
+                     8: cv2.IMREAD_REDUCED_COLOR_8}[reduce]
+        if tiff and tiff_dtype not in (np.uint8, np.uint16, np.float32):  # OpenCV reads only these
+            raw = _read_tiff(p, data)
         else:
-            raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
-        if raw is None:
-            raise InputError(f"{p}: corrupt or truncated {kind} data")
-        colour_raw = None
-        if raw.ndim == 3:
-            if raw.shape[2] == 4:
-                raw = raw[..., :3]
-            if not (np.array_equal(raw[..., 0], raw[..., 1]) and np.array_equal(raw[..., 1], raw[..., 2])):
-                colour_raw = raw[..., ::-1]  # BGR -> RGB; a grey image stored as RGB stays grey
-            raw = cv2.cvtColor(raw, cv2.COLOR_BGR2GRAY)
-        if raw.dtype == np.uint8:
-            img = raw.astype(np.float32) / 255.0
-        elif raw.dtype == np.uint16:
-            img = raw.astype(np.float32) / 65535.0
-        elif np.issubdtype(raw.dtype, np.floating):
-            img = raw.astype(np.float32)
-            if not np.all(np.isfinite(img)):
-                raise InputError(f"{p}: image holds NaN or infinite values")
-        else:
-            raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
-        img = np.clip(img, 0.0, 1.0)
-        if colour_raw is not None:
-            scale = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(colour_raw.dtype, 1.0)
-            colour = np.clip(np.nan_to_num(colour_raw.astype(np.float32) / scale), 0.0, 1.0)
+            raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+    if raw is None:
+        raise InputError(f"{p}: corrupt or truncated {kind} data")
+    del data
+    colour_raw = None
+    if raw.ndim == 3:
+        if raw.shape[2] == 4:
+            raw = raw[..., :3]
+        if raw.shape[2] == 3 and not (np.array_equal(raw[..., 0], raw[..., 1])
+                                      and np.array_equal(raw[..., 1], raw[..., 2])):
+            colour_raw = raw[..., ::-1]  # BGR -> RGB; a grey image stored as RGB stays grey
+        raw = raw[..., 0] if colour_raw is None else _grey(raw)
+    if raw.dtype.kind == "f" and not np.all(np.isfinite(raw)):
+        raise InputError(f"{p}: image holds NaN or infinite values")
+    if raw.dtype.kind not in "uif":
+        raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
+    full = _sample_range(raw if colour_raw is None else colour_raw)
+    raw, colour_raw = _shrunk(raw, max_pixels), None if colour_raw is None else _shrunk(colour_raw, max_pixels)
+    img = np.clip(raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
+    if colour_raw is not None:
+        colour = np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
+    del raw, colour_raw
     lo, hi = float(img.min()), float(img.max())
     if hi - lo < 1.0 / 255.0:
         raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
-    return img, colour
+    return Photo(img, colour, max(img.shape) / max(width, height), (width, height))  # EXIF may turn it
+
+
+def _grey(bgr: np.ndarray) -> np.ndarray:
+    """Luminance of a BGR image of any numeric type (as float32 when not 8/16-bit or float32)."""
+    if bgr.dtype in (np.uint8, np.uint16, np.float32):
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+    return bgr.astype(np.float32) @ LUMA[::-1]
+
+
+def _sample_range(raw: np.ndarray) -> float:
+    """What full brightness is in these samples (see ``read_photo``)."""
+    if raw.dtype == np.uint8:
+        return 255.0
+    if raw.dtype == np.uint16:
+        return 65535.0
+    top = float(raw.max()) if raw.size else 0.0
+    if raw.dtype.kind == "f" and top <= 1.0:
+        return 1.0
+    for bits in (8, 10, 12, 14, 16):
+        if top <= 2**bits - 1:
+            return float(2**bits - 1)
+    return top  # beyond 16 bits no depth is standard: the brightest sample is full brightness
+
+
+def _shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
+    """(H, W) or (H, W, C) samples area-averaged to at most ``max_pixels`` pixels, in their own type
+    when OpenCV can (8/16-bit, float), so a large photo is never held as floats at full size."""
+    h, w = samples.shape[:2]
+    if not max_pixels or h * w <= max_pixels:
+        return samples
+    f = (max_pixels / (h * w)) ** 0.5
+    size = (max(MIN_SIDE, int(w * f)), max(MIN_SIDE, int(h * f)))
+    if samples.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
+        samples = samples.astype(np.float32)
+    return cv2.resize(np.ascontiguousarray(samples), size, interpolation=cv2.INTER_AREA)
+
+
+def _tiff_header(data: bytes) -> tuple[int, int, np.dtype]:
+    """(width, height, sample type) of a TIFF's first image, from its header only."""
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(io.BytesIO(data)) as tif:
+            page = tif.pages[0]
+            return int(page.imagewidth), int(page.imagelength), np.dtype(page.dtype)
+    except MemoryError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - struct, index, type errors...: a damaged header, whatever the kind
+        raise ValueError(f"damaged TIFF header ({type(exc).__name__})") from None
+
+
+def _read_tiff(p: Path, data: bytes) -> np.ndarray | None:
+    """A TIFF OpenCV cannot decode (32-bit integers, 64-bit floats, signed...) through tifffile, as
+    (H, W) or (H, W, C) in BGR order; None when it is damaged."""
+    import tifffile
+
+    try:
+        arr = tifffile.imread(io.BytesIO(data), key=0)
+    except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds for damaged files
+        if isinstance(exc, MemoryError):
+            raise
+        return None
+    if arr.ndim == 3 and arr.shape[2] in (3, 4):
+        return arr[..., [2, 1, 0]] if arr.shape[2] == 3 else arr[..., [2, 1, 0, 3]]
+    if arr.ndim != 2:
+        raise InputError(f"{p}: TIFF of shape {arr.shape} is not one grey or colour image")
+    return arr
 
 
 def yaleb_angles(path: str | os.PathLike) -> tuple[int, int]:

@@ -444,3 +444,71 @@ def test_links_planted_in_out_are_never_written_through(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1 and "symbolic link" in proc.stderr, proc.stderr
     assert list(elsewhere.iterdir()) == []
+
+
+def test_odd_images_are_read_on_their_real_scale_or_refused_with_the_reason(tmp_path):
+    """A float TIFF in 0-255, 32-bit integer and 64-bit float TIFFs and a 40 x 40000 PNG gave
+    internal errors or 'corrupt'; an output folder named like an input was listed on every run."""
+    import tifffile
+
+    src = tmp_path / "in"
+    src.mkdir()
+    face = write_shadowed_face(src / "face.png", np.random.default_rng(3), light_from_angles(30))
+    grey = cv2.imread(str(face), cv2.IMREAD_GRAYSCALE)
+    side = face.with_suffix(".json").read_text()
+    variants = {"float255.tif": grey.astype(np.float32), "u32.tif": grey.astype(np.uint32) * 257,
+                "f64.tif": grey.astype(np.float64) / 255.0, "i16.tif": grey.astype(np.int16) * 4}
+    for name, arr in variants.items():
+        tifffile.imwrite(src / name, arr)
+        (src / name).with_suffix(".json").write_text(side)
+    cv2.imwrite(str(src / "strip.png"), np.tile((np.arange(40, dtype=np.uint8) * 5)[:, None], (1, 40000)))
+    cv2.imwrite(str(src / "thin.png"), np.tile((np.arange(40, dtype=np.uint8) * 5)[:, None], (1, 2000)))
+    shutil.copy(face, src / "photo.png.png")
+    shutil.copy(face.with_suffix(".json"), src / "photo.png.json")
+    for _ in range(2):  # the second run sees OUT/photo.png/ beside its inputs (--out is the input folder)
+        proc = subprocess.run(CLI + ["run", str(src), "--out", str(src), "--record", "none", "--quiet", "--resume"],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 1, proc.stderr
+        records = {r["stem"]: r for r in json.loads((src / "summary.json").read_text())}
+        assert set(records) == {"face", "float255", "u32", "f64", "i16", "strip", "thin", "photo.png"}
+    assert "a side over 32000 pixels" in records["strip"]["status"]
+    assert "too long and thin for a photo of a face" in records["thin"]["status"]
+    normals = np.load(src / "face" / "normals.npy")
+    for name in ("float255", "u32", "f64", "i16"):  # the same picture on another scale: the same fit
+        assert records[name]["status"] == "ok", records[name]
+        err = angle_deg(np.load(src / name / "normals.npy"), normals)
+        assert np.nanmax(err) < 0.5, (name, np.nanmax(err))
+
+
+def test_a_33_megapixel_jpeg_is_read_reduced_and_memory_stays_bounded(tmp_path):
+    """A 33 MP JPEG took 10.1 GB and 116 s: photos over --max-megapixels (4) are decoded reduced
+    (libjpeg's 1/2 scale, then area-averaged), their sidecar eyes scaled with them."""
+    face = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(4), light_from_angles(40), source="ict")
+    side = json.loads(face.with_suffix(".json").read_text())
+    k = 44  # 128 px render -> 5632 px: a 5632 x 5632 frame, 31.7 MP
+    big = cv2.resize(cv2.imread(str(face)), None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+    photo = tmp_path / "big.jpg"
+    cv2.imwrite(str(photo), big, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    del big
+    side["eyes"] = (np.array(side["eyes"]) * k + (k - 1) / 2).tolist()  # pixel centres scale about -0.5
+    photo.with_suffix(".json").write_text(json.dumps(side))
+    out = tmp_path / "out"
+    code = ("import sys\nfrom shadowflow.nodes.app.cli import main\n"
+            f"rc = main(['run', {str(photo)!r}, '--out', {str(out)!r}, '--record', 'none', '--quiet'])\n"
+            "print([int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM')][0])\n"
+            "sys.exit(rc)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    peak_mib = int(proc.stdout.split()[-1]) / 1024  # VmHWM: this process's own peak, from its exec
+    rec = json.loads((out / "summary.json").read_text())[0]
+    assert rec["status"] == "ok" and rec["reduced"]["from"] == [5632, 5632], rec
+    w, h = rec["reduced"]["to"]
+    assert w * h <= 4_000_000 and w > 1900
+    assert cv2.imread(str(out / "big" / "relit.png")).shape[:2] == (h, w)
+    small = subprocess.run(CLI + ["run", str(face), "--out", str(tmp_path / "small"), "--record", "none", "--quiet"],
+                           capture_output=True, text=True, timeout=300)
+    assert small.returncode == 0
+    # the same face: the fit of the reduced photo agrees with the 128 px original's
+    ref = json.loads((tmp_path / "small" / "summary.json").read_text())[0]
+    assert abs(rec["final_sigma"] - ref["final_sigma"]) < 0.01 and rec["quality"]["score"] > 0.7
+    assert peak_mib < 1024, peak_mib  # measured 0.64 GiB; before: 10.1 GB
