@@ -153,3 +153,118 @@ def test_fuzzing_stays_within_a_memory_bound():
         data[p:p + 8] = (2**62).to_bytes(8, "little")
         _check_recording(bytes(data))
     assert _peak_rss() - start < MAX_GROWTH
+
+
+def _model_seed() -> bytes:
+    from shadowflow.nodes.model.default_model import train_from_recipe
+    from shadowflow.nodes.model.shape_model import save_model
+
+    model = train_from_recipe({"source": "procedural", "n": 8, "seed": 0, "modes": 4, "size": [32, 32]})
+    path = WORK / "seed-model.npz"
+    save_model(model, path)
+    return path.read_bytes()
+
+
+MODEL_SEED = _model_seed()
+
+
+def _check_model(data: bytes) -> None:
+    from shadowflow.nodes.model.shape_model import load_model
+
+    model = _read_or_refuse("mutant-model.npz", data, load_model, ValueError)
+    if model is None:
+        return
+    for a in (model.mean_normals, model.mean_proj, model.modes, model.eigenvalues, model.eyes):
+        assert np.all(np.isfinite(a))
+    assert model.modes.shape[0] == 2 * model.n_pixels == 2 * int(model.mask.sum())
+
+
+@FUZZ
+@given(edits=edits, cut=cuts)
+def test_model_loader_survives_mutated_model_files(edits, cut):
+    """A damaged --model (any bytes changed, any tail cut): a model whose arrays are sound, or
+    ``PATH: why`` on one line; never another exception."""
+    _check_model(_mutate(MODEL_SEED, edits, cut))
+
+
+def _manifest_seed() -> tuple[bytes, bytes]:
+    from shadowflow.flow.manifest import InputEntry, Journal, RunManifest
+
+    folder = WORK / "manifest-seed"
+    folder.mkdir(exist_ok=True)
+    man = RunManifest({"model": "abc", "options": {"fit": {"max_iterations": 8}}}, ["run.mcap"])
+    man.entries["/in/a.png"] = InputEntry("/in/a.png", 10, 20, "a", 0, "c0", {"stem": "a", "status": "ok"}, "ff")
+    man.save(folder)
+    journal = Journal(folder)
+    journal.append(InputEntry("/in/b.png", 11, 21, "b", 1, "c0", {"stem": "b", "status": "ok"}, "ee"))
+    journal.close()
+    return (folder / "manifest.json").read_bytes(), (folder / ".journal.jsonl").read_bytes()
+
+
+MANIFEST_SEED, JOURNAL_SEED = _manifest_seed()
+hostile_names = st.sampled_from(["", ".", "..", "../evil", "/abs/path", ".lock", "a/b", "run.mcap"])
+json_values = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8) | hostile_names,
+                           lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner,
+                                                                                      max_size=4), max_leaves=12)
+
+
+def _check_manifest(manifest: bytes, journal: bytes) -> None:
+    """RunManifest.load never raises: a manifest of well-typed entries, or None (all redone)."""
+    from shadowflow.flow.manifest import RunManifest
+
+    folder = WORK / "manifest-mutant"
+    folder.mkdir(exist_ok=True)
+    (folder / "manifest.json").write_bytes(manifest)
+    (folder / ".journal.jsonl").write_bytes(journal)
+    man = RunManifest.load(folder)
+    if man is None:
+        return
+    assert isinstance(man.config, dict) and isinstance(man.config_id, str)
+    assert all(isinstance(r, str) and "/" not in r for r in man.recordings)
+    for key, e in man.entries.items():
+        assert key == e.path and isinstance(e.size, int) and isinstance(e.frame, int) and e.frame >= 0
+        assert isinstance(e.name, str) and e.name and "/" not in e.name and not e.name.startswith(".")
+        assert e.record is None or isinstance(e.record, dict)
+    assert man.next_frame() >= 0
+
+
+@FUZZ
+@given(m_edits=edits, m_cut=cuts, j_edits=edits, j_cut=cuts)
+def test_run_manifest_survives_mutated_bytes(m_edits, m_cut, j_edits, j_cut):
+    _check_manifest(_mutate(MANIFEST_SEED, m_edits, m_cut), _mutate(JOURNAL_SEED, j_edits, j_cut))
+
+
+@FUZZ
+@given(field=st.sampled_from(["format", "config", "recordings", "inputs", "path", "size", "mtime_ns", "name",
+                              "frame", "config", "record", "sha256"]), value=json_values)
+def test_run_manifest_survives_any_json_in_any_field(field, value):
+    import json
+
+    body = json.loads(MANIFEST_SEED)
+    if field in body:
+        body[field] = value
+    else:
+        body["inputs"][0][field] = value
+    line = json.loads(JOURNAL_SEED)
+    line[field] = value
+    _check_manifest(json.dumps(body).encode(), (json.dumps(line) + "\n").encode())
+
+
+@pytest.mark.parametrize("field, value", [("name", n) for n in ["", ".", "..", "../evil", "/abs", ".lock", "a/b"]]
+                         + [("frame", -1), ("frame", True), ("size", "10"), ("path", None), ("record", [1])])
+def test_run_manifest_drops_entries_that_could_point_outside_out(field, value):
+    """An entry's name becomes OUT/<name>/: one that is empty, hidden, absolute or has a slash is
+    dropped (its input is then redone under a safe name), as is any field of the wrong type."""
+    import json
+
+    from shadowflow.flow.manifest import RunManifest
+
+    body = json.loads(MANIFEST_SEED)
+    body["inputs"][0][field] = value
+    folder = WORK / "manifest-named"
+    folder.mkdir(exist_ok=True)
+    (folder / "manifest.json").write_text(json.dumps(body))
+    (folder / ".journal.jsonl").write_bytes(b"")
+    man = RunManifest.load(folder)
+    entry = man.entries.get("/in/a.png")
+    assert entry is None if field != "record" else entry.record is None
