@@ -14,7 +14,8 @@ from .events import Event, Kind, OnMask, Sink
 class RerunSink(Sink):
     """Rerun ``.rrd`` file with timelines ``frame`` and ``iteration``, entities
     ``frames/<frame>/<node>/<name>``, and a default blueprint (images side by side and the
-    convergence plots), streamed to disk as it goes.
+    convergence plots), streamed to disk as it goes; after every ``segment_frames`` frames it goes
+    on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``).
 
     Per-iteration images, vectors and scalars are held per entity until the frame ends (or
     ``batch`` iterations are waiting) and sent in one ``send_columns`` call: Rerun's cost is
@@ -24,15 +25,41 @@ class RerunSink(Sink):
     """
 
     def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
-                 batch: int = 32):
+                 batch: int = 32, segment_frames: int | None = 250):
+        import uuid
+
         import rerun as rr
 
         self.rr = rr
         self.path = Path(path)
         self.batch = batch
-        self.rec = rr.RecordingStream(application_id)
-        self.rec.save(str(self.path), default_blueprint=blueprint)
+        self.blueprint, self.application_id = blueprint, application_id
+        self.recording_id = str(uuid.uuid4())
+        self.segment_frames = segment_frames
+        self.paths: list[Path] = []  # the files written: path, then path's segments
+        self._frames_in_segment = 0
         self._pending: dict[tuple[int, str], list[Event]] = {}
+        self._open(self.path)
+
+    def _open(self, path: Path) -> None:
+        if path.is_symlink():
+            raise OSError(f"{path}: is a symbolic link; refusing to write through it")
+        self.rec = self.rr.RecordingStream(self.application_id, recording_id=self.recording_id)
+        self.rec.save(str(path), default_blueprint=self.blueprint)
+        self.paths.append(path)
+
+    def _next_segment(self) -> None:
+        """Close this file and go on in ``<stem>.s<k><suffix>``, one recording (same id) across files.
+
+        The Rerun SDK keeps a few kB for every entity path a stream has logged, for as long as the
+        stream lives (about 70 kB a frame here, 290 -> 460 MiB over 2,000 frames); a new stream
+        every ``segment_frames`` frames lets that go. The viewer merges the files of one recording
+        id: ``rerun OUT/run*.rrd``."""
+        self.rec.flush()
+        self.rec.disconnect()
+        k = len(self.paths) + 1
+        self._open(self.path.with_name(f"{self.path.stem}.s{k}{self.path.suffix}"))
+        self._frames_in_segment = 0
 
     def write(self, event: Event) -> None:
         if event.iteration is not None and self._columnar(event):
@@ -118,6 +145,9 @@ class RerunSink(Sink):
     def frame_done(self, frame: int) -> None:
         self._send_frame(frame)
         self.rec.flush()
+        self._frames_in_segment += 1
+        if self.segment_frames and self._frames_in_segment >= self.segment_frames:
+            self._next_segment()
 
     def close(self) -> None:
         self._send_frame(None)

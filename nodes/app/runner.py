@@ -6,6 +6,7 @@ import dataclasses
 import errno
 import glob
 import json
+import math
 import os
 import socket
 import stat
@@ -259,7 +260,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     record_index: dict[str, int] = {}  # output name -> its record's place in records
     progress = Progress(total, not run.quiet)
     storage: list[str] = []  # the first storage failure, which stops the run
-    summary_clock = {"last": time.monotonic(), "cost": 0.0}
+    summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
 
     def out_of_storage(why: str) -> None:
         if not storage:
@@ -374,6 +375,9 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
                     raise
                 print(f"note: {exc}", file=sys.stderr)
         save_summary(force=True)
+        for sink in sinks:  # a long run's .rrd goes on in segment files: the job's parts too
+            for path in getattr(sink, "paths", ())[1:]:
+                manifest.recordings.append(path.name)
         try:
             manifest.save(out)
         except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both

@@ -70,3 +70,31 @@ def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
         assert sorted(rows) == list(range(1, 8)), (frame, path)
         for it, buf in rows.items():
             assert np.array_equal(np.frombuffer(bytes(buf[0]), np.float32).reshape(6, 5), expect(it)), (frame, path, it)
+
+
+def test_a_long_rerun_recording_goes_on_in_segments_of_one_recording(tmp_path):
+    """The Rerun SDK keeps a few kB per entity path while a stream lives (RSS grew 290 -> 460 MiB
+    over 2,000 frames): every ``segment_frames`` frames the sink starts a new file of the same
+    recording, and every frame's rows are in exactly one of them."""
+    rc = pytest.importorskip("rerun.chunk")
+    from shadowflow.flow.recording import RerunSink
+
+    sink = RerunSink(tmp_path / "run.rrd", segment_frames=2)
+    for frame in range(5):
+        for it in (1, 2):
+            sink.write(Event(frame, "fit/w", "image", np.full((4, 4), frame + it / 10, np.float32), it))
+        sink.write(Event(frame, "frames", "frame", {"source": f"f{frame}"}))
+        sink.frame_done(frame)
+    sink.close()
+    names = [p.name for p in sink.paths]
+    assert names == ["run.rrd", "run.s2.rrd", "run.s3.rrd"] and sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    found = {}
+    for path in sink.paths:
+        assert [e.recording_id for e in rc.RrdReader(path).recordings()] == [sink.recording_id]
+        for frame in range(5):
+            rows = rrd_rows(path, f"/frames/{frame:05d}/fit/w", "Image:buffer")
+            if rows:
+                assert frame not in found
+                found[frame] = (path.name, sorted(rows))
+    assert found == {0: ("run.rrd", [1, 2]), 1: ("run.rrd", [1, 2]), 2: ("run.s2.rrd", [1, 2]),
+                     3: ("run.s2.rrd", [1, 2]), 4: ("run.s3.rrd", [1, 2])}

@@ -1,0 +1,115 @@
+"""Soak: one long run with both recordings; do memory and speed stay flat? Then replay and diff it.
+
+    python benchmarks/bench_soak.py [--frames 2000] [--record rerun,mcap] [--json soak.json]
+
+Runs ``shadowflow run`` over N synthetic 128x128 faces (copies of 10, ``bench_stream.make_inputs``)
+in a child process and samples, every second, its resident memory (``/proc/PID/status`` VmRSS) and
+how many frames it has finished (lines of its journal). Reports memory and frames/s over the first
+and the last tenth of the frames, and their ratios (flat: within 10 %). Then ``shadowflow replay``
+and ``shadowflow diff`` (the run against itself) of the run's folder, with their peak RSS
+(VmHWM) and seconds. Linux only (``/proc``). Not part of the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_stream import make_inputs
+
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+_HWM = ("import runpy, sys\nsys.argv = ['shadowflow'] + sys.argv[1:]\n"
+        "try:\n    runpy.run_module('shadowflow.nodes.app.cli', run_name='__main__')\n"
+        "except SystemExit as e:\n    code = e.code\n"
+        "print([int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM')][0], file=sys.stderr)\n"
+        "sys.exit(code)\n")
+
+
+def _rss_kib(pid: int) -> int | None:
+    try:
+        for line in open(f"/proc/{pid}/status"):
+            if line.startswith("VmRSS"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def _done(out: Path) -> int:
+    try:
+        return (out / ".journal.jsonl").read_bytes().count(b"\n")
+    except OSError:
+        return 0
+
+
+def soak(n: int, record: str, tmp: Path) -> tuple[dict, Path]:
+    src, out = tmp / "in", tmp / "out"
+    src.mkdir()
+    make_inputs(src, n)
+    proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--quiet", "--record", record])
+    samples = []  # (seconds, frames done, RSS KiB)
+    t0 = time.perf_counter()
+    done = 0
+    while proc.poll() is None:
+        rss, done = _rss_kib(proc.pid), max(done, _done(out))  # the journal is emptied at the end
+        if rss is not None:
+            samples.append((time.perf_counter() - t0, done, rss))
+        time.sleep(1.0)
+    seconds = time.perf_counter() - t0
+
+    def window(lo: int, hi: int) -> tuple[float, float]:
+        """frames/s and mean RSS (MiB) over the samples with lo <= frames done < hi."""
+        s = [x for x in samples if lo <= x[1] < hi]
+        if len(s) < 2:
+            return float("nan"), float("nan")
+        fps = (s[-1][1] - s[0][1]) / max(s[-1][0] - s[0][0], 1e-9)
+        return fps, sum(x[2] for x in s) / len(s) / 1024
+
+    tenth = n // 10
+    fps_a, rss_a = window(tenth // 2, tenth // 2 + tenth)  # past the start-up
+    fps_b, rss_b = window(n - tenth, n)
+    row = {"frames": n, "record": record, "exit": proc.returncode, "seconds": round(seconds, 1),
+           "fps_early": round(fps_a, 2), "fps_late": round(fps_b, 2), "fps_ratio": round(fps_b / fps_a, 3),
+           "rss_early_mib": round(rss_a, 1), "rss_late_mib": round(rss_b, 1), "rss_ratio": round(rss_b / rss_a, 3),
+           "rss_peak_mib": round(max(x[2] for x in samples) / 1024, 1),
+           "recording_mib": round(sum(f.stat().st_size for f in out.glob("run.*")) / 2**20, 1)}
+    return row, out
+
+
+def peak_of(cmd: list[str]) -> tuple[int, float, float]:
+    """(exit code, seconds, peak RSS MiB) of ``shadowflow CMD`` in a fresh process."""
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _HWM, *cmd], capture_output=True, text=True)
+    return proc.returncode, time.perf_counter() - t0, int(proc.stderr.split()[-1]) / 1024
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--frames", type=int, default=2000)
+    ap.add_argument("--record", default="rerun,mcap")
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        row, out = soak(args.frames, args.record, Path(tmp))
+        for name, cmd in (("replay", ["replay", str(out)]), ("diff", ["diff", str(out), str(out)])):
+            code, secs, peak = peak_of(cmd)
+            row[f"{name}_exit"], row[f"{name}_seconds"], row[f"{name}_peak_mib"] = code, round(secs, 1), round(peak, 1)
+    print(f"machine: {platform.machine()}, Python {platform.python_version()}")
+    print("| frames | record | s | frames/s first / last tenth | RSS MiB first / last tenth | peak RSS | recordings "
+          "MiB | replay s / peak MiB | diff s / peak MiB |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    r = row
+    print(f"| {r['frames']} | {r['record']} | {r['seconds']} | {r['fps_early']} / {r['fps_late']} ({r['fps_ratio']}x) | "
+          f"{r['rss_early_mib']} / {r['rss_late_mib']} ({r['rss_ratio']}x) | {r['rss_peak_mib']} | {r['recording_mib']} | "
+          f"{r['replay_seconds']} / {r['replay_peak_mib']} | {r['diff_seconds']} / {r['diff_peak_mib']} |")
+    if args.json:
+        Path(args.json).write_text(json.dumps(row, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
