@@ -18,6 +18,10 @@ class RecordOptions:
     every: int = 1
     float16: bool = False
 
+    def keep(self, iteration: int, last: bool = False) -> bool:
+        """Is fit iteration ``iteration`` (1-based) recorded? 1, 1 + every, ... and the last."""
+        return last or self.every <= 1 or (iteration - 1) % self.every == 0
+
 
 class Recorder:
     """Collects events from any thread and writes them on its own thread.
@@ -43,7 +47,7 @@ class Recorder:
         return self._error
 
     def keep_iteration(self, iteration: int, last: bool = False) -> bool:
-        return last or self.options.every <= 1 or (iteration - 1) % self.options.every == 0
+        return self.options.keep(iteration, last)
 
     def emit(self, event: Event) -> None:
         if self.options.float16 and event.kind in ARRAY_KINDS:
@@ -91,3 +95,26 @@ class Recorder:
                 self._error = self._error or exc
         if self._error is not None:
             raise RuntimeError(f"recording failed: {self._error}") from self._error
+
+
+class EventCollector:
+    """A ``Recorder`` stand-in that keeps each frame's events in memory instead of writing them
+    (e.g. in a Dask worker): ``take(frame)`` hands them over, for the client to ``emit`` into its
+    own ``Recorder`` in order. Thinning (``keep_iteration``) as the recorder's options say; the
+    float16 conversion happens when they are emitted there."""
+
+    def __init__(self, options: RecordOptions | None = None):
+        self.options = options or RecordOptions()
+        self._events: dict[int, list[Event]] = {}
+        self._lock = threading.Lock()
+
+    def keep_iteration(self, iteration: int, last: bool = False) -> bool:
+        return self.options.keep(iteration, last)
+
+    def emit(self, event: Event) -> None:
+        with self._lock:
+            self._events.setdefault(event.frame, []).append(event)
+
+    def take(self, frame: int) -> list[Event]:
+        with self._lock:
+            return self._events.pop(frame, [])

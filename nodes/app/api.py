@@ -25,8 +25,9 @@ from ..method.products import input_grid_products, photo_mesh
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, luminance
+from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, real_path, write_outputs
-from .runner import RunOptions, RunResult, expand_inputs, one_blas_thread, release_large_frees, run_stream
+from .runner import RunOptions, RunResult, one_blas_thread, release_large_frees, run_stream
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 
@@ -165,12 +166,14 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
 
 def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: ShapeModel | str | None = None,
         options: MethodOptions | None = None, record: tuple[str, ...] = ("rerun", "mcap"),
-        record_every: int = 1, workers: int = 1, resume: bool = False, quiet: bool = True) -> RunResult:
+        record_every: int = 1, workers: int = 1, resume: bool = False, quiet: bool = True,
+        dask: str | None = None) -> RunResult:
     """Stream image files (folders are listed, not recursed) through the method into ``out``, as
     ``shadowflow run`` does: ``out/<stem>/`` per image, ``out/summary.json``, and the recordings
     named in ``record`` (``run.rrd``, ``run.mcap``). A bad input fails its own frame only (its
-    record in the result says why). Returns the ``RunResult`` (summary records in input order)."""
+    record in the result says why). ``dask``: run the frames on a Dask cluster (``--dask``: local,
+    local:N, tcp://HOST:PORT). Returns the ``RunResult`` (summary records in input order)."""
     paths = expand_inputs([str(i) for i in inputs], note=lambda msg: None if quiet else print(msg))
     run_options = RunOptions(record=tuple(record), record_options=RecordOptions(every=record_every),
-                             fit_workers=workers, resume=resume, quiet=quiet)
+                             fit_workers=workers, resume=resume, quiet=quiet, dask=dask)
     return run_stream(paths, Path(out), _model(model), options or MethodOptions(), run_options, total=len(paths))

@@ -33,8 +33,10 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
+from .cluster import DASK_HELP, parse_dask
+from .inputs import FolderWatch, expand_inputs
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
-from .runner import FolderWatch, RunOptions, check_writable, expand_inputs, one_blas_thread, run_stream
+from .runner import RunOptions, check_writable, one_blas_thread, run_stream
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -84,6 +86,8 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     """One line and exit 2 for an argument that cannot work, before anything runs."""
     if args.workers < 1:
         raise ValueError(f"--workers must be 1 or more, not {args.workers}")
+    if args.dask is not None:
+        parse_dask(args.dask)
     if args.max_iterations is not None and args.max_iterations < 1:
         raise ValueError(f"--max-iterations must be 1 or more, not {args.max_iterations}")
     if args.record_every < 1:
@@ -181,7 +185,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                             max_pixels=_max_pixels(args.max_megapixels))
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
-                     frame_timeout=args.frame_timeout)
+                     frame_timeout=args.frame_timeout, dask=args.dask)
     watch = None
     if args.watch:
         paths = expand_inputs(inputs, note) if inputs else []
@@ -394,6 +398,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")
     r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
     r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
+    r.add_argument("--dask", nargs="?", const="env", metavar="local[:N]|tcp://HOST:PORT|env", help=DASK_HELP)
     r.add_argument("--frame-timeout", type=float, metavar="SECONDS",
                    help="fail a frame when one step takes longer than this on it (default: no limit)")
     r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")

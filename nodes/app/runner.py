@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 import errno
-import glob
 import json
 import math
 import os
 import socket
-import stat
 import sys
 import time
 from contextlib import contextmanager
@@ -34,7 +32,6 @@ from ...flow.pipeline import Pipeline, Stage
 from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
-from ..photo.loader import IMAGE_SUFFIXES
 from .outputs import (
     OUTPUT_FILES,
     WriteNode,
@@ -48,7 +45,7 @@ from .record import FitRecorder, RecordNode, default_blueprint
 
 @dataclass
 class RunOptions:
-    """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node;
+    """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node (local engine);
     resume: skip inputs whose outputs are complete; quiet: no progress or notes;
     frame_timeout: seconds any one node may spend on one frame before the frame fails."""
 
@@ -59,6 +56,7 @@ class RunOptions:
     resume: bool = False
     quiet: bool = False
     frame_timeout: float | None = None
+    dask: str | None = None  # ``--dask``: local, local:N, tcp://HOST:PORT or env (None: threads here)
 
 
 def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
@@ -214,11 +212,17 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     release_large_frees()
     holder = f"pid {os.getpid()} on {socket.gethostname()}, started {time.strftime('%Y-%m-%d %H:%M:%S')}"
     with exclusive_folder(out, holder):
-        return _run_locked(paths, out, model, options, run, total)
+        if not run.dask:
+            return _run_locked(paths, out, model, options, run, total)
+        from .cluster import dask_client
+
+        with dask_client(run.dask) as client:
+            return _run_locked(paths, out, model, options, run, total, client)
 
 
 def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
-                run: RunOptions, total: int | None) -> RunResult:
+                run: RunOptions, total: int | None, client=None) -> RunResult:
+    """The run, once ``out`` is locked: on this machine's threads, or on ``client``'s Dask cluster."""
     note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
     config = run_config(model, options)
     config_id = config_hash(config)
@@ -248,13 +252,14 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     recorder = Recorder(sinks, run.record_options) if sinks else None
     observer = FitRecorder(model, recorder) if recorder else None
 
-    nodes = [LoadNode(model, options), *method_nodes(model, options, observer)]
-    if recorder is not None:
-        nodes.append(RecordNode(model, recorder))
     # outputs must never land on an input: all of them when the list is known, else as they come
     protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
-    nodes.append(WriteNode(model, out, protected))
-    stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
+    if client is None:
+        nodes = [LoadNode(model, options), *method_nodes(model, options, observer)]
+        if recorder is not None:
+            nodes.append(RecordNode(model, recorder))
+        nodes.append(WriteNode(model, out, protected))
+        stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
     records: list[dict] = []
     record_index: dict[str, int] = {}  # output name -> its record's place in records
@@ -348,6 +353,8 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             record_index[frame.meta["stem"]] = len(records)
             records.append(rec)
         if recorder is not None:
+            for event in frame.data.get("events", ()):  # recorded on a Dask worker, written here
+                recorder.emit(event)
             recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
             if recorder.error is not None:
                 out_of_storage(f"{out}: recording failed ({recorder.error})")
@@ -359,7 +366,14 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             print(f"error: {frame.status}", file=sys.stderr)
         frame.data.clear()  # the frame's arrays are on disk now: free them
 
-    pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
+    if client is None:
+        pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
+    else:
+        from ...flow.distributed import DaskPipeline
+        from .cluster import WorkerChain
+
+        chain = WorkerChain(options, out.resolve(), frozenset(protected), recorder is not None, run.record_options)
+        pipeline = DaskPipeline(client, chain, shared=model, on_done=done, frame_timeout=run.frame_timeout)
     try:
         with one_blas_thread():
             for _ in pipeline.run(frames(), handle_signals=True):
@@ -386,91 +400,3 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
     return RunResult(records, pipeline.stopped and not storage, storage[0] if storage else None)
-
-
-def _output_folder(path: Path) -> bool:
-    """A folder of a run's outputs (``OUT/<stem>/``), e.g. ``photo.png/`` made from ``photo.png.png``."""
-    return path.is_dir() and (path / "normals.npy").is_file() and (path / "mask.png").is_file()
-
-
-def expand_inputs(items: list[str], note=print) -> list[str]:
-    """Files, folders (sorted, not recursed; names without an image suffix skipped with a
-    note, hidden files and output folders without one) and glob patterns -> paths. Anything named like an image is kept, even a folder,
-    a broken link or a pipe: its frame then fails with the loader's exact reason."""
-    out: list[str] = []
-    for item in items:
-        p = Path(item)
-        if p.is_dir():
-            for f in sorted(p.iterdir()):
-                if f.name.startswith(".") or _output_folder(f):
-                    continue  # hidden files, and a run's own outputs when --out is this folder
-                if f.suffix.lower() in IMAGE_SUFFIXES:
-                    out.append(str(f))
-                elif f.suffix.lower() != ".json":
-                    note(f"{f}: skipped (not an image)")
-        elif not p.exists() and any(ch in item for ch in "*?["):
-            matches = sorted(glob.glob(item))
-            if not matches:
-                note(f"{item}: no file matches")
-            out.extend(m for m in matches if Path(m).suffix.lower() in IMAGE_SUFFIXES)
-        else:
-            out.append(item)  # missing or unreadable files fail as frames, with their reason
-    return out
-
-
-class FolderWatch:
-    """Image files in ``folder`` (sorted), then each new one as it appears; iterate it for paths.
-
-    A file is taken once its size and mtime have stayed the same for ``settle`` seconds (or its
-    mtime is already that old), so a file still being copied in is not read half-written. A
-    file taken before is taken again when it changes (replaced, or completed after a stalled
-    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new (None: never,
-    until Ctrl-C), or when the folder goes away: ``error`` then says why (one line)."""
-
-    def __init__(self, folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
-                 settle: float = 1.0):
-        self.folder, self.suffixes, self.idle_exit, self.poll, self.settle = folder, suffixes, idle_exit, poll, settle
-        self.error: str | None = None
-
-    def _listing(self) -> dict[Path, tuple[int, int, float]] | None:
-        """path -> (size, mtime_ns, mtime in s) of the image files now in the folder; None when it is gone."""
-        try:
-            names = sorted(self.folder.iterdir())
-        except OSError as exc:
-            self.error = f"--watch {self.folder}: {exc.strerror or exc}; stopped watching"
-            return None
-        found = {}
-        for f in names:
-            if f.suffix.lower() not in self.suffixes:
-                continue
-            try:
-                st = f.stat()
-            except OSError:
-                continue  # gone again, or a dangling link: nothing to take yet
-            if stat.S_ISREG(st.st_mode):
-                found[f] = (st.st_size, st.st_mtime_ns, st.st_mtime)
-        return found
-
-    def __iter__(self) -> Iterator[str]:
-        taken: dict[Path, tuple[int, int]] = {}  # identity when last taken
-        since: dict[Path, tuple[tuple[int, int], float]] = {}  # identity first seen unchanged, and when
-        last_new = time.monotonic()
-        while True:
-            listing = self._listing()
-            if listing is None:
-                return
-            now, wall = time.monotonic(), time.time()
-            for f, (size, mtime_ns, mtime) in listing.items():
-                ident = (size, mtime_ns)
-                if taken.get(f) == ident:
-                    continue
-                if since.get(f, (None,))[0] != ident:
-                    since[f] = (ident, now)
-                settled = now - since[f][1] >= self.settle or wall - mtime >= self.settle
-                if size > 0 and settled:
-                    taken[f] = ident
-                    last_new = now
-                    yield str(f)
-            if self.idle_exit is not None and time.monotonic() - last_new > self.idle_exit:
-                return
-            time.sleep(self.poll)

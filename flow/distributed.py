@@ -1,0 +1,166 @@
+"""Frames as tasks on a Dask cluster (``dask.distributed``), for streams that outgrow one machine.
+
+``DaskPipeline`` keeps ``Pipeline``'s contract: ``run(frames)`` yields every frame in input
+order (``on_done`` first), a failing frame fails alone, ``frame_timeout`` limits each node, and
+``stop()`` (or SIGINT / SIGTERM) takes no new frames and hands the unfinished ones back
+``cancelled``. Each frame is one task running the whole node chain (``Chain``) on a worker; at
+most ``in_flight`` tasks are out at once, so the client's memory does not grow with the stream.
+The chain is built once per worker process and run from ``build(shared)``, where ``shared`` (e.g.
+a shape model) is sent to every worker once (``Client.scatter(broadcast=True)``). A worker that
+dies mid-frame has its frames redone elsewhere by Dask; a frame whose tasks kill workers again
+and again (``KilledWorker``) fails with that reason. Knows nothing about faces.
+
+Dask moves frames between processes with pickle: the cluster is trusted, as the client's own
+processes are; nothing read from a user's files is unpickled.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import uuid
+from typing import Any, Callable, Iterable, Iterator
+
+from .chain import Chain, Node
+from .frame import Frame
+from .pipeline import _install_signal_handlers, _restore_signal_handlers
+
+_CHAINS: dict[str, Chain] = {}  # in each worker process: run token -> its chain
+_CHAINS_LOCK = threading.Lock()
+
+
+Build = Callable[[Any], "tuple[list[Node], Callable[[Frame], None] | None]"]
+
+
+def process_frame(token: str, build: Build, shared: Any, frame: Frame, frame_timeout: float | None) -> Frame:
+    """The task: ``frame`` through this worker's chain of run ``token``, built on first use.
+    ``build(shared)`` gives the nodes and a function called on every frame at the end, failed or
+    not (e.g. to choose what travels back to the client)."""
+    with _CHAINS_LOCK:
+        chain = _CHAINS.get(token)
+        if chain is None:
+            for old in list(_CHAINS)[:-1]:  # keep the last run's chain beside this one, no more
+                del _CHAINS[old]
+            nodes, finish = build(shared)
+            chain = _CHAINS[token] = Chain(nodes, on_done=finish, frame_timeout=frame_timeout)
+    return chain.process(frame)
+
+
+class DaskPipeline:
+    """Run frames through ``build(shared)``'s nodes as tasks of ``client``; iterate over ``run``.
+
+    build: a picklable callable ``shared -> (nodes, finish)`` (see ``process_frame``; called once
+    per worker); in_flight: tasks out at once (default: twice the cluster's threads); on_done,
+    frame_timeout: as ``Pipeline``.
+    """
+
+    def __init__(self, client, build: Build, shared: Any = None,
+                 on_done: Callable[[Frame], None] | None = None, frame_timeout: float | None = None,
+                 in_flight: int | None = None):
+        self.client, self.build, self.shared = client, build, shared
+        self.on_done, self.frame_timeout = on_done, frame_timeout
+        self.in_flight = in_flight or max(2, 2 * sum(client.nthreads().values()))
+        self._stop = threading.Event()
+        self.max_in_flight = 0  # observed, for tests and benchmarks
+
+    def stop(self) -> None:
+        """Take no new frames; tasks still out are cancelled and their frames emitted ``cancelled``."""
+        self._stop.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+    def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
+        from distributed import wait
+
+        token = uuid.uuid4().hex
+        shared = self.client.scatter(self.shared, broadcast=True, hash=False)
+        source: queue.Queue = queue.Queue(maxsize=self.in_flight)
+        errors: list[BaseException] = []
+        closing = threading.Event()
+        end = object()
+
+        def feed() -> None:  # the source may block (a watched folder): it runs on its own thread
+            try:
+                for item in enumerate(frames):
+                    while not (self._stop.is_set() or closing.is_set()):
+                        try:
+                            source.put(item, timeout=0.2)
+                            break
+                        except queue.Full:
+                            continue
+                    if self._stop.is_set() or closing.is_set():
+                        break
+            except BaseException as exc:  # noqa: BLE001 - a broken source ends the stream, reported below
+                errors.append(exc)
+            finally:
+                source.put(end)
+
+        feeder = threading.Thread(target=feed, name="flow-dask-source", daemon=True)
+        previous = _install_signal_handlers(self.stop) if handle_signals else None
+        feeder.start()
+        out: dict = {}  # seq -> future (a task out) or Frame (finished, waiting for its turn)
+        given: dict[int, Frame] = {}  # seq -> the frame as sent, for failures and cancellation
+        next_seq, exhausted = 0, False
+        try:
+            while True:
+                while not exhausted and not self._stop.is_set() and len(out) < self.in_flight:
+                    try:
+                        item = source.get(timeout=0.05 if out else 0.5)
+                    except queue.Empty:
+                        break
+                    if item is end:
+                        exhausted = True
+                        break
+                    seq, frame = item
+                    if frame.skipped or not frame.ok:
+                        out[seq] = frame
+                        continue
+                    given[seq] = frame
+                    out[seq] = self.client.submit(process_frame, token, self.build, shared, frame,
+                                                  self.frame_timeout, pure=False, key=f"frame-{seq}-{token}")
+                    self.max_in_flight = max(self.max_in_flight, len(out))
+                if self._stop.is_set():
+                    running = [f for f in out.values() if not isinstance(f, Frame)]
+                    self.client.cancel(running)
+                    for seq, f in list(out.items()):
+                        if not isinstance(f, Frame):
+                            given[seq].cancelled = True
+                            out[seq] = given.pop(seq)
+                running = [f for f in out.values() if not isinstance(f, Frame)]
+                if running:
+                    try:
+                        wait(running, timeout=0.2, return_when="FIRST_COMPLETED")
+                    except TimeoutError:  # none finished yet: look at the source and the stop flag again
+                        pass
+                for seq, f in list(out.items()):
+                    if not isinstance(f, Frame) and f.done():
+                        out[seq] = self._result(f, given.pop(seq))
+                while next_seq in out and isinstance(out[next_seq], Frame):  # input order
+                    frame = out.pop(next_seq)
+                    next_seq += 1
+                    if self.on_done is not None:
+                        self.on_done(frame)
+                    yield frame
+                if not out and (exhausted or self._stop.is_set()):
+                    break
+        finally:
+            closing.set()
+            leftover = [f for f in out.values() if not isinstance(f, Frame)]
+            if leftover:
+                self.client.cancel(leftover)
+            if previous is not None:
+                _restore_signal_handlers(previous)
+        if errors:
+            raise errors[0]
+
+    @staticmethod
+    def _result(future, frame: Frame) -> Frame:
+        """The task's frame, or ``frame`` failed with why the task did not finish."""
+        try:
+            return future.result()
+        except Exception as exc:  # noqa: BLE001 - KilledWorker, a lost connection...: this frame's
+            text = f"{frame.source}: {type(exc).__name__}: {exc}"
+            frame.fail("dask", " ".join(text.split())[:500])
+            frame.error = exc
+            return frame

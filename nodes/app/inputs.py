@@ -1,0 +1,99 @@
+"""What a run reads: files, folders and glob patterns expanded to input paths, and a folder
+watched for new images (``shadowflow run --watch``)."""
+from __future__ import annotations
+
+import glob
+import stat
+import time
+from pathlib import Path
+from typing import Iterator
+
+from ..photo.loader import IMAGE_SUFFIXES
+
+
+def _output_folder(path: Path) -> bool:
+    """A folder of a run's outputs (``OUT/<stem>/``), e.g. ``photo.png/`` made from ``photo.png.png``."""
+    return path.is_dir() and (path / "normals.npy").is_file() and (path / "mask.png").is_file()
+
+
+def expand_inputs(items: list[str], note=print) -> list[str]:
+    """Files, folders (sorted, not recursed; names without an image suffix skipped with a
+    note, hidden files and output folders without one) and glob patterns -> paths. Anything named like an image is kept, even a folder,
+    a broken link or a pipe: its frame then fails with the loader's exact reason."""
+    out: list[str] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            for f in sorted(p.iterdir()):
+                if f.name.startswith(".") or _output_folder(f):
+                    continue  # hidden files, and a run's own outputs when --out is this folder
+                if f.suffix.lower() in IMAGE_SUFFIXES:
+                    out.append(str(f))
+                elif f.suffix.lower() != ".json":
+                    note(f"{f}: skipped (not an image)")
+        elif not p.exists() and any(ch in item for ch in "*?["):
+            matches = sorted(glob.glob(item))
+            if not matches:
+                note(f"{item}: no file matches")
+            out.extend(m for m in matches if Path(m).suffix.lower() in IMAGE_SUFFIXES)
+        else:
+            out.append(item)  # missing or unreadable files fail as frames, with their reason
+    return out
+
+
+class FolderWatch:
+    """Image files in ``folder`` (sorted), then each new one as it appears; iterate it for paths.
+
+    A file is taken once its size and mtime have stayed the same for ``settle`` seconds (or its
+    mtime is already that old), so a file still being copied in is not read half-written. A
+    file taken before is taken again when it changes (replaced, or completed after a stalled
+    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new (None: never,
+    until Ctrl-C), or when the folder goes away: ``error`` then says why (one line)."""
+
+    def __init__(self, folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
+                 settle: float = 1.0):
+        self.folder, self.suffixes, self.idle_exit, self.poll, self.settle = folder, suffixes, idle_exit, poll, settle
+        self.error: str | None = None
+
+    def _listing(self) -> dict[Path, tuple[int, int, float]] | None:
+        """path -> (size, mtime_ns, mtime in s) of the image files now in the folder; None when it is gone."""
+        try:
+            names = sorted(self.folder.iterdir())
+        except OSError as exc:
+            self.error = f"--watch {self.folder}: {exc.strerror or exc}; stopped watching"
+            return None
+        found = {}
+        for f in names:
+            if f.suffix.lower() not in self.suffixes:
+                continue
+            try:
+                st = f.stat()
+            except OSError:
+                continue  # gone again, or a dangling link: nothing to take yet
+            if stat.S_ISREG(st.st_mode):
+                found[f] = (st.st_size, st.st_mtime_ns, st.st_mtime)
+        return found
+
+    def __iter__(self) -> Iterator[str]:
+        taken: dict[Path, tuple[int, int]] = {}  # identity when last taken
+        since: dict[Path, tuple[tuple[int, int], float]] = {}  # identity first seen unchanged, and when
+        last_new = time.monotonic()
+        while True:
+            listing = self._listing()
+            if listing is None:
+                return
+            now, wall = time.monotonic(), time.time()
+            for f, (size, mtime_ns, mtime) in listing.items():
+                ident = (size, mtime_ns)
+                if taken.get(f) == ident:
+                    continue
+                if since.get(f, (None,))[0] != ident:
+                    since[f] = (ident, now)
+                settled = now - since[f][1] >= self.settle or wall - mtime >= self.settle
+                if size > 0 and settled:
+                    taken[f] = ident
+                    last_new = now
+                    yield str(f)
+            if self.idle_exit is not None and time.monotonic() - last_new > self.idle_exit:
+                return
+            time.sleep(self.poll)

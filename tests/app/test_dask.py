@@ -1,0 +1,101 @@
+"""Scale-out on Dask (``--dask``): the same outputs and recordings as the local engine, every
+frame done or failed exactly once when a worker dies mid-run."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shadowflow.flow.manifest import RunManifest
+from shadowflow.nodes.app.outputs import OUTPUT_FILES
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+distributed = pytest.importorskip("distributed")
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+FAST = ["--max-iterations", "12", "--record", "mcap,rerun", "--quiet"]
+
+
+def _inputs(folder: Path, n: int) -> None:
+    """``n`` faces (copies of 4) with sidecar lights, and three bad inputs."""
+    folder.mkdir()
+    rng = np.random.default_rng(11)
+    base = [write_shadowed_face(folder / f"b{i}.png", rng, light_from_angles(30 + 10 * i)) for i in range(4)]
+    for k in range(n):
+        shutil.copy(base[k % 4], folder / f"face-{k:02d}.png")
+        shutil.copy(base[k % 4].with_suffix(".json"), folder / f"face-{k:02d}.json")
+    for p in base:
+        p.unlink()
+        p.with_suffix(".json").unlink()
+    (folder / "garbage.png").write_bytes(b"not an image")
+    (folder / "empty.jpg").write_bytes(b"")
+    (folder / "tiny.png").write_bytes((folder / "face-00.png").read_bytes()[:60])
+
+
+def test_a_local_cluster_gives_the_local_engines_outputs_and_recordings(tmp_path):
+    src = tmp_path / "in"
+    _inputs(src, 6)
+    local = subprocess.run(CLI + ["run", str(src), "--out", str(tmp_path / "local")] + FAST,
+                           capture_output=True, text=True, timeout=300)
+    dask = subprocess.run(CLI + ["run", str(src), "--out", str(tmp_path / "dask"), "--dask", "local:2"] + FAST,
+                          capture_output=True, text=True, timeout=300)
+    assert local.returncode == dask.returncode == 1, dask.stderr  # the bad inputs failed, alone
+    a = json.loads((tmp_path / "local" / "summary.json").read_text())
+    b = json.loads((tmp_path / "dask" / "summary.json").read_text())
+    strip = lambda recs: [{k: v for k, v in r.items() if k != "seconds"} for r in recs]  # noqa: E731
+    assert strip(a) == strip(b) and sum(r["status"] == "ok" for r in b) == 6
+    for r in a:
+        if r["status"] == "ok":
+            for name in OUTPUT_FILES:
+                assert (tmp_path / "local" / r["stem"] / name).read_bytes() == \
+                    (tmp_path / "dask" / r["stem"] / name).read_bytes(), (r["stem"], name)
+    diff = subprocess.run(CLI + ["diff", str(tmp_path / "local"), str(tmp_path / "dask")], capture_output=True,
+                          text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 9 frames"), diff.stdout + diff.stderr
+    assert (tmp_path / "dask" / "run.rrd").stat().st_size > 10_000
+
+
+def test_a_worker_killed_mid_run_loses_no_frame_and_writes_none_twice(tmp_path):
+    src = tmp_path / "in"
+    _inputs(src, 24)
+    out = tmp_path / "out"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", cluster.scheduler_address] + FAST,
+                                stderr=subprocess.PIPE, text=True)
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            man = RunManifest.load(out)
+            if man is not None and len(man.entries) >= 4:
+                break
+            time.sleep(0.05)
+        os.kill(pids[0], signal.SIGKILL)  # a worker dies with frames in hand
+        killed_at = len(RunManifest.load(out).entries)
+        _, err = proc.communicate(timeout=300)
+    assert killed_at < 27, "the kill came after the run had finished"
+    assert proc.returncode == 1, err
+    summary = json.loads((out / "summary.json").read_text())
+    sources = [Path(r["source"]).name for r in summary]
+    assert sorted(sources) == sorted(p.name for p in src.iterdir() if p.suffix != ".json")  # each once
+    assert sum(r["status"] == "ok" for r in summary) == 24, [r["status"] for r in summary if r["status"] != "ok"]
+    assert all(not p.name.endswith(".tmp") for p in out.rglob("*"))  # no partial file left
+    fresh = tmp_path / "fresh"
+    assert subprocess.run(CLI + ["run", str(src), "--out", str(fresh)] + FAST, timeout=300).returncode == 1
+    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 27 frames"), diff.stdout + diff.stderr
+
+
+def test_dask_arguments_are_checked_before_any_work(tmp_path):
+    for spec, says in [("local:0", "local:N needs N >= 1"), ("mars", "--dask takes local"),
+                       ("env", "DASK_SCHEDULER_ADDRESS is not set")]:
+        env = {k: v for k, v in os.environ.items() if k != "DASK_SCHEDULER_ADDRESS"}
+        proc = subprocess.run(CLI + ["run", "x.png", "--out", str(tmp_path / "o"), "--dask", spec],
+                              capture_output=True, text=True, timeout=60, env=env)
+        assert proc.returncode == 2 and says in proc.stderr and not (tmp_path / "o").exists(), proc.stderr
