@@ -1,6 +1,6 @@
 """Soak: one long run with both recordings; do memory and speed stay flat? Then replay and diff it.
 
-    python benchmarks/bench_soak.py [--frames 2000] [--record rerun,mcap] [--json soak.json]
+    python benchmarks/bench_soak.py [--frames 2000] [--record rerun,mcap] [--json soak.json] [--no-replay]
 
 Runs ``shadowflow run`` over N synthetic 128x128 faces (copies of 10, ``bench_stream.make_inputs``)
 in a child process and samples, every second, its resident memory (``/proc/PID/status`` VmRSS) and
@@ -77,7 +77,9 @@ def soak(n: int, record: str, tmp: Path) -> tuple[dict, Path]:
            "fps_early": round(fps_a, 2), "fps_late": round(fps_b, 2), "fps_ratio": round(fps_b / fps_a, 3),
            "rss_early_mib": round(rss_a, 1), "rss_late_mib": round(rss_b, 1), "rss_ratio": round(rss_b / rss_a, 3),
            "rss_peak_mib": round(max(x[2] for x in samples) / 1024, 1),
-           "recording_mib": round(sum(f.stat().st_size for f in out.glob("run.*")) / 2**20, 1)}
+           "recording_mib": round(sum(f.stat().st_size for f in out.glob("run.*")) / 2**20, 1),
+           "rss_mib_by_quarter": [round(window(q * n // 4 - tenth, q * n // 4)[1], 1) for q in (1, 2, 3, 4)],
+           "samples": [{"s": round(t, 1), "frames": d, "rss_mib": round(r / 1024, 1)} for t, d, r in samples]}
     return row, out
 
 
@@ -93,10 +95,14 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--record", default="rerun,mcap")
     ap.add_argument("--json")
+    ap.add_argument("--no-replay", action="store_true", help="skip replay and diff of the run")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         row, out = soak(args.frames, args.record, Path(tmp))
         for name, cmd in (("replay", ["replay", str(out)]), ("diff", ["diff", str(out), str(out)])):
+            if args.no_replay:
+                row[f"{name}_exit"] = row[f"{name}_seconds"] = row[f"{name}_peak_mib"] = "-"
+                continue
             code, secs, peak = peak_of(cmd)
             row[f"{name}_exit"], row[f"{name}_seconds"], row[f"{name}_peak_mib"] = code, round(secs, 1), round(peak, 1)
     print(f"machine: {platform.machine()}, Python {platform.python_version()}")
@@ -107,6 +113,7 @@ def main() -> None:
     print(f"| {r['frames']} | {r['record']} | {r['seconds']} | {r['fps_early']} / {r['fps_late']} ({r['fps_ratio']}x) | "
           f"{r['rss_early_mib']} / {r['rss_late_mib']} ({r['rss_ratio']}x) | {r['rss_peak_mib']} | {r['recording_mib']} | "
           f"{r['replay_seconds']} / {r['replay_peak_mib']} | {r['diff_seconds']} / {r['diff_peak_mib']} |")
+    print(f"RSS MiB over the tenth before 1/4, 1/2, 3/4 and all of the frames: {r['rss_mib_by_quarter']}")
     if args.json:
         Path(args.json).write_text(json.dumps(row, indent=2) + "\n")
 

@@ -164,3 +164,42 @@ class DaskPipeline:
             frame.fail("dask", " ".join(text.split())[:500])
             frame.error = exc
             return frame
+
+
+def ordered_map(client, fn: Callable[[Any, Any], Any], items: Iterable[Any], shared: Any = None,
+                in_flight: int | None = None) -> Iterator[Any]:
+    """``fn(shared, item)`` for each item as tasks of ``client``, results in item order, at most
+    ``in_flight`` tasks out (default: twice the cluster's threads); ``shared`` is sent to every
+    worker once. An exception in a task is raised here, as ``map`` would."""
+    from distributed import wait
+
+    limit = in_flight or max(2, 2 * sum(client.nthreads().values()))
+    shared_f = client.scatter(shared, broadcast=True, hash=False)
+    token = uuid.uuid4().hex
+    out: list = []
+    items = iter(items)
+    exhausted = False
+    k = 0
+    try:
+        while True:
+            while not exhausted and len(out) < limit:
+                try:
+                    item = next(items)
+                except StopIteration:
+                    exhausted = True
+                    break
+                out.append(client.submit(fn, shared_f, item, pure=False, key=f"item-{k}-{token}"))
+                k += 1
+            if not out:
+                return
+            wait(out[:1])
+            yield out.pop(0).result()
+    finally:
+        if out:
+            client.cancel(out)
+
+
+def local_map(fn: Callable[[Any, Any], Any], items: Iterable[Any], shared: Any = None) -> Iterator[Any]:
+    """``ordered_map`` on this thread: the same results, no cluster."""
+    for item in items:
+        yield fn(shared, item)

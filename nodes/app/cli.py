@@ -3,15 +3,18 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import math
 import os
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
+from ...flow.distributed import local_map, ordered_map
 from ...flow.files import atomic_write_bytes
 from ...flow.pipeline import wait_for_abandoned
 from ...flow.recording import RecordOptions
@@ -33,7 +36,7 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
-from .cluster import DASK_HELP, parse_dask
+from .cluster import DASK_HELP, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
 from .runner import RunOptions, check_writable, one_blas_thread, run_stream
@@ -236,6 +239,16 @@ def _write_report(path: str | None, report: dict) -> None:
         print(f"written: {path}")
 
 
+@contextmanager
+def _mapper(spec: str | None):
+    """How ``eval`` runs its items: here, or on the Dask cluster ``--dask SPEC`` names."""
+    if spec is None:
+        yield local_map
+        return
+    with dask_client(spec) as client:
+        yield functools.partial(ordered_map, client)
+
+
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
 
     if not args.data:
@@ -248,7 +261,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
-    report = evaluate_yaleb(args.data, model, options)
+    with _mapper(args.dask) as mapper:
+        report = evaluate_yaleb(args.data, model, options, mapper=mapper)
     cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
             ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
             ("psnr_unmoved", "unmoved dB"), ("relit_level", "relit level"), ("shadow_iou", "shadow IoU"),
@@ -272,6 +286,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.dask is not None:
+        parse_dask(args.dask)  # before any work
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
 
@@ -302,7 +318,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     for name in fits:
         opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds, cone_trust=args.cone_trust),
                              integrator=args.integrator, remap=args.remap, shadows=args.shadows)
-        res = evaluate(model, test, albedo, angles, opts)
+        with _mapper(args.dask) as mapper:
+            res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
         report["results"][name] = res["per_angle"]
         for angle, row in res["per_angle"].items():
             print(f"{name:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
@@ -445,6 +462,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")
+    e.add_argument("--dask", nargs="?", const="env", metavar="local[:N]|tcp://HOST:PORT|env",
+                   help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
+                        "the report is the same")
     e.set_defaults(func=cmd_eval)
 
     rp = sub.add_parser("replay", help="convergence table / plot / re-log to Rerun of a recording")

@@ -7,6 +7,7 @@ them, so ``run.mcap`` / ``run.rrd`` are the same files a local run writes.
 """
 from __future__ import annotations
 
+import logging
 import os
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -38,12 +39,7 @@ class WorkerChain:
     record_options: RecordOptions
 
     def __call__(self, model: ShapeModel):
-        from threadpoolctl import threadpool_limits
-
-        from .runner import release_large_frees
-
-        threadpool_limits(limits=1, user_api="blas")  # as a local run: the fit's matrices are small
-        release_large_frees()
+        worker_setup()
         collector = EventCollector(self.record_options) if self.record else None
         observer = FitRecorder(model, collector) if collector is not None else None
         nodes = [LoadNode(model, self.options), *method_nodes(model, self.options, observer)]
@@ -55,6 +51,17 @@ class WorkerChain:
             frame.data = {"events": collector.take(frame.id) if collector is not None else []}
 
         return nodes, hand_back
+
+
+def worker_setup() -> None:
+    """What a local run does for itself, in a worker process: BLAS on one thread (the fit's matrices
+    are small) and glibc's allocator tuned (``runner.release_large_frees``)."""
+    from threadpoolctl import threadpool_limits
+
+    from .runner import release_large_frees
+
+    threadpool_limits(limits=1, user_api="blas")
+    release_large_frees()
 
 
 def parse_dask(spec: str) -> tuple[str, int | str | None]:
@@ -90,9 +97,12 @@ def dask_client(spec: str) -> Iterator[object]:
         raise ValueError("--dask needs Dask: pip install 'shadowflow[dask]'") from None
     if kind == "local":
         n = arg or os.cpu_count() or 1
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                          silence_logs=logging.ERROR) as cluster, \
                 Client(cluster) as client:
+            client.run(worker_setup)
             yield client
     else:
         with Client(arg, timeout="20s") as client:
+            client.run(worker_setup)
             yield client

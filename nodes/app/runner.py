@@ -185,9 +185,13 @@ def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
 
 def release_large_frees() -> None:
     """glibc only: serve arrays of 1 MiB and more by ``mmap`` (``M_MMAP_THRESHOLD``), so that their
-    memory goes back to the system when freed. By default glibc raises that threshold up to 32 MiB
-    as arrays are freed, and a large photo's arrays then stay in per-thread heaps: a 33 MP photo's run
-    peaked at 860 MB RSS instead of 660 (``benchmarks/bench_photo.py --jpeg``). Elsewhere: nothing."""
+    memory goes back to the system when freed, and keep to two malloc arenas (``M_ARENA_MAX``).
+    By default glibc raises the mmap threshold up to 32 MiB as arrays are freed, and a large
+    photo's arrays then stay in per-thread heaps: a 33 MP photo's run peaked at 860 MB RSS
+    instead of 660 (``benchmarks/bench_photo.py --scale 25 --jpeg``); and each of the pipeline's
+    dozen threads gets an arena of its own, whose freed pieces other threads cannot reuse: RSS
+    grew by about 40 kB a frame (192 -> 207 MiB over 360 unrecorded frames; flat with two
+    arenas, ``benchmarks/bench_soak.py``). Call it before the threads start. Elsewhere: nothing."""
     import ctypes
     import ctypes.util
 
@@ -196,6 +200,7 @@ def release_large_frees() -> None:
         libc = ctypes.CDLL(name) if name else None
         if libc is not None and hasattr(libc, "mallopt"):
             libc.mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
+            libc.mallopt(-8, 2)  # M_ARENA_MAX
     except OSError:
         pass
 

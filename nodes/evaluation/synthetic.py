@@ -8,10 +8,12 @@ from the same nodes ``shadowflow run`` uses.
 from __future__ import annotations
 
 import time
+import uuid
 
 import numpy as np
 
 from ...flow.chain import Chain
+from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.integrate import fill_holes
 from ..geometry.normals import angle_deg, normals_from_depth
@@ -47,34 +49,52 @@ def score(scene: Scene, frame: Frame) -> dict[str, float]:
     return out
 
 
+_CHAINS: dict[str, Chain] = {}  # per process: evaluation token -> the method's chain
+
+
+def score_one(shared: tuple[str, ShapeModel, MethodOptions], item: tuple[int, float, np.ndarray, object]) -> dict:
+    """One test face at one light: render, run the method's nodes, score (``score``) and time it.
+    shared: (a token naming this evaluation, model, options); item: (face index, angle in degrees,
+    depth (H, W), albedo (H, W) or 1.0). A task of ``evaluate``, locally or on a Dask worker (the
+    chain is built once per token there)."""
+    token, model, options = shared
+    chain = _CHAINS.get(token)
+    if chain is None:
+        _CHAINS.clear()
+        chain = _CHAINS[token] = Chain(method_nodes(model, options, with_views=False))
+    i, angle, depth, albedo = item
+    s = light_from_angles(angle, 0.0)
+    t0 = time.perf_counter()
+    scene = render_scene(depth, albedo, s, model.mask)
+    frame = chain.process(on_model_grid(i, f"test-{i}@{angle:g}deg", scene.image, s))
+    if not frame.ok:
+        raise RuntimeError(frame.status)
+    return {**score(scene, frame), "seconds": time.perf_counter() - t0}
+
+
 def evaluate(
     model: ShapeModel,
     depths: np.ndarray,
     albedos: np.ndarray | None,
     angles_deg: list[float],
     options: MethodOptions = MethodOptions(),
+    mapper=local_map,
 ) -> dict:
     """Run the method on every test face at every light angle; mean metrics per angle.
 
     depths: (M, H, W) test heights on the model grid; albedos: (M, H, W) or None (constant 1).
-    Returns ``{"per_angle": {angle: {metric: mean}}, "faces": M}``; NaN metrics (e.g. no
-    cast shadow at 0 degrees) are left out of the means.
+    mapper: how the (face, angle) items are run: ``local_map`` here, or ``ordered_map`` bound to
+    a Dask client (``eval --dask``); the results are the same. Returns ``{"per_angle": {angle:
+    {metric: mean}}, "faces": M}``; NaN metrics (e.g. no cast shadow at 0 degrees) are left out
+    of the means; ``seconds_per_face`` is the mean time of one face's task.
     """
-    nodes = method_nodes(model, options, with_views=False)
-    chain = Chain(nodes)
+    items = [(i, float(angle), d, 1.0 if albedos is None else albedos[i])
+             for angle in angles_deg for i, d in enumerate(depths)]
+    results = list(mapper(score_one, items, (uuid.uuid4().hex, model, options)))
     per_angle = {}
     for angle in angles_deg:
-        s = light_from_angles(angle, 0.0)
-        rows = []
-        t0 = time.perf_counter()
-        for i, d in enumerate(depths):
-            alb = 1.0 if albedos is None else albedos[i]
-            scene = render_scene(d, alb, s, model.mask)
-            frame = chain.process(on_model_grid(i, f"test-{i}@{angle:g}deg", scene.image, s))
-            if not frame.ok:
-                raise RuntimeError(frame.status)
-            rows.append(score(scene, frame))
-        seconds = (time.perf_counter() - t0) / max(len(depths), 1)
+        rows = [r for (_, a, _, _), r in zip(items, results) if a == float(angle)]
+        seconds = float(np.mean([r.pop("seconds") for r in rows])) if rows else 0.0
         means = {k: float(np.nanmean([r[k] for r in rows])) if np.any(np.isfinite([r[k] for r in rows]))
                  else float("nan") for k in rows[0]}
         means["seconds_per_face"] = seconds

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from ...flow.chain import Chain
+from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.normals import angle_deg
 from ..geometry.reflectance import lambertian, light_from_angles
@@ -205,8 +206,9 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
 
 
 def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions = MethodOptions(light="yaleb"),
-                   lights=INPUT_LIGHTS, estimate_light: bool = True, note=print) -> dict:
-    """All subject folders under ``data`` (``yaleB*``); returns ``{"rows": [...], "subjects": {...}}``."""
+                   lights=INPUT_LIGHTS, estimate_light: bool = True, note=print, mapper=local_map) -> dict:
+    """All subject folders under ``data`` (``yaleB*``); returns ``{"rows": [...], "subjects": {...}}``.
+    mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client)."""
     folders = sorted(p for p in Path(data).iterdir() if p.is_dir() and p.name.startswith("yaleB"))
     if not folders:
         raise ValueError(f"{data}: no yaleB* subject folders")
@@ -218,16 +220,29 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
         moved = sum(np.hypot(*d) > 0.5 for d in s.shifts.values())
         note(f"{s.name}: stereo from {s.exposures - len(s.excluded)} exposures; left out {odd or 'none besides lights behind the face'}; "
              f"{moved} registered by > 0.5 px")
-    rows = []
+    items = []
     for i, s in enumerate(subjects):
         others = [o.stereo.normals for j, o in enumerate(subjects) if j != i and o.stereo.normals.shape == s.stereo.normals.shape]
         others_mean = None
         if others:
             m = np.nanmean(np.stack(others), axis=0)
             others_mean = m / np.linalg.norm(m, axis=-1, keepdims=True)
-        rows.extend(evaluate_subject(s, model, options, others_mean, lights, estimate_light))
-    frontal = [frontal_self_relight(s, model, options) for s in subjects]
+        items.append((s, others_mean))
+    rows, frontal = [], []
+    for subject_rows, subject_frontal in mapper(evaluate_one_subject, items, (model, options, lights, estimate_light)):
+        rows.extend(subject_rows)
+        frontal.append(subject_frontal)
     return {"rows": rows, "frontal": frontal, "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
+
+
+def evaluate_one_subject(shared: tuple, item: tuple) -> tuple[list[dict], dict]:
+    """One subject's rows (``evaluate_subject``) and frontal self-relight: a task of
+    ``evaluate_yaleb``. shared: (model, options, lights, estimate_light); item: (subject, the other
+    subjects' mean normals or None)."""
+    model, options, lights, estimate_light = shared
+    subject, others_mean = item
+    return (evaluate_subject(subject, model, options, others_mean, lights, estimate_light),
+            frontal_self_relight(subject, model, options))
 
 
 def summarise(rows: list[dict]) -> list[dict]:

@@ -99,3 +99,21 @@ def test_dask_arguments_are_checked_before_any_work(tmp_path):
         proc = subprocess.run(CLI + ["run", "x.png", "--out", str(tmp_path / "o"), "--dask", spec],
                               capture_output=True, text=True, timeout=60, env=env)
         assert proc.returncode == 2 and says in proc.stderr and not (tmp_path / "o").exists(), proc.stderr
+
+
+def test_eval_spread_over_a_cluster_reports_the_same_figures(tmp_path):
+    """``eval --dask`` runs each (face, light) as a task: the report equals the local one's."""
+    base = ["eval", "--source", "procedural", "--n-train", "24", "--n-test", "6", "--modes", "12",
+            "--size", "64,64", "--angles", "45,70"]
+    reports = {}
+    for name, extra in (("local", []), ("dask", ["--dask", "local:2"])):
+        path = tmp_path / f"{name}.json"
+        proc = subprocess.run(CLI + base + extra + ["--json", str(path)], capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        reports[name] = json.loads(path.read_text())
+    for angle in ("45", "70"):
+        a, b = reports["local"]["results"]["gauss-newton"][angle], reports["dask"]["results"]["gauss-newton"][angle]
+        a.pop("seconds_per_face")
+        b.pop("seconds_per_face")
+        assert a == b, (angle, a, b)
+    assert 0 < reports["dask"]["results"]["gauss-newton"]["45"]["err_all"] < 30
