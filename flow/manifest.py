@@ -109,7 +109,7 @@ def _entry(obj) -> InputEntry | None:
         v = obj.get(key)
         if not isinstance(v, kind) or isinstance(v, bool):
             return None
-    if obj["frame"] < 0 or not obj["name"] or "/" in obj["name"] or obj["name"].startswith("."):
+    if obj["frame"] < 0 or not _is_name(obj["name"]) or "\x00" in obj["name"]:
         return None
     record, sha = obj.get("record"), obj.get("sha256")
     return InputEntry(obj["path"], obj["size"], obj["mtime_ns"], obj["name"], obj["frame"], obj["config"],
@@ -168,10 +168,9 @@ class RunManifest:
             e = _entry(raw)
             if e is not None:
                 entries[e.path] = e
-        man = cls(obj["config"], recordings, entries)
         for e in read_journal(folder):
-            man.entries[e.path] = e
-        return man
+            entries[e.path] = e
+        return cls(obj["config"], recordings, _distinct(entries))
 
     def save(self, folder: str | os.PathLike) -> None:
         """Write ``manifest.json`` atomically, then empty the journal it now includes."""
@@ -182,6 +181,21 @@ class RunManifest:
         journal = folder / JOURNAL_NAME
         if journal.is_symlink() or journal.exists():
             journal.unlink()
+
+
+def _distinct(entries: dict[str, InputEntry]) -> dict[str, InputEntry]:
+    """Entries with no output name or frame id shared by two inputs (a hand-edited or damaged
+    manifest): of those sharing one, the first by frame id is kept, the others' inputs are redone."""
+    names: set[str] = set()
+    frames: set[int] = set()
+    out = {}
+    for e in sorted(entries.values(), key=lambda e: (e.frame, e.path)):
+        if e.name.lower() in names or e.frame in frames:
+            continue
+        names.add(e.name.lower())
+        frames.add(e.frame)
+        out[e.path] = e
+    return out
 
 
 def _is_name(x) -> bool:

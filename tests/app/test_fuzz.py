@@ -221,6 +221,8 @@ def _check_manifest(manifest: bytes, journal: bytes) -> None:
         return
     assert isinstance(man.config, dict) and isinstance(man.config_id, str)
     assert all(isinstance(r, str) and "/" not in r for r in man.recordings)
+    assert len({e.name.lower() for e in man.entries.values()}) == len({e.frame for e in man.entries.values()}) \
+        == len(man.entries)  # no two inputs share an output folder or a frame id
     for key, e in man.entries.items():
         assert key == e.path and isinstance(e.size, int) and isinstance(e.frame, int) and e.frame >= 0
         assert isinstance(e.name, str) and e.name and "/" not in e.name and not e.name.startswith(".")
@@ -248,6 +250,23 @@ def test_run_manifest_survives_any_json_in_any_field(field, value):
     line = json.loads(JOURNAL_SEED)
     line[field] = value
     _check_manifest(json.dumps(body).encode(), (json.dumps(line) + "\n").encode())
+
+
+def test_run_manifest_never_gives_two_inputs_one_output_folder_or_frame_id():
+    import json
+
+    from shadowflow.flow.manifest import RunManifest
+
+    body = json.loads(MANIFEST_SEED)
+    twin = dict(body["inputs"][0], path="/in/other.png")  # a second input under the same name and id
+    body["inputs"].append(twin)
+    body["inputs"].append(dict(twin, path="/in/third.png", name="c"))  # a new name, the same frame id
+    folder = WORK / "manifest-twins"
+    folder.mkdir(exist_ok=True)
+    (folder / "manifest.json").write_text(json.dumps(body))
+    (folder / ".journal.jsonl").write_bytes(JOURNAL_SEED)
+    man = RunManifest.load(folder)
+    assert sorted(man.entries) == ["/in/a.png", "/in/b.png"]
 
 
 @pytest.mark.parametrize("field, value", [("name", n) for n in ["", ".", "..", "../evil", "/abs", ".lock", "a/b"]]
