@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 from .chain import Chain, Node
 from .frame import Frame
-from .pipeline import _install_signal_handlers, _restore_signal_handlers
+from .pipeline import Stoppable, _install_signal_handlers, _restore_signal_handlers
 
 _CHAINS: dict[str, Chain] = {}  # in each worker process: run token -> its chain
 _CHAINS_LOCK = threading.Lock()
@@ -45,7 +45,7 @@ def process_frame(token: str, build: Build, shared: Any, frame: Frame, frame_tim
     return chain.process(frame)
 
 
-class DaskPipeline:
+class DaskPipeline(Stoppable):
     """Run frames through ``build(shared)``'s nodes as tasks of ``client``; iterate over ``run``.
 
     build: a picklable callable ``shared -> (nodes, finish)`` (see ``process_frame``; called once
@@ -59,16 +59,8 @@ class DaskPipeline:
         self.client, self.build, self.shared = client, build, shared
         self.on_done, self.frame_timeout = on_done, frame_timeout
         self.in_flight = in_flight or max(2, 2 * sum(client.nthreads().values()))
-        self._stop = threading.Event()
+        super().__init__()  # stop(): tasks still out are cancelled, their frames emitted ``cancelled``
         self.max_in_flight = 0  # observed, for tests and benchmarks
-
-    def stop(self) -> None:
-        """Take no new frames; tasks still out are cancelled and their frames emitted ``cancelled``."""
-        self._stop.set()
-
-    @property
-    def stopped(self) -> bool:
-        return self._stop.is_set()
 
     def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
         from distributed import wait

@@ -101,7 +101,23 @@ class Stage:
             raise ValueError(f"a stage needs at least one worker, not {self.workers!r}")
 
 
-class Pipeline:
+class Stoppable:
+    """A stream engine's stop flag: ``stop()`` asks it to take no new frames; SIGINT / SIGTERM call it
+    under ``handle_signals``."""
+
+    def __init__(self) -> None:
+        self._stop = threading.Event()
+
+    def stop(self) -> None:
+        """Take no new frames; unfinished frames in flight are emitted ``cancelled``."""
+        self._stop.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+
+class Pipeline(Stoppable):
     """Run frames through stages of nodes concurrently; iterate over ``run`` for results.
 
     stages: nodes or ``Stage``s in order. queue_size: capacity of each queue between stages.
@@ -118,17 +134,9 @@ class Pipeline:
         self.queue_size = max(1, int(queue_size))
         self.on_done = on_done
         self.frame_timeout = frame_timeout
-        self._stop = threading.Event()  # stop() was asked for: take no new frames
+        super().__init__()
         self._closing = threading.Event()  # the consumer is gone: the source must end too
         self.max_in_flight = 0  # observed, for tests and benchmarks
-
-    def stop(self) -> None:
-        """Take no new frames; unfinished frames in flight are emitted ``cancelled``."""
-        self._stop.set()
-
-    @property
-    def stopped(self) -> bool:
-        return self._stop.is_set()
 
     def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
         queues = [queue.Queue(maxsize=self.queue_size) for _ in range(len(self.stages) + 1)]
