@@ -27,7 +27,8 @@ from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, luminance
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, real_path, write_outputs
-from .runner import RunOptions, RunResult, one_blas_thread, release_large_frees, run_stream
+from .process import one_blas_thread, release_large_frees
+from .runner import RunOptions, RunResult, run_stream
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 

@@ -38,8 +38,9 @@ from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from .cluster import DASK_HELP, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
+from .process import one_blas_thread
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
-from .runner import RunOptions, check_writable, one_blas_thread, run_stream
+from .runner import RunOptions, check_writable, run_stream
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "

@@ -58,7 +58,7 @@ def worker_setup() -> None:
     are small) and glibc's allocator tuned (``runner.release_large_frees``)."""
     from threadpoolctl import threadpool_limits
 
-    from .runner import release_large_frees
+    from .process import release_large_frees
 
     threadpool_limits(limits=1, user_api="blas")
     release_large_frees()

@@ -1,0 +1,40 @@
+"""Process-wide tuning for the method's work: BLAS on one thread, glibc's allocator told to give
+memory back. Used by runs, fits, evaluations and Dask workers alike."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from typing import Iterator
+
+
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """Run BLAS (OpenBLAS, MKL) on one thread inside: the fit's matrices are small (K <= 100) and the
+    pipeline already runs frames on several threads, so BLAS's own threads only contend. Measured on
+    this 2-core machine: 16 demo faces 1.7-1.9 s against 3.4-4.5 s, one fit 51-55 ms against
+    166-210 ms (``benchmarks/bench_nodes.py`` without ``OPENBLAS_NUM_THREADS=1``)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def release_large_frees() -> None:
+    """glibc only: serve arrays of 1 MiB and more by ``mmap`` (``M_MMAP_THRESHOLD``), so that their
+    memory goes back to the system when freed, and keep to two malloc arenas (``M_ARENA_MAX``).
+    By default glibc raises the mmap threshold up to 32 MiB as arrays are freed, and a large
+    photo's arrays then stay in per-thread heaps: a 33 MP photo's run peaked at 860 MB RSS
+    instead of 660 (``benchmarks/bench_photo.py --scale 25 --jpeg``); and each of the pipeline's
+    dozen threads gets an arena of its own, whose freed pieces other threads cannot reuse: RSS
+    grew by about 40 kB a frame (192 -> 207 MiB over 360 unrecorded frames; flat with two
+    arenas, ``benchmarks/bench_soak.py``). Call it before the threads start. Elsewhere: nothing."""
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name) if name else None
+        if libc is not None and hasattr(libc, "mallopt"):
+            libc.mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
+            libc.mallopt(-8, 2)  # M_ARENA_MAX
+    except OSError:
+        pass
