@@ -31,15 +31,17 @@ _CHAINS_LOCK = threading.Lock()
 Build = Callable[[Any], "tuple[list[Node], Callable[[Frame], None] | None]"]
 
 
-def process_frame(token: str, build: Build, shared: Any, frame: Frame, frame_timeout: float | None) -> Frame:
+def process_frame(token: str, bundle: tuple[Build, Any], frame: Frame, frame_timeout: float | None) -> Frame:
     """The task: ``frame`` through this worker's chain of run ``token``, built on first use.
-    ``build(shared)`` gives the nodes and a function called on every frame at the end, failed or
-    not (e.g. to choose what travels back to the client)."""
+    bundle: (build, shared), sent to each worker once; ``build(shared)`` gives the nodes and a
+    function called on every frame at the end, failed or not (e.g. to choose what travels back
+    to the client)."""
     with _CHAINS_LOCK:
         chain = _CHAINS.get(token)
         if chain is None:
             for old in list(_CHAINS)[:-1]:  # keep the last run's chain beside this one, no more
                 del _CHAINS[old]
+            build, shared = bundle
             nodes, finish = build(shared)
             chain = _CHAINS[token] = Chain(nodes, on_done=finish, frame_timeout=frame_timeout)
     return chain.process(frame)
@@ -66,7 +68,9 @@ class DaskPipeline(Stoppable):
         from distributed import wait
 
         token = uuid.uuid4().hex
-        shared = self.client.scatter(self.shared, broadcast=True, hash=False)
+        # the build and what it shares go to every worker once: a task carries only its frame (the
+        # build, holding every input's path, sent with each task made the client grow 250 kB a frame)
+        bundle = self.client.scatter((self.build, self.shared), broadcast=True, hash=False)
         source: queue.Queue = queue.Queue(maxsize=self.in_flight)
         errors: list[BaseException] = []
         closing = threading.Event()
@@ -109,8 +113,8 @@ class DaskPipeline(Stoppable):
                         out[seq] = frame
                         continue
                     given[seq] = frame
-                    out[seq] = self.client.submit(process_frame, token, self.build, shared, frame,
-                                                  self.frame_timeout, pure=False, key=f"frame-{seq}-{token}")
+                    out[seq] = self.client.submit(process_frame, token, bundle, frame, self.frame_timeout,
+                                                  pure=False, key=f"frame-{seq}-{token}")
                     self.max_in_flight = max(self.max_in_flight, len(out))
                 if self._stop.is_set():
                     running = [f for f in out.values() if not isinstance(f, Frame)]
