@@ -47,6 +47,11 @@ def process_frame(token: str, bundle: tuple[Build, Any], frame: Frame, frame_tim
     return chain.process(frame)
 
 
+def default_in_flight(client) -> int:
+    """Tasks out at once: twice the cluster's threads (each has the next task waiting), at least 2."""
+    return max(2, 2 * sum(client.nthreads().values()))
+
+
 class DaskPipeline(Stoppable):
     """Run frames through ``build(shared)``'s nodes as tasks of ``client``; iterate over ``run``.
 
@@ -60,7 +65,7 @@ class DaskPipeline(Stoppable):
                  in_flight: int | None = None):
         self.client, self.build, self.shared = client, build, shared
         self.on_done, self.frame_timeout = on_done, frame_timeout
-        self.in_flight = in_flight or max(2, 2 * sum(client.nthreads().values()))
+        self.in_flight = in_flight or default_in_flight(client)
         super().__init__()  # stop(): tasks still out are cancelled, their frames emitted ``cancelled``
         self.max_in_flight = 0  # observed, for tests and benchmarks
 
@@ -169,7 +174,7 @@ def ordered_map(client, fn: Callable[[Any, Any], Any], items: Iterable[Any], sha
     worker once. An exception in a task is raised here, as ``map`` would."""
     from distributed import wait
 
-    limit = in_flight or max(2, 2 * sum(client.nthreads().values()))
+    limit = in_flight or default_in_flight(client)
     shared_f = client.scatter(shared, broadcast=True, hash=False)
     token = uuid.uuid4().hex
     out: list = []

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .files import atomic_write_bytes
+from .recording.codec import jsonable
 
 MANIFEST_NAME = "manifest.json"
 JOURNAL_NAME = ".journal.jsonl"
@@ -177,7 +178,7 @@ class RunManifest:
         folder = Path(folder)
         body = {"format": FORMAT, "config": self.config, "config_id": self.config_id, "recordings": self.recordings,
                 "inputs": [asdict(e) for e in sorted(self.entries.values(), key=lambda e: e.frame)]}
-        atomic_write_bytes(folder / MANIFEST_NAME, (json.dumps(body, indent=1, default=_jsonable) + "\n").encode())
+        atomic_write_bytes(folder / MANIFEST_NAME, (json.dumps(body, indent=1, default=jsonable) + "\n").encode())
         journal = folder / JOURNAL_NAME
         if journal.is_symlink() or journal.exists():
             journal.unlink()
@@ -200,14 +201,6 @@ def _distinct(entries: dict[str, InputEntry]) -> dict[str, InputEntry]:
 
 def _is_name(x) -> bool:
     return isinstance(x, str) and bool(x) and "/" not in x and "\\" not in x and not x.startswith(".")
-
-
-def _jsonable(x):
-    if hasattr(x, "item"):
-        return x.item()
-    if hasattr(x, "tolist"):
-        return x.tolist()
-    return str(x)
 
 
 def read_journal(folder: str | os.PathLike) -> list[InputEntry]:
@@ -233,7 +226,7 @@ class Journal:
         self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
 
     def append(self, entry: InputEntry) -> None:
-        line = json.dumps(asdict(entry), separators=(",", ":"), default=_jsonable) + "\n"
+        line = json.dumps(asdict(entry), separators=(",", ":"), default=jsonable) + "\n"
         data = line.encode()
         written = os.write(self.fd, data)  # one write: a kill leaves a whole line or a cut last one
         while written < len(data):

@@ -119,11 +119,6 @@ def convergence_row(fr: FrameRecording, channel: str) -> ConvergenceRow:
         converged=record.get("converged") if isinstance(record.get("converged"), bool) else None)
 
 
-def convergence_table(frames: Iterable[FrameRecording], channel: str) -> list[ConvergenceRow]:
-    """One ``convergence_row`` per frame, in frame id order (a ``Recording`` or any stream of frames)."""
-    return sorted((convergence_row(fr, channel) for fr in frames), key=lambda r: r.frame)
-
-
 def format_table(rows: list[ConvergenceRow]) -> str:
     def f(x):
         return "-" if x is None else f"{x:.4g}"

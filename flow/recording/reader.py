@@ -149,9 +149,10 @@ def _frame_id(x) -> int:
 
 
 def _iteration(x) -> int | None:
-    if x is not None and (not isinstance(x, int) or isinstance(x, bool) or not 0 <= x < 1 << 53):
-        raise ValueError(f"iteration must be a whole number >= 0 or null, not {x!r}")
-    return x
+    try:
+        return None if x is None else _frame_id(x)
+    except ValueError:
+        raise ValueError(f"iteration must be a whole number >= 0 or null, not {x!r}") from None
 
 
 def _scalars(x) -> dict:
@@ -171,12 +172,11 @@ def _take(frames: dict[int, FrameRecording], held: dict, topic: str, encoding: s
     path = topic.lstrip("/")
     if encoding == ARRAY_ENCODING:
         header, arr = decode_array(data, check_only=not arrays)
-        fid = _frame_id(header.get("frame"))
-        _iteration(header.get("iteration"))
+        fid, it = _frame_id(header.get("frame")), _iteration(header.get("iteration"))
         fr = frames.setdefault(fid, FrameRecording(fid))
         if arr is None:
             return fid, False
-        fr.arrays.setdefault(path, {})[_iteration(header.get("iteration"))] = arr
+        fr.arrays.setdefault(path, {})[it] = arr
         held["bytes"] += arr.nbytes
     elif encoding == "json":
         body = json.loads(data)

@@ -36,7 +36,7 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
-from .cluster import DASK_HELP, dask_client, parse_dask
+from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
@@ -205,10 +205,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     failures = sum(r["status"] != "ok" for r in records)
     note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
          f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
-    if watch is not None and watch.error:
-        print(f"error: {watch.error}", file=sys.stderr)
-    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None and not \
-        (watch is not None and watch.error) else 1
+    watch_error = watch.error if watch is not None else None
+    if watch_error:
+        print(f"error: {watch_error}", file=sys.stderr)
+    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None and not watch_error else 1
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
         print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
         sys.stdout.flush()
@@ -316,14 +316,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
     cols = ["err_all", "err_lit", "err_cast", "err_attached", "cast_iou", "shadow_iou", "depth_rmse",
             "iterations", "seconds_per_face"]
     print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
-    for name in fits:
-        opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds, cone_trust=args.cone_trust),
-                             integrator=args.integrator, remap=args.remap, shadows=args.shadows)
-        with _mapper(args.dask) as mapper:
+    with _mapper(args.dask) as mapper:  # one cluster for every fit compared
+        for name in fits:
+            opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds,
+                                                 cone_trust=args.cone_trust),
+                                 integrator=args.integrator, remap=args.remap, shadows=args.shadows)
             res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
-        report["results"][name] = res["per_angle"]
-        for angle, row in res["per_angle"].items():
-            print(f"{name:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
+            report["results"][name] = res["per_angle"]
+            for angle, row in res["per_angle"].items():
+                print(f"{name:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
     report["seconds"] = time.perf_counter() - t0
     _write_report(args.json, report)
     return 0
@@ -416,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")
     r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
     r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
-    r.add_argument("--dask", nargs="?", const="env", metavar="local[:N]|tcp://HOST:PORT|env", help=DASK_HELP)
+    r.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR, help=DASK_HELP)
     r.add_argument("--frame-timeout", type=float, metavar="SECONDS",
                    help="fail a frame when one step takes longer than this on it (default: no limit)")
     r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")
@@ -463,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
     e.add_argument("--json", help="write the report here")
-    e.add_argument("--dask", nargs="?", const="env", metavar="local[:N]|tcp://HOST:PORT|env",
+    e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
                         "the report is the same")
     e.set_defaults(func=cmd_eval)

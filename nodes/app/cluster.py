@@ -21,6 +21,7 @@ from ..model.shape_model import ShapeModel
 from .outputs import WriteNode
 from .record import FitRecorder, RecordNode
 
+DASK_METAVAR = "local[:N]|tcp://HOST:PORT|env"
 DASK_HELP = ("run frames as tasks on Dask: local (a LocalCluster, one worker process per core), local:N "
              "(N processes), tcp://HOST:PORT (a running scheduler), or env (DASK_SCHEDULER_ADDRESS); "
              "needs shadowflow[dask]; --out must be storage every worker sees")

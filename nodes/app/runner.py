@@ -29,6 +29,7 @@ from ...flow.manifest import (
 )
 from ...flow.pipeline import Pipeline, Stage
 from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
+from ...flow.recording.codec import jsonable
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import (
@@ -152,11 +153,7 @@ def run_config(model: ShapeModel, options: MethodOptions) -> dict:
     recording parts may differ in what they keep)."""
     return json.loads(json.dumps({
         "tool": "shadowflow", "version": tool_version(), "model": model.fingerprint, "model_source": model.source,
-        "options": dataclasses.asdict(options)}, default=_jsonable))
-
-
-def _jsonable(x):
-    return x.tolist() if hasattr(x, "tolist") else str(x)
+        "options": dataclasses.asdict(options)}, default=jsonable))
 
 
 def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
@@ -280,11 +277,10 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             protected.add(real_path(path))
             frame = Frame(fid, path)
             frame.meta.update(stem=name, input_key=key, identity=identity)
-            if run.resume and earlier is not None and earlier.record is not None \
-                    and earlier.record.get("status") == "ok":
-                if earlier.config != config_id:
-                    pass  # said once above
-                elif not earlier.same_file(path, identity):
+            reusable = (run.resume and earlier is not None and earlier.record is not None
+                        and earlier.record.get("status") == "ok" and earlier.config == config_id)
+            if reusable:  # (a changed configuration was said once, above)
+                if not earlier.same_file(path, identity):
                     note(f"note: {path} changed since the earlier run: redone")
                 elif complete(out / name):
                     frame.skipped = True

@@ -165,10 +165,9 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None) -> Photo:
     (read without pickles). Samples are scaled by their real range: a PNM by its maxval, 8- and
     16-bit by 255 and 65535, floats as [0, 1] unless they exceed 1, and those and other integer
     types by the smallest of 2^8-1, 2^10-1, 2^12-1, 2^14-1 or 2^16-1 that holds them, else by their
-    largest sample. The
-    header is checked before decoding: each side >= ``MIN_SIDE`` and < ``MAX_SIDE``, at most
-    ``MAX_PIXELS`` pixels, a face's proportions, so a hostile file cannot exhaust memory. Images
-    without contrast are refused. Raises ``InputError`` (one line naming the file and the problem).
+    largest sample. The header is checked before decoding: each side >= ``MIN_SIDE`` and <=
+    ``MAX_SIDE``, at most ``MAX_PIXELS`` pixels, a face's proportions, so a hostile file cannot
+    exhaust memory. Images without contrast are refused. Raises ``InputError`` (one line naming the file and the problem).
     """
     p = Path(path)
     data = _read_file(p)
