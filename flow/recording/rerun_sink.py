@@ -25,7 +25,7 @@ class RerunSink(Sink):
     """
 
     def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
-                 batch: int = 32, segment_frames: int | None = 250):
+                 batch: int = 32, segment_frames: int | None = 100, recording_id: str | None = None):
         import uuid
 
         import rerun as rr
@@ -34,7 +34,7 @@ class RerunSink(Sink):
         self.path = Path(path)
         self.batch = batch
         self.blueprint, self.application_id = blueprint, application_id
-        self.recording_id = str(uuid.uuid4())
+        self.recording_id = recording_id or str(uuid.uuid4())  # files of one id: one recording in the viewer
         self.segment_frames = segment_frames
         self.paths: list[Path] = []  # the files written: path, then path's segments
         self._frames_in_segment = 0
@@ -51,12 +51,13 @@ class RerunSink(Sink):
     def _next_segment(self) -> None:
         """Close this file and go on in ``<stem>.s<k><suffix>``, one recording (same id) across files.
 
-        The Rerun SDK keeps a few kB for every entity path a stream has logged, for as long as the
-        stream lives (about 70 kB a frame here, 290 -> 460 MiB over 2,000 frames); a new stream
-        every ``segment_frames`` frames lets that go. The viewer merges the files of one recording
-        id: ``rerun OUT/run*.rrd``."""
-        self.rec.flush()
-        self.rec.disconnect()
+        A stream saving to a file keeps an index entry for every chunk it has written (the .rrd
+        footer's manifest, written when the file closes): a few kB a chunk, 25 chunks or more a
+        frame here, so about 75-130 kB a frame (290 -> 460 MiB over 2,000 frames in one file). A
+        new file every ``segment_frames`` frames bounds that: RSS then saws by about 10 MiB at 100
+        frames a file instead of climbing (``benchmarks/bench_soak.py``). The viewer merges the
+        files of one recording id: ``rerun OUT/run*.rrd``."""
+        self._drop_stream()
         k = len(self.paths) + 1
         self._open(self.path.with_name(f"{self.path.stem}.s{k}{self.path.suffix}"))
         self._frames_in_segment = 0
@@ -151,8 +152,18 @@ class RerunSink(Sink):
 
     def close(self) -> None:
         self._send_frame(None)
+        self._drop_stream()
+
+    def _drop_stream(self) -> None:
+        """Flush and close the file, and let the stream's threads end: a dropped stream is kept
+        "orphaned" (with its batcher and writer threads, about 0.5 MB) until the SDK is told to
+        clean those up, which ``rr.init`` does and a ``RecordingStream`` alone never does."""
         self.rec.flush()
         self.rec.disconnect()
+        self.rec = None
+        cleanup = getattr(self.rr.bindings, "flush_and_cleanup_orphaned_recordings", None)
+        if cleanup is not None:
+            cleanup()
 
 
 def _entity(event: Event) -> str:
