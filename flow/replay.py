@@ -5,6 +5,7 @@ caller names it (and how re-logged arrays are shown), e.g. ``nodes/app/record.py
 """
 from __future__ import annotations
 
+import heapq
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,12 +24,15 @@ def _part_number(path: Path) -> int:
 
 
 class JobStream:
-    """The frames of one job's recording, streamed (``FrameStream``): one file, or the parts of an
-    interrupted and resumed job in order. A frame finished in a later part replaces any earlier
-    copy (a frame cut short by a kill, or redone because its input or the options changed, is
-    recorded again by the resumed run); an unfinished frame is kept only if no part finished it.
-    With several parts a first pass reads only their records to decide this, so memory still
-    holds one frame at a time. ``truncated`` (after iterating): the last part ended early."""
+    """The frames of one job's recording, streamed (``FrameStream``), in frame id order: one file,
+    or several parts, those of an interrupted and resumed job (``run.part2.mcap``...) and those
+    the workers of a distributed run wrote side by side (``run.<worker>.mcap``). A frame finished
+    in a later part replaces any earlier copy (a frame cut short by a kill, or redone because its
+    input or the options changed, is recorded again by the resumed run); an unfinished frame is
+    kept only if no part finished it. With several parts a first pass reads only their records
+    to decide this, and the second merges the parts by frame id, so memory holds one frame per
+    part. ``truncated`` (after iterating): the last part ended early, or, with several parts, a
+    frame was left unfinished in all of them by a part that ended early."""
 
     def __init__(self, path: Path, parts: list[Path], arrays: bool = True):
         self.path, self.parts, self.arrays, self.truncated = path, parts, arrays, False
@@ -40,16 +44,23 @@ class JobStream:
             self.truncated = stream.truncated
             return
         owner: dict[int, tuple[int, bool]] = {}  # frame id -> (part, finished there)
+        cut: set[int] = set()  # parts that ended early
         for k, part in enumerate(self.parts):
-            for fr in FrameStream(part, arrays=False):
+            stream = FrameStream(part, arrays=False)
+            for fr in stream:
                 if fr.finished or fr.frame not in owner or not owner[fr.frame][1]:
                     owner[fr.frame] = (k, fr.finished)
-        for k, part in enumerate(self.parts):
-            stream = FrameStream(part, self.arrays)
-            for fr in stream:
+            if stream.truncated:
+                cut.add(k)
+        self.truncated = any(k in cut and not done for k, done in owner.values())
+
+        def part_frames(k: int) -> Iterator[tuple[int, int, int, FrameRecording]]:
+            for n, fr in enumerate(FrameStream(self.parts[k], self.arrays)):
                 if owner.get(fr.frame, (k,))[0] == k:
-                    yield fr
-            self.truncated = stream.truncated
+                    yield fr.frame, k, n, fr
+
+        for *_, fr in heapq.merge(*(part_frames(k) for k in range(len(self.parts)))):
+            yield fr
 
 
 def open_frames(path: str | Path, arrays: bool = True) -> JobStream:
