@@ -24,27 +24,41 @@ from .chain import Chain, Node
 from .frame import Frame
 from .pipeline import Stoppable, _install_signal_handlers, _restore_signal_handlers
 
-_CHAINS: dict[str, Chain] = {}  # in each worker process: run token -> its chain
+_CHAINS: dict[str, tuple[Chain, Callable[[], None] | None]] = {}  # in each worker: run token -> chain, close
 _CHAINS_LOCK = threading.Lock()
 
 
-Build = Callable[[Any], "tuple[list[Node], Callable[[Frame], None] | None]"]
+Build = Callable[[Any], "tuple[list[Node], Callable[[Frame], None] | None, Callable[[], None] | None]"]
 
 
 def process_frame(token: str, bundle: tuple[Build, Any], frame: Frame, frame_timeout: float | None) -> Frame:
     """The task: ``frame`` through this worker's chain of run ``token``, built on first use.
-    bundle: (build, shared), sent to each worker once; ``build(shared)`` gives the nodes and a
-    function called on every frame at the end, failed or not (e.g. to choose what travels back
-    to the client)."""
+    bundle: (build, shared), sent to each worker once; ``build(shared)`` gives the nodes, a
+    function called on every frame at the end, failed or not (e.g. to record it, or to choose
+    what travels back to the client), and one called once when the run ends (``close_chain``),
+    e.g. to close files the worker wrote; either may be None."""
     with _CHAINS_LOCK:
-        chain = _CHAINS.get(token)
-        if chain is None:
-            for old in list(_CHAINS)[:-1]:  # keep the last run's chain beside this one, no more
-                del _CHAINS[old]
+        entry = _CHAINS.get(token)
+        if entry is None:
+            for old in list(_CHAINS)[:-1]:  # a run that never said it ended: keep one beside this, no more
+                _close(_CHAINS.pop(old)[1])
             build, shared = bundle
-            nodes, finish = build(shared)
-            chain = _CHAINS[token] = Chain(nodes, on_done=finish, frame_timeout=frame_timeout)
-    return chain.process(frame)
+            nodes, finish, close = build(shared)
+            entry = _CHAINS[token] = (Chain(nodes, on_done=finish, frame_timeout=frame_timeout), close)
+    return entry[0].process(frame)
+
+
+def close_chain(token: str) -> None:
+    """Run on every worker when run ``token`` ends: forget its chain and call its ``close``."""
+    with _CHAINS_LOCK:
+        entry = _CHAINS.pop(token, None)
+    if entry is not None:
+        _close(entry[1])
+
+
+def _close(close: Callable[[], None] | None) -> None:
+    if close is not None:
+        close()
 
 
 def default_in_flight(client) -> int:
@@ -150,10 +164,22 @@ class DaskPipeline(Stoppable):
             leftover = [f for f in out.values() if not isinstance(f, Frame)]
             if leftover:
                 self.client.cancel(leftover)
+            self._close_workers(token)
             if previous is not None:
                 _restore_signal_handlers(previous)
         if errors:
             raise errors[0]
+
+    def _close_workers(self, token: str) -> None:
+        """``close_chain`` on every worker still there (a worker that died has nothing to close).
+        A close that fails is reported as a warning: the frames are done, the files it left
+        may end early."""
+        import warnings
+
+        try:
+            self.client.run(close_chain, token)
+        except Exception as exc:  # noqa: BLE001 - the cluster went away, a worker's close failed
+            warnings.warn(f"closing the workers' part of the run: {type(exc).__name__}: {exc}", stacklevel=2)
 
     @staticmethod
     def _result(future, frame: Frame) -> Frame:

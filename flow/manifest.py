@@ -222,8 +222,14 @@ class Journal:
     """Appends one line per finished input to ``folder/.journal.jsonl`` (a link there is refused)."""
 
     def __init__(self, folder: str | os.PathLike):
-        path = Path(folder) / JOURNAL_NAME
-        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        self.path = Path(folder) / JOURNAL_NAME
+        self.fd = -1
+        self.reopen()
+
+    def reopen(self) -> None:
+        """Go on in a new journal file: after ``RunManifest.save`` folded the old one in and removed it."""
+        self.close()
+        self.fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
 
     def append(self, entry: InputEntry) -> None:
         line = json.dumps(asdict(entry), separators=(",", ":"), default=jsonable) + "\n"

@@ -12,8 +12,8 @@ from .codec import decode_array, encode_array, log_time_ns
 from .events import Event, Kind, OnMask, Sink
 from .mcap_sink import McapSink
 from .reader import FrameRecording, FrameStream, Recording, RecordingError, read_mcap
-from .recorder import EventCollector, Recorder, RecordOptions
+from .recorder import Recorder, RecordOptions
 from .rerun_sink import RerunSink
 
-__all__ = ["Event", "EventCollector", "FrameRecording", "FrameStream", "Kind", "McapSink", "OnMask", "RecordOptions", "Recorder", "Recording",
+__all__ = ["Event", "FrameRecording", "FrameStream", "Kind", "McapSink", "OnMask", "RecordOptions", "Recorder", "Recording",
            "RecordingError", "RerunSink", "Sink", "decode_array", "encode_array", "log_time_ns", "read_mcap"]

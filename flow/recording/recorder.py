@@ -37,6 +37,7 @@ class Recorder:
         self._error: BaseException | None = None
         self._closed_frames = 0  # frames flushed by every sink (or dropped after an error)
         self._asked = 0  # frames handed to frame_done
+        self._closed = False
         self._flushed = threading.Condition()
         self._thread = threading.Thread(target=self._loop, name="flow-recorder", daemon=True)
         self._thread.start()
@@ -56,18 +57,30 @@ class Recorder:
             if a.dtype.kind == "f":
                 half = a.astype(np.float16)
                 event = replace(event, value=OnMask(half, v.mask) if isinstance(v, OnMask) else half)
-        self._q.put(("event", event))
+        self._put(("event", event))
 
     def frame_done(self, frame: int, record: dict, wait: bool = False) -> None:
         """Close a frame: its status record, then every sink flushes it to disk. ``wait``:
         return only once that is done (so a caller can then mark the frame finished)."""
-        self._q.put(("event", Event(frame, "frames", Kind.FRAME, record)))
-        self._q.put(("done", frame))
+        if self._closed:
+            return
+        self._put(("event", Event(frame, "frames", Kind.FRAME, record)))
+        self._put(("done", frame))
         self._asked += 1
         if wait:
             target = self._asked
             with self._flushed:
                 self._flushed.wait_for(lambda: self._closed_frames >= target or not self._thread.is_alive())
+
+    def _put(self, item: tuple) -> None:
+        """Queue ``item``, waiting while the queue is full; after ``close`` it is dropped (a
+        cancelled task still running must not block on a queue nobody empties)."""
+        while not self._closed:
+            try:
+                self._q.put(item, timeout=0.5)
+                return
+            except queue.Full:
+                continue
 
     def _loop(self) -> None:
         while True:
@@ -86,6 +99,9 @@ class Recorder:
                     self._flushed.notify_all()
 
     def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
         self._q.put(("stop", None))
         self._thread.join()
         for s in self.sinks:
@@ -96,25 +112,3 @@ class Recorder:
         if self._error is not None:
             raise RuntimeError(f"recording failed: {self._error}") from self._error
 
-
-class EventCollector:
-    """A ``Recorder`` stand-in that keeps each frame's events in memory instead of writing them
-    (e.g. in a Dask worker): ``take(frame)`` hands them over, for the client to ``emit`` into its
-    own ``Recorder`` in order. Thinning (``keep_iteration``) as the recorder's options say; the
-    float16 conversion happens when they are emitted there."""
-
-    def __init__(self, options: RecordOptions | None = None):
-        self.options = options or RecordOptions()
-        self._events: dict[int, list[Event]] = {}
-        self._lock = threading.Lock()
-
-    def keep_iteration(self, iteration: int, last: bool = False) -> bool:
-        return self.options.keep(iteration, last)
-
-    def emit(self, event: Event) -> None:
-        with self._lock:
-            self._events.setdefault(event.frame, []).append(event)
-
-    def take(self, frame: int) -> list[Event]:
-        with self._lock:
-            return self._events.pop(frame, [])

@@ -1,57 +1,110 @@
 """``--dask``: the method's nodes as tasks on a Dask cluster (``flow.distributed``).
 
-Each worker builds the method's chain once (``WorkerChain``) and writes each frame's outputs
-under ``--out`` itself (so ``--out`` must be storage every worker sees, as on a cluster's
-shared file system); each frame's recording events travel back with it and the client records
-them, so ``run.mcap`` / ``run.rrd`` are the same files a local run writes.
+Each worker builds the method's chain once (``WorkerChain``), writes each frame's outputs under
+``--out`` itself, and records the frames it runs in recording parts of its own beside the
+client's, ``run.worker-<name>.mcap`` / ``.rrd`` (so ``--out`` must be storage every worker sees,
+as on a cluster's shared file system). Only the frame's record travels back; the client lists
+the parts in the run manifest, and ``replay`` / ``diff`` read them as one run. Measured on this
+2-core machine (``benchmarks/bench_dask.py``, 200 recorded frames): with the iterations sent back
+for the client to record, two workers gave 1.25x one; recorded where they run, see the README.
 """
 from __future__ import annotations
 
 import logging
 import os
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
 from ...flow.frame import Frame
-from ...flow.recording import EventCollector, RecordOptions
+from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
-from .outputs import WriteNode
-from .record import FitRecorder, RecordNode
+from .outputs import WriteNode, summary_record
+from .record import FitRecorder, RecordNode, default_blueprint
 
 DASK_METAVAR = "local[:N]|tcp://HOST:PORT|env"
 DASK_HELP = ("run frames as tasks on Dask: local (a LocalCluster, one worker process per core), local:N "
              "(N processes), tcp://HOST:PORT (a running scheduler), or env (DASK_SCHEDULER_ADDRESS); "
              "needs shadowflow[dask]; --out must be storage every worker sees")
 
+SUFFIXES = {"mcap": "mcap", "rerun": "rrd"}  # --record's formats -> their files' suffixes
+
 
 @dataclass(frozen=True)
 class WorkerChain:
     """What a worker runs on each frame (picklable; called once per worker with the model):
-    load, the method's nodes, the recorder's per-frame products and the writer; then the frame
-    goes back holding only its recording events (``data["events"]``): its arrays are on disk."""
+    load, the method's nodes, the recorder's per-frame products and the writer; each frame is
+    then recorded in this worker's recording parts (``record``: "mcap", "rerun"; ``recording_id``:
+    the client's Rerun recording id, so the viewer shows all the parts as one recording) and goes
+    back holding only its metadata (its arrays are on disk), with ``meta["recording_parts"]``."""
 
     options: MethodOptions
     out: Path
     protected: frozenset
-    record: bool
+    record: tuple[str, ...]
     record_options: RecordOptions
+    recording_id: str
 
     def __call__(self, model: ShapeModel):
         worker_setup()
-        collector = EventCollector(self.record_options) if self.record else None
-        observer = FitRecorder(model, collector) if collector is not None else None
+        recorder, sinks = self._recorder() if self.record else (None, [])
+        observer = FitRecorder(model, recorder) if recorder is not None else None
         nodes = [LoadNode(model, self.options), *method_nodes(model, self.options, observer)]
-        if collector is not None:
-            nodes.append(RecordNode(model, collector))
+        if recorder is not None:
+            nodes.append(RecordNode(model, recorder))
         nodes.append(WriteNode(model, self.out, set(self.protected)))
 
-        def hand_back(frame: Frame) -> None:
-            frame.data = {"events": collector.take(frame.id) if collector is not None else []}
+        def finish(frame: Frame) -> None:
+            if recorder is not None:  # recorded before the client's journal says the frame is done
+                recorder.frame_done(frame.id, summary_record(frame), wait=True)
+                if recorder.error is not None:
+                    frame.meta["recording_error"] = f"recording failed: {recorder.error}"
+            frame.meta["recording_parts"] = [p.name for sink in sinks for p in getattr(sink, "paths", [sink.path])]
+            frame.data = {}
 
-        return nodes, hand_back
+        return nodes, finish, (recorder.close if recorder is not None else None)
+
+    def _recorder(self) -> tuple[Recorder, list]:
+        paths = reserve_parts(self.out, f"run.worker-{_worker_name()}", [SUFFIXES[f] for f in self.record])
+        sinks = []
+        if "mcap" in paths:
+            sinks.append(McapSink(paths["mcap"]))
+        if "rrd" in paths:
+            sinks.append(RerunSink(paths["rrd"], blueprint=default_blueprint(), recording_id=self.recording_id))
+        return Recorder(sinks, self.record_options), sinks
+
+
+def _worker_name() -> str:
+    """This Dask worker's name, as a file name may hold it (``0``, ``tcp-10-0-0-5-40123``)."""
+    try:
+        from distributed import get_worker
+
+        name = str(get_worker().name)
+    except (ImportError, ValueError):  # not in a worker (a test calling the chain directly)
+        name = f"pid{os.getpid()}"
+    return re.sub(r"[^A-Za-z0-9_]+", "-", name).strip("-")[:64] or "w"
+
+
+def reserve_parts(out: Path, stem: str, suffixes: list[str]) -> dict[str, Path]:
+    """New empty files ``out/<stem>.<suffix>`` (``<stem>-2.<suffix>``... when any is taken: a
+    restarted worker, a resumed run), created exclusively and never through a symbolic link,
+    so two workers or two runs never write one file. Returns suffix -> path."""
+    for k in range(1, 10_000):
+        name = stem if k == 1 else f"{stem}-{k}"
+        made: dict[str, Path] = {}
+        try:
+            for suffix in suffixes:
+                path = out / f"{name}.{suffix}"
+                os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644))
+                made[suffix] = path
+            return made
+        except FileExistsError:
+            for path in made.values():
+                path.unlink()
+    raise OSError(f"{out}: no free name for this worker's recording ({stem}-N)")
 
 
 def worker_setup() -> None:

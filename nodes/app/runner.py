@@ -289,6 +289,14 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
                 frame.meta["sha256"] = content_hash(path)
             yield frame
 
+    def save_manifest() -> None:
+        """manifest.json rewritten mid-run (it folds the journal in and removes it: a new one follows)."""
+        try:
+            manifest.save(out)
+            journal.reopen()
+        except OSError as exc:
+            out_of_storage(f"{out / MANIFEST_NAME}: cannot be written ({exc.strerror or exc})")
+
     def journal_entry(frame: Frame, rec: dict) -> None:
         size, mtime = frame.meta.get("identity") or (-1, -1)
         entry = InputEntry(frame.meta["input_key"], size, mtime, frame.meta["stem"], frame.id, config_id, rec,
@@ -319,9 +327,15 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         else:
             record_index[frame.meta["stem"]] = len(records)
             records.append(rec)
-        if recorder is not None:
-            for event in frame.data.get("events", ()):  # recorded on a Dask worker, written here
-                recorder.emit(event)
+        worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
+        if worker_parts:
+            new_parts = [p for p in worker_parts if p not in manifest.recordings]
+            if new_parts:  # listed at once, so a killed run's parts are still read as the job's
+                manifest.recordings.extend(new_parts)
+                save_manifest()
+        if "recording_error" in frame.meta:
+            out_of_storage(f"{out}: {frame.meta.pop('recording_error')}")
+        elif recorder is not None and worker_parts is None:
             recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
             if recorder.error is not None:
                 out_of_storage(f"{out}: recording failed ({recorder.error})")
@@ -339,7 +353,9 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         from ...flow.distributed import DaskPipeline
         from .cluster import WorkerChain
 
-        chain = WorkerChain(options, out.resolve(), frozenset(protected), recorder is not None, run.record_options)
+        rerun_ids = [sink.recording_id for sink in sinks if isinstance(sink, RerunSink)]
+        chain = WorkerChain(options, out.resolve(), frozenset(protected), tuple(run.record), run.record_options,
+                            rerun_ids[0] if rerun_ids else "")
         pipeline = DaskPipeline(client, chain, shared=model, on_done=done, frame_timeout=run.frame_timeout)
     try:
         with one_blas_thread():

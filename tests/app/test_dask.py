@@ -58,7 +58,66 @@ def test_a_local_cluster_gives_the_local_engines_outputs_and_recordings(tmp_path
     diff = subprocess.run(CLI + ["diff", str(tmp_path / "local"), str(tmp_path / "dask")], capture_output=True,
                           text=True, timeout=300)
     assert diff.returncode == 0 and diff.stdout.startswith("same: 9 frames"), diff.stdout + diff.stderr
-    assert (tmp_path / "dask" / "run.rrd").stat().st_size > 10_000
+    # each worker recorded the frames it ran, in parts of its own that the manifest lists
+    listed = RunManifest.load(tmp_path / "dask").recordings
+    parts = sorted(p.name for p in (tmp_path / "dask").glob("run.worker-*.mcap"))
+    assert parts and set(parts) <= set(listed), (parts, listed)
+    assert all(p.replace(".mcap", ".rrd") in listed for p in parts)
+    rc = pytest.importorskip("rerun.chunk")
+    shown = "".join(str(rc.RrdReader(tmp_path / "dask" / p.replace(".mcap", ".rrd")).store().summary()) for p in parts)
+    assert all(f"/frames/{k:05d}/status" in shown for k in range(9))  # every frame in the workers' .rrd parts
+
+
+def test_sigint_then_resume_on_a_cluster_completes_the_job(tmp_path):
+    """SIGINT stops a Dask run as it stops a local one (exit 130, finished frames kept), and
+    ``--resume`` on the cluster completes it: outputs and the merged recordings equal one
+    uninterrupted local run."""
+    src = tmp_path / "in"
+    _inputs(src, 30)
+    out = tmp_path / "out"
+    proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", "local:2"] + FAST,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline:
+        man = RunManifest.load(out)
+        if man is not None and len(man.entries) >= 5:  # the three bad inputs come first
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 130 and "--resume" in err, err
+    stopped_at = len(RunManifest.load(out).entries)
+    assert 5 <= stopped_at < 33, stopped_at
+    resumed = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--dask", "local:2", "--resume"] + FAST,
+                             capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 1, resumed.stderr  # the three bad inputs fail again, alone
+    summary = json.loads((out / "summary.json").read_text())
+    assert sorted(Path(r["source"]).name for r in summary) == sorted(p.name for p in src.iterdir()
+                                                                       if p.suffix != ".json")
+    fresh = tmp_path / "fresh"
+    assert subprocess.run(CLI + ["run", str(src), "--out", str(fresh)] + FAST, timeout=300).returncode == 1
+    for r in summary:
+        if r["status"] == "ok":
+            assert (out / r["stem"] / "normals.npy").read_bytes() == (fresh / r["stem"] / "normals.npy").read_bytes()
+    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 33 frames"), diff.stdout + diff.stderr
+
+
+def test_frame_timeout_holds_on_a_cluster(tmp_path):
+    src = tmp_path / "in"
+    _inputs(src, 2)
+    out = tmp_path / "out"
+    proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--dask", "local:1", "--frame-timeout", "0.01"]
+                          + FAST, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    faces = [r for r in summary if Path(r["source"]).name.startswith("face-")]
+    assert len(faces) == 2 and all("timed out after 0.01 s" in r["status"] for r in faces), summary
+    assert not any((out / r["stem"] / "normals.npy").exists() for r in faces)
+    from shadowflow.flow.replay import open_frames
+
+    recorded = {Path(f.record["source"]).name: f.record["status"] for f in open_frames(out, arrays=False) if f.finished}
+    assert recorded == {Path(r["source"]).name: r["status"] for r in summary}
 
 
 def test_a_worker_killed_mid_run_loses_no_frame_and_writes_none_twice(tmp_path):
