@@ -40,7 +40,7 @@ from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
 from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
-from .runner import RunOptions, check_writable, run_stream
+from .runner import RunOptions, check_writable, run_stream, tool_version
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -163,8 +163,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
         if not np.all(np.isfinite(eyes)) or np.linalg.norm(eyes[1] - eyes[0]) < 1.0:
             raise ValueError(f"--eyes {args.eyes!r}: four finite numbers, two distinct eye centres")
-    check_writable(out)
     inputs = list(args.inputs)
+    if inputs and not args.watch:  # before --out is made: a pattern matching nothing writes nothing
+        notes: list[str] = []
+        if not expand_inputs(inputs, notes.append):
+            unmatched = [n for n in notes if n.endswith("no file matches")]
+            why = unmatched[0] if len(inputs) == 1 and unmatched else f"{' '.join(inputs)} holds no image file"
+            print(f"shadowflow run: no input image: {why}", file=sys.stderr)
+            return 2
+    check_writable(out)
     if args.demo:
         inputs = write_demo_inputs(out / "demo-inputs") + inputs
     if not inputs and not args.watch:
@@ -376,6 +383,7 @@ def cmd_diff(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="shadowflow", description=__doc__)
+    p.add_argument("--version", action="version", version=f"shadowflow {tool_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="recover shape, albedo and shadows of face images")
@@ -425,18 +433,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--idle-exit", type=float, metavar="SECONDS", help="with --watch: stop after this long with nothing new")
     r.add_argument("--settle", type=float, default=1.0, metavar="SECONDS",
                    help="with --watch: take a file once its size and time have not changed for this long (default 1)")
-    r.add_argument("--quiet", action="store_true")
+    r.add_argument("--quiet", action="store_true", help="no progress line and no notes; errors still shown")
     r.set_defaults(func=cmd_run)
 
     t = sub.add_parser("train", help="train a needle-map model")
     t.add_argument("--source", default="ict", help=SOURCES_HELP + " (default: ict)")
     t.add_argument("--expressions", type=float, metavar="P",
                    help="ICT only: give each face each of the 53 expression blendshapes with chance P (needs ict:PATH)")
-    t.add_argument("--n", type=int, default=200)
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--modes", type=int, default=60)
+    t.add_argument("--n", type=int, default=200, help="training faces to draw (default 200)")
+    t.add_argument("--seed", type=int, default=0, help="random seed of the faces drawn (default 0)")
+    t.add_argument("--modes", type=int, default=60, help="modes K to keep (default 60)")
     t.add_argument("--size", default="128,128", help="H,W of the model grid")
-    t.add_argument("--out", required=True)
+    t.add_argument("--out", required=True, help="the model file to write (.npz); use it with run --model")
     t.set_defaults(func=cmd_train)
 
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
@@ -447,22 +455,23 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--model", help="ict | procedural | a model .npz (synthetic default: train one from "
                    "--train-source; yaleb default: ict)")
     e.add_argument("--train-source", help="training faces (default: --source)")
-    e.add_argument("--n-train", type=int, default=100)
-    e.add_argument("--n-test", type=int, default=20)
-    e.add_argument("--train-seed", type=int, default=0)
-    e.add_argument("--test-seed", type=int, default=1)
+    e.add_argument("--n-train", type=int, default=100, help="synthetic: training faces (default 100)")
+    e.add_argument("--n-test", type=int, default=20, help="synthetic: held-out test faces (default 20)")
+    e.add_argument("--train-seed", type=int, default=0, help="synthetic: seed of the training faces (default 0)")
+    e.add_argument("--test-seed", type=int, default=1, help="synthetic: seed of the test faces (default 1)")
     e.add_argument("--modes", type=int, help="modes to train (synthetic, default 60) or to use (yaleb)")
-    e.add_argument("--size", default="128,128")
+    e.add_argument("--size", default="128,128", help="synthetic: H,W of the model grid and the renders")
     e.add_argument("--angles", default="45,60,75", help="light angles from the view axis, degrees")
-    e.add_argument("--albedo", choices=["constant", "varied"], default="constant")
+    e.add_argument("--albedo", choices=["constant", "varied"], default="constant",
+                   help="synthetic: the test faces' albedo, uniform (default) or varying over the face")
     e.add_argument("--fit", choices=FITS + ["both", "all"], default="gauss-newton",
                    help="both: gauss-newton and paper; all: the three")
-    e.add_argument("--remap", choices=["ratio", "peak"], default="ratio")
+    e.add_argument("--remap", choices=["ratio", "peak"], default="ratio", help="as run --remap")
     e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
-    e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq")
-    e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed")
+    e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq", help="as run --integrator")
+    e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed", help="as run --shadows")
     e.add_argument("--json", help="write the report here")
     e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
@@ -477,9 +486,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("diff", help="compare two recordings; exit 0 same, 1 different, 2 unreadable")
     d.add_argument("a", help="run.mcap, or a run's --out folder (a resumed run's parts merged)")
-    d.add_argument("b")
-    d.add_argument("--atol", type=float, default=0.0)
-    d.add_argument("--rtol", type=float, default=0.0)
+    d.add_argument("b", help="the recording to compare A with (a file or a folder, as A)")
+    d.add_argument("--atol", type=float, default=0.0, help="absolute tolerance: equal when |a - b| <= atol + rtol |b|")
+    d.add_argument("--rtol", type=float, default=0.0, help="relative tolerance (see --atol)")
     d.set_defaults(func=cmd_diff)
     return p
 

@@ -106,25 +106,30 @@ def complete(folder: Path) -> bool:
 
 
 class Progress:
-    """One status line on a terminal: done / total, frames per second, failures."""
+    """One status line on a terminal (tqdm): done / total, frames per second, ETA, failures."""
 
     def __init__(self, total: int | None, enabled: bool):
-        self.total, self.enabled = total, enabled and sys.stderr.isatty()
-        self.done = self.failed = 0
-        self.t0 = time.perf_counter()
+        from tqdm import tqdm
+
+        self.failed = 0
+        self.bar = tqdm(total=total, unit="frame", disable=not (enabled and sys.stderr.isatty()),
+                        dynamic_ncols=True, leave=True, file=sys.stderr)
 
     def update(self, ok: bool) -> None:
-        self.done += 1
-        self.failed += 0 if ok else 1
-        if self.enabled:
-            rate = self.done / max(time.perf_counter() - self.t0, 1e-9)
-            of = f"/{self.total}" if self.total else ""
-            sys.stderr.write(f"\r{self.done}{of} frames  {rate:.2f} frames/s  {self.failed} failed ")
-            sys.stderr.flush()
+        if not ok:
+            self.failed += 1
+            self.bar.set_postfix_str(f"{self.failed} failed", refresh=False)
+        self.bar.update(1)
+
+    def write(self, line: str) -> None:
+        """A line on stderr above the status line (which is redrawn below it)."""
+        if self.bar.disable:
+            print(line, file=sys.stderr)
+        else:
+            self.bar.write(line, file=sys.stderr)
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
+        self.bar.close()
 
 
 @dataclass
@@ -344,7 +349,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         save_summary()
         progress.update(frame.ok)
         if not frame.ok:
-            print(f"error: {frame.status}", file=sys.stderr)
+            progress.write(f"error: {frame.status}")
         frame.data.clear()  # the frame's arrays are on disk now: free them
 
     if client is None:

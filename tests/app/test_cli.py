@@ -198,3 +198,33 @@ def test_watch_stops_with_one_line_when_its_folder_is_removed(tmp_path, demo_run
     assert code == 1 and "Traceback" not in err
     assert f"error: --watch {inbox}: No such file or directory; stopped watching" in err
     assert [r["stem"] for r in json.loads((out / "summary.json").read_text())] == ["a"]
+
+
+@pytest.mark.parametrize("given, says", [
+    (["{tmp}/nothing/*.png"], "nothing/*.png: no file matches"),
+    (["{tmp}/empty"], "empty holds no image file"),
+])
+def test_inputs_that_name_no_image_are_refused_and_nothing_is_written(tmp_path, capsys, given, says):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("not an image")
+    out = tmp_path / "out"
+    code = main(["run", *[g.format(tmp=tmp_path) for g in given], "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and says in err[0] and err[0].startswith("shadowflow run: no input image"), err
+    assert not out.exists()
+
+
+def test_every_option_says_what_it_does_and_the_version_is_shown(capsys):
+    import argparse
+
+    from shadowflow.nodes.app.cli import build_parser
+    from shadowflow.nodes.app.runner import tool_version
+
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices
+    silent = [f"{name} {a.option_strings or a.dest}" for name, sub in commands.items() for a in sub._actions
+              if not a.help and not isinstance(a, argparse._HelpAction)]
+    assert silent == []
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"shadowflow {tool_version()}"
