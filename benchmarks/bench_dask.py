@@ -15,6 +15,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import sys
 import tempfile
 import time
@@ -36,6 +37,7 @@ def run(n: int, engine: str, record: str, tmp: Path) -> dict:
     t0 = time.perf_counter()
     code, _, peak = peak_of(cmd)
     seconds = time.perf_counter() - t0
+    shutil.rmtree(out, ignore_errors=True)  # 2,000 recorded frames are about 15 GB
     return {"frames": n, "engine": engine, "record": record, "exit": code, "seconds": round(seconds, 1),
             "frames_per_s": round(n / seconds, 2), "client_peak_mib": round(peak, 1)}
 
