@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, Mapping
 
-import cv2
 import numpy as np
 
 from .manifest import recording_parts
@@ -143,42 +142,60 @@ def format_table(rows: list[ConvergenceRow]) -> str:
     return "\n".join(lines)
 
 
-def plot_convergence(series: Iterable[tuple[int, Mapping]], path: str | Path, keys: tuple[str, ...],
-                     size=(900, 300)) -> Path:
-    """PNG with one panel per scalar of ``keys`` (log scale), one line per frame, against iteration.
-    series: (frame id, {iteration: {name: value}}) per frame, e.g. ``fr.scalars[channel]``; values
-    that are missing, not numbers or not positive are left out."""
-    series = list(series)
-    w, h = size
-    panels = []
-    colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75)]
-    for key in keys:
-        img = np.full((h, w // len(keys), 3), 255, np.uint8)
-        pw, ph = img.shape[1], img.shape[0]
-        lines = []
-        for fid, s in sorted(series, key=lambda fs: fs[0]):
-            pts = [(i, _number(s[i].get(key))) for i in sorted(k for k in s if k is not None)]
-            pts = [(i, v) for i, v in pts if v is not None and np.isfinite(v) and v > 0]
-            if pts:
-                lines.append((fid, np.array(pts, float)))
-        cv2.putText(img, key, (40, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-        if lines:
-            xmax = max(s[:, 0].max() for _, s in lines)
-            ys = np.log10(np.concatenate([s[:, 1] for _, s in lines]))
-            lo, hi = float(ys.min()), float(ys.max()) + 1e-9
-            cv2.putText(img, f"1e{lo:.1f}", (2, ph - 28), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (90, 90, 90), 1)
-            cv2.putText(img, f"1e{hi:.1f}", (2, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (90, 90, 90), 1)
-            cv2.putText(img, f"iteration 1..{int(xmax)}", (pw // 2 - 40, ph - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
-                        (90, 90, 90), 1)
-            for k, (_, s) in enumerate(lines):
-                x = 40 + (s[:, 0] - 1) / max(xmax - 1, 1) * (pw - 50)
-                y = (ph - 24) - (np.log10(s[:, 1]) - lo) / (hi - lo) * (ph - 50)
-                pts = np.column_stack([x, y]).astype(np.int32).reshape(-1, 1, 2)
-                cv2.polylines(img, [pts], False, colours[k % len(colours)], 1, cv2.LINE_AA)
-        panels.append(img)
+def plot_convergence(series: Iterable[tuple[object, Mapping]], path: str | Path, keys: tuple[str, ...],
+                     labels: Mapping[str, str] | None = None, legend_max: int = 12) -> Path:
+    """``convergence_figure`` written as a PNG at ``path``; returns the path."""
     path = Path(path)
-    cv2.imwrite(str(path), np.hstack(panels))
+    convergence_figure(series, keys, labels, legend_max).savefig(path)
     return path
+
+
+def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str, ...],
+                       labels: Mapping[str, str] | None = None, legend_max: int = 12):
+    """A matplotlib ``Figure`` with one panel per scalar of ``keys``, one line per frame against
+    the iteration, on a log scale where a panel's values are all positive. series: (frame label,
+    {iteration: {name: value}}) per frame, e.g. ``(name, fr.scalars[channel])``; values that are
+    missing or not finite numbers are left out. labels: a panel's title (with its unit) by key.
+    Up to ``legend_max`` frames get a legend; more are coloured along a colour bar of their
+    order."""
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
+    series = list(series)
+    labels = labels or {}
+    fig = Figure(figsize=(4.2 * len(keys) + (1.6 if len(series) <= legend_max else 0.8), 3.6), dpi=110,
+                 layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(keys), squeeze=False)[0]
+    many = len(series) > legend_max
+    cmap = colormaps["viridis"] if many else colormaps["tab10"]
+    for ax, key in zip(axes, keys):
+        plotted = []
+        for k, (label, s) in enumerate(series):
+            pts = [(i, _number(s[i].get(key))) for i in sorted(i for i in s if i is not None)]
+            pts = np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
+            if len(pts):
+                colour = cmap(k / max(len(series) - 1, 1)) if many else cmap(k % 10)
+                ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7, label=str(label),
+                        marker="." if len(pts) < 3 else None)
+                plotted.append(pts[:, 1])
+        if plotted and all((v > 0).all() for v in plotted):
+            ax.set_yscale("log")
+        ax.set_title(labels.get(key, key), fontsize=10)
+        ax.set_xlabel("iteration")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.grid(True, which="both", alpha=0.3)
+        if not plotted:
+            ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, color="grey")
+    if series and many:
+        fig.colorbar(ScalarMappable(Normalize(0, len(series) - 1), cmap), ax=list(axes), label="frame (in order)")
+    elif series:
+        axes[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1), fontsize=8, title="frame", frameon=False)
+    return fig
 
 
 def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,

@@ -39,7 +39,7 @@ from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
-from .record import CONVERGENCE, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
+from .record import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
 from .runner import RunOptions, check_writable, run_stream, tool_version
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -345,7 +345,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     def tap(frames):
         for fr in frames:
             rows.append(convergence_row(fr, CONVERGENCE))
-            series.append((fr.frame, fr.scalars.get(CONVERGENCE, {})))
+            if args.plot:  # a plot needs every frame's curves; a table only its row
+                series.append((frame_name(fr), fr.scalars.get(CONVERGENCE, {})))
             yield fr
 
     if args.rrd:
@@ -357,7 +358,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if stream.truncated:
         print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
     if args.plot:
-        print(f"plot: {plot_convergence(series, args.plot, CONVERGENCE_PLOTS)}")
+        print(f"plot: {plot_convergence(series, args.plot, CONVERGENCE_PLOTS, CONVERGENCE_LABELS)}")
     if args.rrd:
         print(f"rerun: {args.rrd}")
     return 0

@@ -18,6 +18,8 @@ from ..model.shape_model import ShapeModel
 # The method's channel names, for the engine's replay (``flow/replay.py`` knows none of them).
 CONVERGENCE = "robust_fit/convergence"  # per-iteration scalars of the fit (``FitIteration.scalars``)
 CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``replay --plot``
+CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
+                      "residual_mean": "mean residual (radians)"}
 DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
 
 

@@ -124,3 +124,19 @@ def test_null_scalars_and_odd_records_still_replay_and_plot(tmp_path):
     assert proc.returncode == 0, proc.stderr
     row = proc.stdout.splitlines()[1].split()
     assert row[:3] == ["0", "2", "0.1"] and (tmp_path / "p.png").stat().st_size > 1000
+
+
+def test_the_convergence_plot_has_units_a_legend_and_the_recorded_values():
+    from shadowflow.flow.replay import convergence_figure
+
+    series = [("a.png", {1: {"sigma": 0.2, "res": -0.1}, 2: {"sigma": None, "res": 0.05}, 3: {"sigma": 0.05, "res": 0.0}}),
+              ("b.png", {1: {"sigma": 0.4, "res": 0.3}, 2: {"sigma": float("nan"), "res": 0.2}})]
+    fig = convergence_figure(series, ("sigma", "res"), {"sigma": "robust scale (radians)"})
+    sigma, res = fig.axes[:2]
+    assert sigma.get_title() == "robust scale (radians)" and res.get_title() == "res"
+    assert sigma.get_yscale() == "log" and res.get_yscale() == "linear"  # a negative value: no log scale
+    assert [t.get_text() for t in res.get_legend().get_texts()] == ["a.png", "b.png"]
+    (xa, ya), (xb, yb) = [ln.get_data() for ln in sigma.get_lines()]
+    assert list(xa) == [1, 3] and list(ya) == [0.2, 0.05] and list(xb) == [1] and list(yb) == [0.4]
+    many = convergence_figure([(f"f{k}", {1: {"sigma": 1.0 + k}}) for k in range(20)], ("sigma",), legend_max=12)
+    assert many.axes[0].get_legend() is None and len(many.axes) == 2  # a colour bar instead of 20 labels
