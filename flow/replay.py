@@ -235,7 +235,7 @@ class Difference:
 
 @dataclass
 class DiffReport:
-    """differences: in the order the runs split (frame, then iteration, then channel); frames:
+    """differences: in the order the runs split (see ``diff_streams``); frames:
     how many were compared; iterations: distinct iterations over the frames compared."""
 
     differences: list[Difference]
@@ -244,13 +244,18 @@ class DiffReport:
 
 
 def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol: float = 0.0, rtol: float = 0.0,
-                 key: Callable[[FrameRecording], object] | None = None) -> DiffReport:
+                 key: Callable[[FrameRecording], object] | None = None,
+                 stage: Callable[[str], int] | None = None) -> DiffReport:
     """Channel-by-channel, iteration-by-iteration comparison of two streams of frames, holding only
     the frames one stream has reached and the other not yet (one each when both run in the same
     order). Frames pair up by ``key(frame)`` (default: the frame id); a frame, channel or
     iteration present on one side only is a difference. Arrays (and scalars) match when
-    ``|a - b| <= atol + rtol |b|`` everywhere (NaN equals NaN)."""
+    ``|a - b| <= atol + rtol |b|`` everywhere (NaN equals NaN). The differences come in the order
+    the runs split: by frame, then by ``stage(channel)`` (the rank of the step that made the
+    channel; default: all one stage), then iteration (per-frame products of a stage first), then
+    channel."""
     key = key or (lambda fr: fr.frame)
+    stage = stage or (lambda channel: 0)
     pending: tuple[dict, dict] = ({}, {})
     out: list[tuple[tuple, Difference]] = []
     compared = iterations = 0
@@ -273,11 +278,11 @@ def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol:
             compared += 1
             iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
                                if i is not None})
-            out += [((fa.frame,) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
+            out += [((fa.frame, stage(d.channel)) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
     for side, label in ((0, "A"), (1, "B")):
         for k, frs in pending[side].items():
             for fr in frs:
-                out.append(((fr.frame, -2, ""), Difference(k, None, "*", float("inf"), f"frame only in {label}")))
+                out.append(((fr.frame, -1, -2, ""), Difference(k, None, "*", float("inf"), f"frame only in {label}")))
     out.sort(key=lambda od: od[0])
     return DiffReport([d for _, d in out], compared, iterations)
 
@@ -287,9 +292,10 @@ def _order(d: Difference) -> tuple:
 
 
 def diff_recordings(a: Recording, b: Recording, atol: float = 0.0, rtol: float = 0.0,
-                    key: Callable[[FrameRecording], object] | None = None) -> list[Difference]:
+                    key: Callable[[FrameRecording], object] | None = None,
+                    stage: Callable[[str], int] | None = None) -> list[Difference]:
     """``diff_streams`` of two recordings read whole: the differences, the first divergence first."""
-    return diff_streams(a, b, atol, rtol, key).differences
+    return diff_streams(a, b, atol, rtol, key, stage).differences
 
 
 def _diff_frame(fid, fa: FrameRecording, fb: FrameRecording, atol: float, rtol: float) -> list[Difference]:

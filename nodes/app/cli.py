@@ -39,7 +39,15 @@ from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
-from .record import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS, DISPLAY_KINDS, default_blueprint, frame_name
+from .record import (
+    CONVERGENCE,
+    CONVERGENCE_LABELS,
+    CONVERGENCE_PLOTS,
+    DISPLAY_KINDS,
+    default_blueprint,
+    frame_name,
+    stage_rank,
+)
 from .runner import RunOptions, check_writable, run_stream, tool_version
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -366,7 +374,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_diff(args: argparse.Namespace) -> int:
 
-    report = diff_streams(open_frames(args.a), open_frames(args.b), args.atol, args.rtol, key=frame_name)
+    report = diff_streams(open_frames(args.a), open_frames(args.b), args.atol, args.rtol, key=frame_name,
+                          stage=stage_rank)
     if not report.differences:
         print(f"same: {report.frames} frames, {report.iterations} iterations within atol={args.atol:g} "
               f"rtol={args.rtol:g}")

@@ -11,6 +11,19 @@ import numpy as np
 
 from ...flow.frame import Frame
 from ...flow.recording import Event, FrameRecording, Kind, OnMask, Recorder
+from ..method.nodes import (
+    AlbedoNode,
+    CombineNode,
+    IntegrateNode,
+    LoadNode,
+    PhotoRelightNode,
+    QualityNode,
+    RelightNode,
+    RemapNode,
+    RobustFitNode,
+    SfsInitNode,
+    ShadowNode,
+)
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..model.shape_model import ShapeModel
@@ -20,6 +33,17 @@ CONVERGENCE = "robust_fit/convergence"  # per-iteration scalars of the fit (``Fi
 CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``replay --plot``
 CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
                       "residual_mean": "mean residual (radians)"}
+# the method's steps in the order they run: where two recordings split, for ``diff``
+STAGES = tuple(node.name for node in (LoadNode, RemapNode, SfsInitNode, RobustFitNode, CombineNode, IntegrateNode,
+                                     ShadowNode, AlbedoNode, QualityNode, RelightNode, PhotoRelightNode))
+
+
+def stage_rank(channel: str) -> int:
+    """The rank of the step that recorded ``channel`` (``<node>/<name>``); the frame record last."""
+    node = channel.split("/", 1)[0]
+    return STAGES.index(node) if node in STAGES else len(STAGES)
+
+
 DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
 
 

@@ -195,6 +195,29 @@ def test_diff_finds_a_one_ulp_change_and_says_where(demo, tmp_path):
     assert diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "nudged.mcap"), rtol=1e-6) == []
 
 
+def test_diff_reports_first_where_the_runs_split_in_the_methods_order(demo, tmp_path):
+    """A later step's product (albedo, alphabetically first, per frame) and the fit at iteration 3
+    both differ: the split is the fit's iteration 3. When the input grid differs, that comes first."""
+    from shadowflow.nodes.app.record import stage_rank
+
+    def bump(*targets):
+        def change(topic, header, arr):
+            if (topic, header["iteration"]) in targets and header["frame"] == 0:
+                return np.where(np.isfinite(arr), arr + np.float32(0.01), arr).astype(arr.dtype)
+            return None
+        return change
+
+    cli = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+    _rewrite(demo / "run.mcap", tmp_path / "late.mcap", bump(("/albedo/albedo", None), ("/robust_fit/weights", 3)))
+    diffs = diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "late.mcap"), stage=stage_rank)
+    assert [(d.frame, d.iteration, d.channel) for d in diffs] == [(0, 3, "robust_fit/weights"), (0, None, "albedo/albedo")]
+    out = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(tmp_path / "late.mcap")], capture_output=True, text=True)
+    assert out.returncode == 1 and "iteration 3, channel robust_fit/weights" in out.stdout.splitlines()[0], out.stdout
+    _rewrite(demo / "run.mcap", tmp_path / "early.mcap", bump(("/load/grid_image", None), ("/robust_fit/weights", 1)))
+    first = diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "early.mcap"), stage=stage_rank)[0]
+    assert (first.iteration, first.channel) == (None, "load/grid_image")
+
+
 def test_golden_recording_is_reproduced_whatever_the_thread_count(tmp_path):
     for workers in (1, 2):
         rec = golden_run(tmp_path / f"w{workers}", fit_workers=workers)
