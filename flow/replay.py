@@ -207,6 +207,9 @@ def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds
     sink = RerunSink(rrd_path, blueprint=blueprint)
     for fr in frames:
         fid = fr.frame
+        stem = (fr.record or {}).get("stem")
+        if isinstance(stem, str) and stem:
+            sink.name_frame(fid, stem)
         for path, by_it in fr.arrays.items():
             name = path.rsplit("/", 1)[-1]
             if "/mesh/" in f"/{path}":

@@ -12,6 +12,13 @@ from .events import OnMask
 ARRAY_MAGIC = b"SFA1"
 ARRAY_ENCODING = "shadowflow.ndarray"
 ARRAY_SCHEMA = "shadowflow.NDArray"
+ARRAY_SCHEMA_TEXT = (  # the schema record's data: how a reader decodes the message, without this code
+    "shadowflow.ndarray: b'SFA1', uint32 little-endian n, n bytes of UTF-8 JSON header "
+    '{"frame": int, "iteration": int|null, "dtype": numpy dtype string (little-endian: "<f4", "|u1", ...), '
+    '"shape": [int, ...], "masked": true (optional)}, then the payload: the array\'s C-order bytes; when '
+    "masked, shape is (H, W, ...) and the payload is numpy.packbits of the (H, W) bool mask (row-major, "
+    "big bit order, padded to a byte) followed by the values at the mask's True pixels in row-major order, "
+    "(N, ...); off the mask a float array is NaN, others 0.")
 ALLOWED_DTYPES = {"<f2", "<f4", "<f8", "|u1", "<u2", "<u4", "<i4", "<i8", "|b1"}
 MAX_ARRAY_BYTES = 1 << 30  # a message claiming more than 1 GiB is refused when reading
 
@@ -99,9 +106,4 @@ JSON_SCHEMAS: dict[str, dict] = {
         "values": {"type": "object", "additionalProperties": {"type": "number"}}}},
     "shadowflow.Frame": {"type": "object", "properties": {
         "frame": {"type": "integer"}, "values": {"type": "object"}}},
-    "foxglove.RawImage": {"type": "object", "properties": {
-        "timestamp": {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}},
-        "frame_id": {"type": "string"}, "width": {"type": "integer"}, "height": {"type": "integer"},
-        "encoding": {"type": "string"}, "step": {"type": "integer"},
-        "data": {"type": "string", "contentEncoding": "base64"}}},
 }

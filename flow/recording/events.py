@@ -66,6 +66,9 @@ class OnMask:
 class Sink:
     """Writes events somewhere. ``write`` runs on the recorder's thread only."""
 
+    def name_frame(self, frame: int, name: str) -> None:
+        """What frame ``frame`` is called (e.g. its input's stem), before its events come."""
+
     def write(self, event: Event) -> None: ...
 
     def frame_done(self, frame: int) -> None: ...

@@ -1,7 +1,6 @@
 """``McapSink``: recordings as MCAP files, exact arrays plus Foxglove-viewable images."""
 from __future__ import annotations
 
-import base64
 import json
 from pathlib import Path
 
@@ -10,6 +9,7 @@ import numpy as np
 from .codec import (
     ARRAY_ENCODING,
     ARRAY_SCHEMA,
+    ARRAY_SCHEMA_TEXT,
     JSON_SCHEMAS,
     encode_array,
     jsonable,
@@ -18,10 +18,15 @@ from .codec import (
 from .events import Event, Kind, OnMask, Sink
 from .rerun_sink import display
 
+SHOWN = (Kind.IMAGE, Kind.NORMALS, Kind.DEPTH)  # kinds also written as a viewer's image
+
 
 class McapSink(Sink):
-    """MCAP file: exact arrays (``shadowflow.ndarray``), scalars and frame records as JSON,
-    images also as ``foxglove.RawImage`` (mono8, JSON) so Foxglove shows them.
+    """MCAP file: exact arrays (``shadowflow.ndarray``), scalars and frame records as JSON (with
+    JSON schemas: Foxglove's Plot panel reads ``.values.sigma``), and images, normals and depth
+    also as Foxglove's well-known protobuf ``foxglove.RawImage`` on ``<path>/foxglove`` (mono8;
+    normals rgb8 as ``(n + 1) * 127.5``; depth 32FC1, 0 off the face), which Foxglove and Rerun's
+    MCAP importer both show as images.
 
     Compressed chunks, lz4 by default: on float arrays it writes in about half the CPU time of
     mcap's zstd (level 3) for files about a quarter larger, and the recorder shares the machine
@@ -44,7 +49,12 @@ class McapSink(Sink):
     def _schema(self, name: str) -> int:
         if name not in self._schemas:
             if name == ARRAY_SCHEMA:
-                sid = self._w.register_schema(name, ARRAY_ENCODING, b"see recordings/README.md")
+                sid = self._w.register_schema(name, ARRAY_ENCODING, ARRAY_SCHEMA_TEXT.encode())
+            elif name == "foxglove.RawImage":
+                from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+                from mcap_protobuf.schema import register_schema
+
+                sid = register_schema(self._w, RawImage)
             else:
                 sid = self._w.register_schema(name, "jsonschema", json.dumps(JSON_SCHEMAS[name]).encode())
             self._schemas[name] = sid
@@ -80,15 +90,8 @@ class McapSink(Sink):
         else:
             data = encode_array(event.frame, event.iteration, np.asarray(v))
         self._add(topic, ARRAY_SCHEMA, ARRAY_ENCODING, event, data)
-        if event.kind is Kind.IMAGE:
-            img8 = (display(v).clip(0, 1) * 255 + 0.5).astype(np.uint8)
-            t = log_time_ns(event.frame, event.iteration)
-            msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000}, "frame_id": "camera",
-                   "width": int(img8.shape[1]), "height": int(img8.shape[0]), "encoding": "mono8",
-                   "step": int(img8.shape[1])}
-            # base64 needs no JSON escaping: splice it in rather than have json scan 20 KB of it
-            body = json.dumps(msg).encode()[:-1] + b', "data": "' + base64.b64encode(img8.tobytes()) + b'"}'
-            self._add(topic + "/foxglove", "foxglove.RawImage", "json", event, body)
+        if event.kind in SHOWN:
+            self._add(topic + "/foxglove", "foxglove.RawImage", "protobuf", event, raw_image(event))
 
     def frame_done(self, frame: int) -> None:
         self._w.flush()
@@ -96,3 +99,20 @@ class McapSink(Sink):
     def close(self) -> None:
         self._w.finish()
         self._file.close()
+
+
+def raw_image(event: Event) -> bytes:
+    """``foxglove.RawImage`` (protobuf) of an image, normals or depth event, as a viewer shows it."""
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+    if event.kind is Kind.NORMALS:
+        img, encoding = display(event.value, Kind.NORMALS), "rgb8"  # (n + 1) * 127.5, uint8
+    elif event.kind is Kind.DEPTH:
+        img, encoding = display(event.value), "32FC1"  # float32, 0 off the face
+    else:
+        img, encoding = (display(event.value).clip(0, 1) * 255 + 0.5).astype(np.uint8), "mono8"
+    img = np.ascontiguousarray(img)
+    msg = RawImage(frame_id="camera", width=img.shape[1], height=img.shape[0], encoding=encoding,
+                   step=img.strides[0], data=img.tobytes())
+    msg.timestamp.FromNanoseconds(log_time_ns(event.frame, event.iteration))
+    return msg.SerializeToString()

@@ -59,6 +59,11 @@ class Recorder:
                 event = replace(event, value=OnMask(half, v.mask) if isinstance(v, OnMask) else half)
         self._put(("event", event))
 
+    def name_frame(self, frame: int, name: str | None) -> None:
+        """Tell the sinks what frame ``frame`` is called (its events, queued after this, use it)."""
+        if name:
+            self._put(("name", (frame, name)))
+
     def frame_done(self, frame: int, record: dict, wait: bool = False) -> None:
         """Close a frame: its status record, then every sink flushes it to disk. ``wait``:
         return only once that is done (so a caller can then mark the frame finished)."""
@@ -90,7 +95,12 @@ class Recorder:
             if self._error is None:  # after an error nothing more is written; close() reports it
                 try:
                     for s in self.sinks:
-                        s.write(item) if kind == "event" else s.frame_done(item)
+                        if kind == "event":
+                            s.write(item)
+                        elif kind == "name":
+                            s.name_frame(*item)
+                        else:
+                            s.frame_done(item)
                 except BaseException as exc:  # noqa: BLE001 - reported by close()
                     self._error = exc
             if kind == "done":

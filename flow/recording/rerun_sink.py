@@ -13,7 +13,8 @@ from .events import Event, Kind, OnMask, Sink
 
 class RerunSink(Sink):
     """Rerun ``.rrd`` file with timelines ``frame`` and ``iteration``, entities
-    ``frames/<frame>/<node>/<name>``, and a default blueprint (images side by side and the
+    ``frames/<name>/<node>/<name>`` (the frame's name as ``name_frame`` gave it, e.g. the input's
+    stem; else its id as ``00042``), and a default blueprint (images side by side and the
     convergence plots), streamed to disk as it goes; after every ``segment_frames`` frames it goes
     on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``).
 
@@ -39,6 +40,7 @@ class RerunSink(Sink):
         self.paths: list[Path] = []  # the files written: path, then path's segments
         self._frames_in_segment = 0
         self._pending: dict[tuple[int, str], list[Event]] = {}
+        self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
         self._open(self.path)
 
     def _open(self, path: Path) -> None:
@@ -61,6 +63,15 @@ class RerunSink(Sink):
         k = len(self.paths) + 1
         self._open(self.path.with_name(f"{self.path.stem}.s{k}{self.path.suffix}"))
         self._frames_in_segment = 0
+
+    def name_frame(self, frame: int, name: str) -> None:
+        self._names[frame] = self.rr.escape_entity_path_part(name)
+
+    def _frame_entity(self, frame: int) -> str:
+        return f"frames/{self._names.get(frame) or f'{frame:05d}'}"
+
+    def _entity(self, event: Event) -> str:
+        return f"{self._frame_entity(event.frame)}/{event.path}"
 
     def write(self, event: Event) -> None:
         if event.iteration is not None and self._columnar(event):
@@ -85,14 +96,16 @@ class RerunSink(Sink):
             rec.disable_timeline("iteration")
         else:
             rec.set_time("iteration", sequence=event.iteration)
-        entity = _entity(event)
+        entity = self._entity(event)
         v = event.value
         if event.kind is Kind.SCALARS:
             for name, x in v.items():
                 if _is_number(x):
                     rec.log(f"{entity}/{name}", rr.Scalars(float(x)))
         elif event.kind is Kind.FRAME:
-            rec.log(f"frames/{event.frame:05d}/status", rr.TextLog(json.dumps(v, default=jsonable)))
+            if event.frame not in self._names and isinstance(v, dict) and isinstance(v.get("stem"), str):
+                self.name_frame(event.frame, v["stem"])  # a frame that failed before recording anything
+            rec.log(f"{self._frame_entity(event.frame)}/status", rr.TextLog(json.dumps(v, default=jsonable)))
         elif event.kind is Kind.DEPTH:
             rec.log(entity, rr.DepthImage(display(v)))
         elif event.kind is Kind.MESH:
@@ -104,15 +117,15 @@ class RerunSink(Sink):
             a = display(v)
             if a.ndim == 2:  # "image", and 2-D "array"s
                 rec.log(entity, rr.Image(a))
-            elif a.ndim == 1:  # a vector (the fit's coefficients): one plotted series per entry,
-                rec.log(entity, rr.Scalars(a.astype(np.float64)))  # 40x cheaper to log than a Tensor
+            elif a.ndim == 1:  # a vector (the fit's coefficients): a bar chart
+                rec.log(entity, rr.BarChart(a))
             else:
                 rec.log(entity, rr.Tensor(a))
 
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
         rr, rows = self.rr, self._pending.pop((frame, path))
-        entity = _entity(rows[0])
+        entity = self._entity(rows[0])
 
         def index(rs: list[Event]) -> list:
             return [rr.TimeColumn("frame", sequence=[frame] * len(rs)),
@@ -125,12 +138,14 @@ class RerunSink(Sink):
                 self.rec.send_columns(f"{entity}/{name}", indexes=index(rs),
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
-        if _ndim(rows[0].value) == 1:
-            shown = [display(e.value) for e in rows]
-            if any(a.ndim != 1 for a in shown):
-                raise ValueError(f"{entity}: iterations mix vectors and images")
-            columns = rr.Scalars.columns(scalars=np.concatenate(shown).astype(np.float64))
-            self.rec.send_columns(entity, indexes=index(rows), columns=columns.partition([a.size for a in shown]))
+        if _ndim(rows[0].value) == 1:  # a vector per iteration: a bar chart each (the SDK sends no
+            for e in rows:             # batch of tensors in one call)
+                a = display(e.value)
+                if a.ndim != 1:
+                    raise ValueError(f"{entity}: iterations mix vectors and images")
+                self.rec.set_time("frame", sequence=frame)
+                self.rec.set_time("iteration", sequence=e.iteration)
+                self.rec.log(entity, rr.BarChart(a))
             return
         images = display_stack(rows)
         n, h, w = images.shape[:3]
@@ -145,6 +160,7 @@ class RerunSink(Sink):
 
     def frame_done(self, frame: int) -> None:
         self._send_frame(frame)
+        self._names.pop(frame, None)
         self.rec.flush()
         self._frames_in_segment += 1
         if self.segment_frames and self._frames_in_segment >= self.segment_frames:
@@ -164,10 +180,6 @@ class RerunSink(Sink):
         cleanup = getattr(self.rr.bindings, "flush_and_cleanup_orphaned_recordings", None)
         if cleanup is not None:
             cleanup()
-
-
-def _entity(event: Event) -> str:
-    return f"frames/{event.frame:05d}/{event.path}"
 
 
 def _ndim(value: Any) -> int:
@@ -217,7 +229,7 @@ def display_stack(rows: list[Event]) -> np.ndarray:
         return out.reshape((len(rows), *first.mask.shape, *shown.shape[2:]))
     shown = [display(e.value, e.kind) for e in rows]
     if any(a.shape != shown[0].shape or a.dtype != shown[0].dtype for a in shown):
-        raise ValueError(f"{_entity(rows[0])}: iterations of different image sizes")
+        raise ValueError(f"{rows[0].path} of frame {rows[0].frame}: iterations of different image sizes")
     return np.stack(shown)
 
 

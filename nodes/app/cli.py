@@ -219,7 +219,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     records = result.records
     failures = sum(r["status"] != "ok" for r in records)
     note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
-         f"summary: {out / 'summary.json'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
+         f"report: {out / 'report.html'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
     watch_error = watch.error if watch is not None else None
     if watch_error:
         print(f"error: {watch_error}", file=sys.stderr)

@@ -58,6 +58,8 @@ class FitRecorder:
         self._held: dict[int, FitIteration] = {}
 
     def iteration(self, frame: Frame, it: FitIteration) -> None:
+        if it.iteration == 1:  # the frame's first events: say what it is called (its output name)
+            self.recorder.name_frame(frame.id, frame.meta.get("stem"))
         if self.recorder.keep_iteration(it.iteration):
             self._emit(frame.id, it)
             self._held.pop(frame.id, None)
@@ -96,6 +98,7 @@ class RecordNode:
 
     def __call__(self, frame: Frame) -> Frame:
         d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
+        self.recorder.name_frame(fid, frame.meta.get("stem"))
         emit(Event(fid, "load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32)))
         emit(Event(fid, "remap/remapped", Kind.IMAGE, d["remapped"]))
         emit(Event(fid, "sfs_init/normals", Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask)))
@@ -112,21 +115,31 @@ class RecordNode:
 
 
 def default_blueprint():
-    """Rerun layout: the frame's images side by side above the convergence plots."""
+    """Rerun layout: the frame's images and its surface above the fit's convergence (sigma, mean
+    change, mean residual) and its coefficients as a bar chart, on the ``iteration`` timeline.
+    Entities are ``/frames/<input stem>/<node>/<name>``; each view gathers its channel from every
+    frame, and only the frame at the time cursor (the ``frame`` timeline) is shown."""
     import rerun.blueprint as rrb
 
-    images = [("input", "load/grid_image"), ("weights", "robust_fit/weights"),
-              ("normals", "robust_fit/normals"), ("shadow", "shadow/cast"), ("relit", "relight/relit"),
-              ("albedo", "albedo/albedo")]
+    this_frame = [rrb.VisibleTimeRange("frame", start=rrb.TimeRangeBoundary.cursor_relative(),
+                                       end=rrb.TimeRangeBoundary.cursor_relative())]
+    images = [("input", "load/grid_image"), ("weights", "robust_fit/weights"), ("normals", "robust_fit/normals"),
+              ("shadow", "shadow/cast"), ("albedo", "albedo/albedo"), ("relit", "relight/relit")]
+    plots = [("sigma (radians)", "robust_fit/convergence/sigma"),
+             ("mean change (degrees)", "robust_fit/convergence/change_deg"),
+             ("mean residual (radians)", "robust_fit/convergence/residual_mean")]
     return rrb.Blueprint(
         rrb.Vertical(
-            rrb.Grid(*[rrb.Spatial2DView(name=n, origin="/frames", contents=f"/frames/**/{p}") for n, p in images]),
             rrb.Horizontal(
-                rrb.TimeSeriesView(name="sigma", origin="/frames", contents="/frames/**/robust_fit/convergence/sigma"),
-                rrb.TimeSeriesView(name="mean change (deg)", origin="/frames",
-                                   contents="/frames/**/robust_fit/convergence/change_deg"),
-                rrb.TimeSeriesView(name="down-weighted fraction", origin="/frames",
-                                   contents="/frames/**/robust_fit/convergence/downweighted_fraction"),
+                rrb.Grid(*[rrb.Spatial2DView(name=n, origin="/frames", contents=f"/frames/**/{p}",
+                                             time_ranges=this_frame) for n, p in images]),
+                rrb.Spatial3DView(name="surface", origin="/frames", contents="/frames/**/integrate/mesh",
+                                  time_ranges=this_frame),
+                column_shares=[3, 2],
+            ),
+            rrb.Horizontal(
+                *[rrb.TimeSeriesView(name=n, origin="/frames", contents=f"/frames/**/{p}") for n, p in plots],
+                rrb.BarChartView(name="coefficients b", origin="/frames", contents="/frames/**/robust_fit/b"),
             ),
             row_shares=[3, 2],
         ),

@@ -42,6 +42,7 @@ from .outputs import (
 )
 from .process import one_blas_thread, release_large_frees
 from .record import FitRecorder, RecordNode, default_blueprint
+from .report import REPORT_NAME, write_report
 
 
 @dataclass
@@ -384,6 +385,11 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             manifest.save(out)
         except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both
             print(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})", file=sys.stderr)
+        if not storage:
+            try:
+                write_report(out, records, out if "mcap" in run.record else None)
+            except OSError as exc:  # the outputs and the summary are written: the report is a view of them
+                print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)

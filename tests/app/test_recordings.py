@@ -107,8 +107,10 @@ def test_the_final_weights_recorded_are_the_ones_written(demo):
 def test_rerun_opens_both_recordings(demo):
     rc = pytest.importorskip("rerun.chunk")
     summary = str(rc.RrdReader(demo / "run.rrd").store().summary())
-    assert "/frames/00002/robust_fit/weights" in summary and "iteration" in summary
-    assert "/frames/00000/integrate/mesh" in summary and "Mesh3D" in summary
+    stems = [r["stem"] for r in json.loads((demo / "summary.json").read_text())]
+    assert f"/frames/{stems[2]}/robust_fit/weights" in summary and "iteration" in summary  # named by input
+    assert f"/frames/{stems[0]}/integrate/mesh" in summary and "Mesh3D" in summary
+    assert "/frames/00000" not in summary
     info = rc.McapReader(demo / "run.mcap").info()
     topics = {c.topic for c in info.channels}
     assert "/robust_fit/weights" in topics and "/load/grid_image/foxglove" in topics
@@ -119,14 +121,14 @@ def test_rerun_opens_both_recordings(demo):
 def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
     """The .rrd's per-iteration rows (sent in columns, a frame at a time) show exactly the MCAP's
     arrays: weights as float images with 0 off the face, normals as (n + 1) * 127.5 RGB,
-    the coefficients and sigma as scalars, at the same iterations."""
+    the coefficients as a bar chart and sigma as a scalar, at the same iterations."""
     rec = read_mcap(demo / "run.mcap")
     fr = rec.finished_frames()[1]
     its = fr.iterations("robust_fit/weights")
-    base = f"/frames/{fr.frame:05d}/robust_fit"
+    base = f"/frames/{fr.record['stem']}/robust_fit"
     weights = rrd_rows(demo / "run.rrd", f"{base}/weights", "Image:buffer")
     normals = rrd_rows(demo / "run.rrd", f"{base}/normals", "Image:buffer")
-    b = rrd_rows(demo / "run.rrd", f"{base}/b", "Scalars:scalars")
+    b = rrd_rows(demo / "run.rrd", f"{base}/b", "BarChart:values")
     sigma = rrd_rows(demo / "run.rrd", f"{base}/convergence/sigma", "Scalars:scalars")
     assert sorted(weights) == sorted(normals) == sorted(b) == sorted(sigma) == its and len(its) >= 3
     for it in its:
@@ -135,29 +137,49 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
         n = np.frombuffer(bytes(normals[it][0]), np.uint8).reshape(128, 128, 3)
         expect = ((np.nan_to_num(fr.arrays["robust_fit/normals"][it]) + 1) * 127.5).clip(0, 255).astype(np.uint8)
         assert np.array_equal(n, expect)
-        assert np.allclose(b[it], fr.arrays["robust_fit/b"][it], rtol=0, atol=1e-7)
+        assert b[it][0]["shape"] == [fr.arrays["robust_fit/b"][it].size]
+        assert np.allclose(b[it][0]["buffer"], fr.arrays["robust_fit/b"][it], rtol=0, atol=1e-7)
         assert sigma[it] == [pytest.approx(fr.scalars["robust_fit/convergence"][it]["sigma"], rel=1e-12)]
 
 
-def test_foxglove_copies_show_the_recorded_images(demo):
-    """Each image's foxglove.RawImage copy is valid JSON whose mono8 pixels are the exact array
-    (0 off the face), at every iteration of the weights."""
-    import base64
-
+def test_foxglove_copies_decode_with_the_files_own_protobuf_schemas(demo):
+    """Each image's copy is a foxglove.RawImage decoded, as Foxglove does, from the protobuf
+    schema stored in the file (no generated code): weights mono8 = the exact array (0 off the
+    face) at every iteration, normals rgb8 = (n + 1) * 127.5, depth 32FC1 = the exact depth.
+    Rerun's own MCAP reader takes them as images."""
     from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
 
     rec = read_mcap(demo / "run.mcap")
-    seen = 0
+    seen = {}
     with open(demo / "run.mcap", "rb") as fh:
-        for _, _, msg in make_reader(fh).iter_messages(topics=["/robust_fit/weights/foxglove"]):
-            body = json.loads(msg.data)
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        for schema, channel, msg, img in reader.iter_decoded_messages(topics=[
+                "/robust_fit/weights/foxglove", "/combine/normals/foxglove", "/integrate/depth/foxglove"]):
+            assert schema.name == "foxglove.RawImage" and schema.encoding == "protobuf"
             frame, it = divmod(msg.log_time, 1_000_000_000)
-            exact = rec.frames[frame].arrays["robust_fit/weights"][it // 1_000_000 - 1]
-            pixels = np.frombuffer(base64.b64decode(body["data"]), np.uint8).reshape(body["height"], body["width"])
-            assert body["encoding"] == "mono8" and body["step"] == body["width"] == exact.shape[1]
-            assert np.array_equal(pixels, (np.nan_to_num(exact).clip(0, 1) * 255 + 0.5).astype(np.uint8))
-            seen += 1
-    assert seen == sum(s["iterations"] for s in json.loads((demo / "summary.json").read_text()))
+            it = None if it == 0 else it // 1_000_000 - 1
+            path = channel.topic[1:-len("/foxglove")]
+            exact = rec.frames[frame].arrays[path][it]
+            assert img.timestamp.ToNanoseconds() == msg.log_time and (img.height, img.width) == exact.shape[:2]
+            if img.encoding == "mono8":
+                pixels = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width)
+                assert np.array_equal(pixels, (np.nan_to_num(exact).clip(0, 1) * 255 + 0.5).astype(np.uint8))
+            elif img.encoding == "rgb8":
+                pixels = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width, 3)
+                assert np.array_equal(pixels, ((np.nan_to_num(exact) + 1) * 127.5).clip(0, 255).astype(np.uint8))
+            else:
+                assert img.encoding == "32FC1" and img.step == 4 * img.width
+                depth = np.frombuffer(img.data, np.float32).reshape(img.height, img.width)
+                assert np.array_equal(depth, np.nan_to_num(exact))
+            seen[path] = seen.get(path, 0) + 1
+    assert seen["robust_fit/weights"] == sum(s["iterations"] for s in json.loads((demo / "summary.json").read_text()))
+    assert seen["combine/normals"] == seen["integrate/depth"] == 3
+    rc = pytest.importorskip("rerun.chunk")
+    shown = {ch.entity_path for ch in rc.McapReader(demo / "run.mcap").stream().collect().stream()
+             if "Image:buffer" in ch.to_record_batch().schema.names}
+    assert {"/robust_fit/weights/foxglove", "/combine/normals/foxglove", "/integrate/depth/foxglove",
+            "/relight/relit/foxglove", "/load/grid_image/foxglove"} <= shown
 
 
 def test_replay_and_diff_commands(demo, tmp_path):
@@ -304,7 +326,7 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
         store = rc.RrdReader(out / "run.rrd").stream().collect()
     killed_rrd = str(store.summary())
     for k in range(len(done_before) - 1):
-        assert f"/frames/{k:05d}/robust_fit/weights" in killed_rrd
+        assert f"/frames/{done_before[k]['stem']}/robust_fit/weights" in killed_rrd
     mtimes = {r["stem"]: (out / r["stem"] / "normals.npy").stat().st_mtime_ns for r in done_before}
     resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr
@@ -342,4 +364,4 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     rec = read_mcap(out / "run.mcap")
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")
-    assert f"/frames/{len(summary) - 1:05d}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())
+    assert f"/frames/{summary[-1]['stem']}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())

@@ -1,0 +1,60 @@
+"""``OUT/report.html``: every frame in the contact sheet, failures with their reasons, the
+convergence plot; hostile names escaped; and a real browser renders it (skipped without one)."""
+import re
+import shutil
+import subprocess
+
+import cv2
+import numpy as np
+import pytest
+from shadowflow.nodes.app.cli import main
+
+
+@pytest.fixture(scope="module")
+def run_with_a_failure(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("report")
+    bad = tmp / "a<b>&c.png"
+    bad.write_bytes(b"not an image at all")
+    out = tmp / "out"
+    assert main(["run", "--demo", str(bad), "--out", str(out), "--quiet", "--record", "mcap"]) == 1
+    return out
+
+
+def test_the_report_shows_every_frame_and_says_why_one_failed(run_with_a_failure):
+    out = run_with_a_failure
+    page = (out / "report.html").read_text()
+    stems = sorted(p.name for p in out.iterdir() if p.is_dir() and p.name != "demo-inputs")
+    assert len(stems) == 3
+    for stem in stems:  # a row per frame, its pictures linked where they are
+        for name in ("relit.png", "shadow.png", "novel_view.png", "albedo.png"):
+            assert f'src="{stem}/{name}"' in page and (out / stem / name).is_file()
+    assert page.count('alt="input" src="data:image/jpeg;base64,') == 3
+    assert page.count('alt="weights" src="data:image/jpeg;base64,') == 3
+    assert "4 frames: 3 ok, 0 doubtful" in page and "1 failed" in page
+    assert "a&lt;b&gt;&amp;c.png" in page and "<b>&c" not in page  # the file name is text, never markup
+    assert "not a recognised image" in page
+    assert 'alt="convergence of the fit" src="data:image/png;base64,' in page
+    for src in re.findall(r'src="([^"]+)"', page):  # every relative link resolves inside --out
+        if not src.startswith("data:"):
+            assert (out / src).resolve().is_relative_to(out.resolve()) and (out / src).is_file()
+
+
+def test_without_a_recording_the_report_says_there_is_nothing_to_plot(tmp_path):
+    assert main(["run", "--demo", "--out", str(tmp_path / "o"), "--quiet", "--record", "none"]) == 0
+    page = (tmp_path / "o" / "report.html").read_text()
+    assert "No recording to plot" in page and page.count("<tr>") >= 3
+
+
+BROWSER = next((b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
+
+
+@pytest.mark.skipif(BROWSER is None, reason="no headless browser (apt-get install chromium)")
+def test_a_real_browser_renders_the_report(run_with_a_failure, tmp_path):
+    shot = tmp_path / "report.png"
+    subprocess.run([BROWSER, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    f"--screenshot={shot}", "--window-size=1300,1100", (run_with_a_failure / "report.html").as_uri()],
+                   capture_output=True, timeout=120)
+    img = cv2.imread(str(shot))
+    assert img is not None and img.shape[:2] == (1100, 1300)
+    grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    assert np.mean(grey < 200) > 0.10  # the plot and the pictures drawn, not a blank or broken page
