@@ -108,9 +108,9 @@ def raw_image(event: Event) -> bytes:
     if event.kind is Kind.NORMALS:
         img, encoding = display(event.value, Kind.NORMALS), "rgb8"  # (n + 1) * 127.5, uint8
     elif event.kind is Kind.DEPTH:
-        img, encoding = display(event.value), "32FC1"  # float32, 0 off the face
+        img, encoding = display(event.value, Kind.DEPTH), "32FC1"  # float32, 0 off the face
     else:
-        img, encoding = (display(event.value).clip(0, 1) * 255 + 0.5).astype(np.uint8), "mono8"
+        img, encoding = (display(event.value, event.kind).clip(0, 1) * 255 + 0.5).astype(np.uint8), "mono8"
     img = np.ascontiguousarray(img)
     msg = RawImage(frame_id="camera", width=img.shape[1], height=img.shape[0], encoding=encoding,
                    step=img.strides[0], data=img.tobytes())

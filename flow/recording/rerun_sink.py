@@ -13,8 +13,10 @@ from .events import Event, Kind, OnMask, Sink
 
 class RerunSink(Sink):
     """Rerun ``.rrd`` file with timelines ``frame`` and ``iteration``, entities
-    ``frames/<name>/<node>/<name>`` (the frame's name as ``name_frame`` gave it, e.g. the input's
-    stem; else its id as ``00042``), and a default blueprint (images side by side and the
+    ``<node>/<name>/<frame>`` (``<frame>`` the frame's name as ``name_frame`` gave it, e.g. the
+    input's stem; else its id as ``00042``; a frame's record is ``status/<frame>``): the channel
+    first, so one view gathers a channel of every frame with ``/<node>/<name>/**`` (a viewer's
+    path filters take a wildcard at the end only), and a default blueprint (images side by side and the
     convergence plots), streamed to disk as it goes; after every ``segment_frames`` frames it goes
     on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``).
 
@@ -67,11 +69,9 @@ class RerunSink(Sink):
     def name_frame(self, frame: int, name: str) -> None:
         self._names[frame] = self.rr.escape_entity_path_part(name)
 
-    def _frame_entity(self, frame: int) -> str:
-        return f"frames/{self._names.get(frame) or f'{frame:05d}'}"
-
-    def _entity(self, event: Event) -> str:
-        return f"{self._frame_entity(event.frame)}/{event.path}"
+    def _entity(self, path: str, frame: int) -> str:
+        """The entity of channel ``path`` in ``frame``."""
+        return f"{path}/{self._names.get(frame) or f'{frame:05d}'}"
 
     def write(self, event: Event) -> None:
         if event.iteration is not None and self._columnar(event):
@@ -96,25 +96,25 @@ class RerunSink(Sink):
             rec.disable_timeline("iteration")
         else:
             rec.set_time("iteration", sequence=event.iteration)
-        entity = self._entity(event)
+        entity = self._entity(event.path, event.frame)
         v = event.value
         if event.kind is Kind.SCALARS:
             for name, x in v.items():
                 if _is_number(x):
-                    rec.log(f"{entity}/{name}", rr.Scalars(float(x)))
+                    rec.log(self._entity(f"{event.path}/{name}", event.frame), rr.Scalars(float(x)))
         elif event.kind is Kind.FRAME:
             if event.frame not in self._names and isinstance(v, dict) and isinstance(v.get("stem"), str):
                 self.name_frame(event.frame, v["stem"])  # a frame that failed before recording anything
-            rec.log(f"{self._frame_entity(event.frame)}/status", rr.TextLog(json.dumps(v, default=jsonable)))
+            rec.log(self._entity("status", event.frame), rr.TextLog(json.dumps(v, default=jsonable)))
         elif event.kind is Kind.DEPTH:
-            rec.log(entity, rr.DepthImage(display(v)))
+            rec.log(entity, rr.DepthImage(display(v, Kind.DEPTH)))
         elif event.kind is Kind.MESH:
             rec.log(entity, rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"],
                                       vertex_colors=v["colours"]))
         elif event.kind is Kind.NORMALS:
             rec.log(entity, rr.Image(display(v, Kind.NORMALS)))
         else:
-            a = display(v)
+            a = display(v, event.kind)
             if a.ndim == 2:  # "image", and 2-D "array"s
                 rec.log(entity, rr.Image(a))
             elif a.ndim == 1:  # a vector (the fit's coefficients): a bar chart
@@ -125,7 +125,7 @@ class RerunSink(Sink):
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
         rr, rows = self.rr, self._pending.pop((frame, path))
-        entity = self._entity(rows[0])
+        entity = self._entity(path, frame)
 
         def index(rs: list[Event]) -> list:
             return [rr.TimeColumn("frame", sequence=[frame] * len(rs)),
@@ -135,12 +135,12 @@ class RerunSink(Sink):
             names = dict.fromkeys(n for e in rows for n, x in e.value.items() if _is_number(x))
             for name in names:
                 rs = [e for e in rows if _is_number(e.value.get(name))]
-                self.rec.send_columns(f"{entity}/{name}", indexes=index(rs),
+                self.rec.send_columns(self._entity(f"{path}/{name}", frame), indexes=index(rs),
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
         if _ndim(rows[0].value) == 1:  # a vector per iteration: a bar chart each (the SDK sends no
             for e in rows:             # batch of tensors in one call)
-                a = display(e.value)
+                a = display(e.value, e.kind)
                 if a.ndim != 1:
                     raise ValueError(f"{entity}: iterations mix vectors and images")
                 self.rec.set_time("frame", sequence=frame)
@@ -203,9 +203,13 @@ def _finite32(a: Any) -> np.ndarray:
 
 def _display_rule(kind: Kind):
     """How Rerun shows an event kind: (conversion of values, fill off the mask). Normals as RGB
-    uint8 ``(n + 1) * 127.5`` with 127 off the mask; everything else float32 with 0 there
-    (Rerun shows NaN as garbage)."""
-    return (_normals_rgb, 127) if kind is Kind.NORMALS else (_finite32, 0)
+    uint8 ``(n + 1) * 127.5`` with 127 off the mask; images float32 clipped to their [0, 1] range
+    (one bright outlier, e.g. an albedo over a specular spot, would otherwise set the viewer's
+    range and show the face black); everything else float32; 0 off the mask (Rerun shows NaN as
+    garbage)."""
+    if kind is Kind.NORMALS:
+        return _normals_rgb, 127
+    return (_unit32 if kind is Kind.IMAGE else _finite32), 0
 
 
 def display(value: Any, kind: Kind = Kind.IMAGE) -> np.ndarray:
@@ -238,3 +242,8 @@ def _normals_rgb(n: Any) -> np.ndarray:
     rgb += 1
     rgb *= 127.5
     return rgb.clip(0, 255, out=rgb).astype(np.uint8)
+
+
+def _unit32(a: Any) -> np.ndarray:
+    """``_finite32`` clipped to [0, 1]: an image as a viewer shows it."""
+    return np.clip(_finite32(a), 0.0, 1.0, out=None)

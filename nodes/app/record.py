@@ -117,8 +117,9 @@ class RecordNode:
 def default_blueprint():
     """Rerun layout: the frame's images and its surface above the fit's convergence (sigma, mean
     change, mean residual) and its coefficients as a bar chart, on the ``iteration`` timeline.
-    Entities are ``/frames/<input stem>/<node>/<name>``; each view gathers its channel from every
-    frame, and only the frame at the time cursor (the ``frame`` timeline) is shown."""
+    Entities are ``/<node>/<name>/<input stem>``; each view gathers its channel from every frame
+    (``/<node>/<name>/**``), and the image and surface views show the frame at the time cursor of
+    the ``frame`` timeline (the plots: every frame's curve on the ``iteration`` timeline)."""
     import rerun.blueprint as rrb
 
     this_frame = [rrb.VisibleTimeRange("frame", start=rrb.TimeRangeBoundary.cursor_relative(),
@@ -131,15 +132,13 @@ def default_blueprint():
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.Horizontal(
-                rrb.Grid(*[rrb.Spatial2DView(name=n, origin="/frames", contents=f"/frames/**/{p}",
-                                             time_ranges=this_frame) for n, p in images]),
-                rrb.Spatial3DView(name="surface", origin="/frames", contents="/frames/**/integrate/mesh",
-                                  time_ranges=this_frame),
+                rrb.Grid(*[rrb.Spatial2DView(name=n, origin=f"/{p}", time_ranges=this_frame) for n, p in images]),
+                rrb.Spatial3DView(name="surface", origin="/integrate/mesh", time_ranges=this_frame),
                 column_shares=[3, 2],
             ),
             rrb.Horizontal(
-                *[rrb.TimeSeriesView(name=n, origin="/frames", contents=f"/frames/**/{p}") for n, p in plots],
-                rrb.BarChartView(name="coefficients b", origin="/frames", contents="/frames/**/robust_fit/b"),
+                *[rrb.TimeSeriesView(name=n, origin=f"/{p}") for n, p in plots],
+                rrb.BarChartView(name="coefficients b", origin="/robust_fit/b"),
             ),
             row_shares=[3, 2],
         ),

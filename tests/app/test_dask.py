@@ -64,7 +64,7 @@ def test_a_local_cluster_gives_the_local_engines_outputs_and_recordings(tmp_path
     assert all(p.replace(".mcap", ".rrd") in listed for p in parts)
     rc = pytest.importorskip("rerun.chunk")
     shown = "".join(str(rc.RrdReader(tmp_path / "dask" / p.replace(".mcap", ".rrd")).store().summary()) for p in parts)
-    assert all(f"/frames/{r['stem']}/status" in shown for r in b)  # every frame in the workers' .rrd parts
+    assert all(f"/status/{r['stem']}" in shown for r in b)  # every frame in the workers' .rrd parts
 
 
 def test_sigint_then_resume_on_a_cluster_completes_the_job(tmp_path):

@@ -108,9 +108,9 @@ def test_rerun_opens_both_recordings(demo):
     rc = pytest.importorskip("rerun.chunk")
     summary = str(rc.RrdReader(demo / "run.rrd").store().summary())
     stems = [r["stem"] for r in json.loads((demo / "summary.json").read_text())]
-    assert f"/frames/{stems[2]}/robust_fit/weights" in summary and "iteration" in summary  # named by input
-    assert f"/frames/{stems[0]}/integrate/mesh" in summary and "Mesh3D" in summary
-    assert "/frames/00000" not in summary
+    assert f"/robust_fit/weights/{stems[2]}" in summary and "iteration" in summary  # named by input
+    assert f"/integrate/mesh/{stems[0]}" in summary and "Mesh3D" in summary
+    assert "/00000" not in summary
     info = rc.McapReader(demo / "run.mcap").info()
     topics = {c.topic for c in info.channels}
     assert "/robust_fit/weights" in topics and "/load/grid_image/foxglove" in topics
@@ -125,11 +125,11 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
     rec = read_mcap(demo / "run.mcap")
     fr = rec.finished_frames()[1]
     its = fr.iterations("robust_fit/weights")
-    base = f"/frames/{fr.record['stem']}/robust_fit"
-    weights = rrd_rows(demo / "run.rrd", f"{base}/weights", "Image:buffer")
-    normals = rrd_rows(demo / "run.rrd", f"{base}/normals", "Image:buffer")
-    b = rrd_rows(demo / "run.rrd", f"{base}/b", "BarChart:values")
-    sigma = rrd_rows(demo / "run.rrd", f"{base}/convergence/sigma", "Scalars:scalars")
+    stem = fr.record["stem"]
+    weights = rrd_rows(demo / "run.rrd", f"/robust_fit/weights/{stem}", "Image:buffer")
+    normals = rrd_rows(demo / "run.rrd", f"/robust_fit/normals/{stem}", "Image:buffer")
+    b = rrd_rows(demo / "run.rrd", f"/robust_fit/b/{stem}", "BarChart:values")
+    sigma = rrd_rows(demo / "run.rrd", f"/robust_fit/convergence/sigma/{stem}", "Scalars:scalars")
     assert sorted(weights) == sorted(normals) == sorted(b) == sorted(sigma) == its and len(its) >= 3
     for it in its:
         w = np.frombuffer(bytes(weights[it][0]), np.float32).reshape(128, 128)
@@ -326,7 +326,7 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
         store = rc.RrdReader(out / "run.rrd").stream().collect()
     killed_rrd = str(store.summary())
     for k in range(len(done_before) - 1):
-        assert f"/frames/{done_before[k]['stem']}/robust_fit/weights" in killed_rrd
+        assert f"/robust_fit/weights/{done_before[k]['stem']}" in killed_rrd
     mtimes = {r["stem"]: (out / r["stem"] / "normals.npy").stat().st_mtime_ns for r in done_before}
     resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr
@@ -364,4 +364,4 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     rec = read_mcap(out / "run.mcap")
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")
-    assert f"/frames/{summary[-1]['stem']}/status" in str(rc.RrdReader(out / "run.rrd").store().summary())
+    assert f"/status/{summary[-1]['stem']}" in str(rc.RrdReader(out / "run.rrd").store().summary())

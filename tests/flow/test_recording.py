@@ -66,7 +66,7 @@ def test_rerun_batches_flush_mid_frame_and_take_dense_arrays_too(tmp_path):
     for frame, path, expect in ((0, "weights", lambda it: OnMask(faces[it], mask).grid(0)),
                                 (0, "residuals", lambda it: grids[it]),
                                 (1, "weights", lambda it: OnMask(faces[it], mask).grid(0))):
-        rows = rrd_rows(tmp_path / "b.rrd", f"/frames/{frame:05d}/fit/{path}", "Image:buffer")
+        rows = rrd_rows(tmp_path / "b.rrd", f"/fit/{path}/{frame:05d}", "Image:buffer")
         assert sorted(rows) == list(range(1, 8)), (frame, path)
         for it, buf in rows.items():
             assert np.array_equal(np.frombuffer(bytes(buf[0]), np.float32).reshape(6, 5), expect(it)), (frame, path, it)
@@ -92,9 +92,24 @@ def test_a_long_rerun_recording_goes_on_in_segments_of_one_recording(tmp_path):
     for path in sink.paths:
         assert [e.recording_id for e in rc.RrdReader(path).recordings()] == [sink.recording_id]
         for frame in range(5):
-            rows = rrd_rows(path, f"/frames/{frame:05d}/fit/w", "Image:buffer")
+            rows = rrd_rows(path, f"/fit/w/{frame:05d}", "Image:buffer")
             if rows:
                 assert frame not in found
                 found[frame] = (path.name, sorted(rows))
     assert found == {0: ("run.rrd", [1, 2]), 1: ("run.rrd", [1, 2]), 2: ("run.s2.rrd", [1, 2]),
                      3: ("run.s2.rrd", [1, 2]), 4: ("run.s3.rrd", [1, 2])}
+
+
+def test_the_scalars_tap_keeps_one_channel_for_the_first_frames_by_name():
+    """What a run's report plots without reading its recording back: the channel's scalars by
+    iteration, for the first ``limit`` frames that have any, named by their record's file name."""
+    from shadowflow.flow.recording import ScalarsTap
+
+    tap = ScalarsTap("fit/convergence", limit=2)
+    for frame in (3, 1, 2):
+        for it in (1, 2):
+            tap.write(Event(frame, "fit/convergence", "scalars", {"sigma": frame + it / 10}, it))
+            tap.write(Event(frame, "fit/other", "scalars", {"sigma": -1.0}, it))
+        tap.write(Event(frame, "frames", "frame", {"source": f"/in/f{frame}.png", "status": "ok"}))
+    assert tap.series() == [("f1.png", {1: {"sigma": 1.1}, 2: {"sigma": 1.2}}),
+                            ("f3.png", {1: {"sigma": 3.1}, 2: {"sigma": 3.2}})]
