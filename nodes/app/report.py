@@ -32,14 +32,18 @@ LINKED = (("shadow", "shadow.png"), ("relit", "relit.png"), ("novel view", "nove
           ("albedo", "albedo.png"))
 
 
-def write_report(out: Path, records: list[dict], recording: Path | None = None, title: str = "shadowflow run") -> Path:
+def write_report(out: Path, records: list[dict], recording: Path | None = None, title: str = "shadowflow run",
+                 series: list[tuple[str, dict]] | None = None) -> Path:
     """Write ``out/report.html`` for the run whose summary records are ``records`` (input order).
-    recording: the run's MCAP recording (a file or the folder), for the convergence plot; None or
-    unreadable: the report says so. Returns the report's path."""
+    The convergence plot draws ``series`` (``(frame name, {iteration: scalars})`` per frame, as the
+    run kept them, ``ScalarsTap``) when given, else reads ``recording`` (the run's MCAP, a file or
+    the folder); neither, or unreadable: the report says so. Returns the report's path."""
     ok = [r for r in records if _written(out, r)]
     failed = [r for r in records if r not in ok]
     doubtful = sum(str(r.get("status", "")).startswith("doubtful") for r in ok)
-    plot = _convergence_png(recording) if recording is not None else None
+    if series is None and recording is not None:
+        series = _recorded_series(recording)
+    plot = _convergence_png(series) if series else None
     parts = [_HEAD.format(title=html.escape(title)),
              f"<h1>{html.escape(title)}</h1>",
              f"<p class=meta>{len(records)} frames: {len(ok) - doubtful} ok, {doubtful} doubtful (outputs written, "
@@ -130,9 +134,9 @@ def _embedded(img: np.ndarray | None, alt: str) -> str:
     return f'<img alt="{alt}" src="data:image/jpeg;base64,{base64.b64encode(enc.tobytes()).decode()}">' if ok else "-"
 
 
-def _convergence_png(recording: Path) -> str | None:
-    """The convergence plot of the first PLOT_FRAMES frames of the recording, base64 PNG."""
-    from ...flow.replay import convergence_figure, open_frames
+def _recorded_series(recording: Path) -> list[tuple[str, dict]] | None:
+    """The convergence scalars of the first PLOT_FRAMES frames of a recording; None if unreadable."""
+    from ...flow.replay import open_frames
 
     series = []
     try:
@@ -143,10 +147,15 @@ def _convergence_png(recording: Path) -> str | None:
                 break
     except RecordingError:
         return None
-    if not series:
-        return None
+    return series
+
+
+def _convergence_png(series: list[tuple[str, dict]]) -> str:
+    """The convergence plot of ``series`` (at most PLOT_FRAMES of them), base64 PNG."""
+    from ...flow.replay import convergence_figure
+
     buf = io.BytesIO()
-    convergence_figure(series, CONVERGENCE_PLOTS, CONVERGENCE_LABELS).savefig(buf, format="png")
+    convergence_figure(series[:PLOT_FRAMES], CONVERGENCE_PLOTS, CONVERGENCE_LABELS).savefig(buf, format="png")
     return base64.b64encode(buf.getvalue()).decode()
 
 
