@@ -31,7 +31,7 @@ from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, rea
 from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
-from .photo_relight import composite, exposure_gain, grow, photo_albedo, trusted_weight
+from .photo_relight import clipped_floor, composite, exposure_gain, grow, photo_albedo, trusted_weight
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -396,7 +396,11 @@ class PhotoRelightNode:
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             image = exposed_photo.copy()
-            image[y0:y1, x0:x1] = composite(exposed, gain * albedo * new_shading[..., None], face, feather)
+            # the albedo this light can trust: I / S also where S is small but S' is no larger
+            light_weight = trusted_weight(photo, shading, lit, face, 1.5 * px, new_shading)
+            light_albedo = photo_albedo(photo, shading, light_weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
+            face_image = clipped_floor(gain * light_albedo * new_shading[..., None], photo, shading, new_shading, gain, face)
+            image[y0:y1, x0:x1] = composite(exposed, face_image, face, feather)
             relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))
         full_albedo = np.full(full_photo.shape, np.nan, np.float32)
         full_albedo[y0:y1, x0:x1] = albedo

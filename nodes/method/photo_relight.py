@@ -19,6 +19,10 @@ import numpy as np
 # smooth ramp), as the model grid's albedo (``albedo.MIN_SHADING``). On Yale B (+-25 / 50 / 70, frontal
 # relight) a ramp from 0.2 relit 0.3 / 0.3 / 0.0 dB worse: the division amplifies the normals' errors.
 TRUST_SHADING = (0.4, 0.6)
+# where the new light changes the shading little, S' / S under this ramp, I / S is trusted down to
+# MIN_SHADING (``trusted_weight``): the division's errors are not amplified by the relighting
+MAX_AMPLIFICATION = (1.1, 1.5)
+MIN_SHADING = (0.08, 0.15)
 CLIPPED = 0.995  # brightness at or above this in any channel: the skin's value is unknown
 MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
@@ -68,21 +72,36 @@ def weighted_blur(values: np.ndarray, weights: np.ndarray, sigma: float) -> tupl
 
 
 def trusted_weight(photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, face: np.ndarray,
-                   feather_px: float) -> np.ndarray:
+                   feather_px: float, new_shading: np.ndarray | None = None) -> np.ndarray:
     """(H, W) in [0, 1]: how far the measured albedo ``I / S`` is trusted. Zero off the face, in
     cast or attached shadow (``lit`` False), where any channel is clipped, where a colour photo is
     not the face's skin colour, and where the shading is under ``TRUST_SHADING``; feathered over
-    ``feather_px`` so the blend has no edge."""
+    ``feather_px`` so the blend has no edge.
+
+    new_shading (H, W): the new light's ``S'``, for the albedo one relit image uses. An error
+    ``e`` in the fitted ``S`` reaches the relit pixel as ``rho S' e / S``: where the light changes
+    the shading little (``S' / S`` under ``MAX_AMPLIFICATION``), ``I / S`` is trusted down to
+    ``MIN_SHADING`` even where ``S`` is small. A photo relit with its own light then keeps its
+    own detail everywhere it is lit."""
     img = np.atleast_3d(photo)
     clipped = np.any(img >= CLIPPED, axis=-1)
-    hard = face & lit & ~clipped
-    if img.shape[-1] == 3 and hard.sum() > 50:  # not skin-coloured (hair, background inside the model's face)
+    hard = face & lit
+    if img.shape[-1] == 3 and (hard & ~clipped).sum() > 50:  # not skin-coloured (hair, background inside the model's face)
         chroma = img / np.maximum(img.sum(axis=-1, keepdims=True), 1e-6)
-        skin = np.median(chroma[hard], axis=0)
-        hard &= np.linalg.norm(chroma - skin, axis=-1) < MAX_CHROMA_DISTANCE
+        skin = np.median(chroma[hard & ~clipped], axis=0)
+        hard &= (np.linalg.norm(chroma - skin, axis=-1) < MAX_CHROMA_DISTANCE) | clipped
     soft = blur(hard.astype(np.float32), feather_px)
-    soft = np.where(hard, soft, 0.0)  # feather inward only: nothing outside the trusted set
-    return np.clip(2.0 * soft - 0.5, 0.0, 1.0) * smoothstep(shading, *TRUST_SHADING)
+    # feather inward only, from the shadows and the face's edge; clipped pixels (specks of shine, mostly)
+    # are cut out without a feather: the fill matches their surroundings' level, and a feather round
+    # each speck took the detail of the skin and hair about it (B05's frontal photo kept 93.5 %)
+    soft = np.where(hard & ~clipped, soft, 0.0)
+    trust = smoothstep(shading, *TRUST_SHADING)
+    if new_shading is not None:
+        s = np.asarray(shading, np.float32)
+        amplification = np.asarray(new_shading, np.float32) / np.maximum(s, np.float32(1e-3))
+        kept = (1.0 - smoothstep(amplification, *MAX_AMPLIFICATION)) * smoothstep(s, *MIN_SHADING)
+        trust = np.maximum(trust, kept)
+    return np.clip(2.0 * soft - 0.5, 0.0, 1.0) * trust
 
 
 def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coarse: np.ndarray,
@@ -115,6 +134,25 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     filled = base[..., None] * gain
     out = w[..., None] * measured + (1.0 - w[..., None]) * filled
     return np.where(face[..., None], np.clip(out, 0.0, None), np.nan).astype(np.float32)
+
+
+def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,
+                  gain: float, face: np.ndarray) -> np.ndarray:
+    """(H, W, C) ``face_image`` (the relit face, exposed by ``gain``) raised, where the photo is
+    clipped, to what the clipping proves: a clipped pixel's true brightness is at least the top of
+    the range, so under the new light (Lambertian) it is at least ``S' / S`` of it, ``gain x S' / S``
+    exposed. Otherwise unknown: the fill (``photo_albedo``) stays where it is brighter. With the
+    photo's own light (``S' = S``) a clipped pixel comes back clipped, as in the photo; a highlight
+    relit away from its light (``S' < S``) may come back darker, never brighter than its bound says.
+    photo (H, W, C) in [0, 1]; shading, new_shading (H, W) ``n . s`` and ``n . s'`` (0 in the new
+    light's cast shadow); face (H, W) bool."""
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    clipped = (img >= CLIPPED) & face[..., None]
+    if not clipped.any():
+        return face_image
+    ratio = np.asarray(new_shading, np.float32) / np.maximum(np.asarray(shading, np.float32), np.float32(0.05))
+    bound = np.float32(gain) * ratio[..., None]
+    return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
 def exposure_gain(albedo: np.ndarray, normals: np.ndarray, face: np.ndarray, target: float = EXPOSURE_TARGET,

@@ -3,7 +3,7 @@ back into the photo, exposure independent of the lamp, shadows found on the phot
 import numpy as np
 import pytest
 from scipy import ndimage
-from shadowflow.nodes.method.photo_relight import composite, exposure_gain, photo_albedo, trusted_weight
+from shadowflow.nodes.method.photo_relight import clipped_floor, composite, exposure_gain, photo_albedo, trusted_weight
 from shadowflow.nodes.method.shadow import far_darker, photo_shadows
 
 
@@ -94,3 +94,41 @@ def test_shadows_on_the_photo_are_the_far_darker_regions_that_meet_the_shapes_sh
     assert iou > 0.9, iou
     assert not found[30:36, 40:60].any()  # the brow, on the lit side
     assert far_darker(photo, shading, face)[cast].mean() > 0.95
+
+
+def test_low_shading_is_trusted_when_the_new_light_does_not_amplify_it():
+    """I / S at a grazing pixel carries the normals' errors divided by a small S; relit by a light
+    that leaves S' no larger, the error is not amplified, so the photo's own detail is kept there:
+    relit with its own light, every lit pixel above the noise floor is the photo's."""
+    rng = np.random.default_rng(1)
+    n, face = _sphere()
+    truth = _albedo(face, rng)
+    s = np.array([-0.6, 0.0, 0.8])
+    shading = np.clip(n @ s, 0, None)
+    photo = truth * shading[..., None]
+    lit = face & (shading > 0)
+    grazing = face & (shading > 0.2) & (shading < 0.35) & (ndimage.distance_transform_edt(lit) > 6)
+    assert grazing.sum() > 100
+    plain = trusted_weight(photo, shading, lit, face, 2.0)
+    same = trusted_weight(photo, shading, lit, face, 2.0, new_shading=shading)
+    frontal = trusted_weight(photo, shading, lit, face, 2.0, new_shading=np.clip(n[..., 2], 0, None))
+    assert plain[grazing].max() == 0.0 and same[grazing].min() > 0.99
+    # where the frontal light brightens a grazing pixel 2-4x, it stays untrusted
+    assert frontal[grazing & (n[..., 2] > 2 * shading)].max() == 0.0
+    np.testing.assert_array_less(plain - 1e-6, same)  # the new light only ever adds trust
+    albedo = photo_albedo(photo, shading, same, 0.7 * truth.mean(axis=-1), face, 6.0)
+    np.testing.assert_allclose(albedo[grazing], truth[grazing], rtol=1e-4)
+
+
+def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
+    """Clipping proves a pixel at least as bright as the top of the range: under the new light at
+    least S'/S of that. The fill below the bound is raised to it; a brighter fill, unclipped pixels
+    and pixels the new light leaves in shadow are untouched."""
+    shading = np.array([[0.9, 0.9, 0.5, 0.9]], np.float32)
+    new = np.array([[0.9, 0.45, 0.5, 0.0]], np.float32)
+    photo = np.array([[1.0, 1.0, 0.4, 1.0]], np.float32)[..., None]
+    filled = np.array([[0.5, 0.5, 0.3, 0.0]], np.float32)[..., None]
+    face = np.ones((1, 4), bool)
+    out = clipped_floor(filled, photo, shading, new, 1.2, face)[..., 0]
+    np.testing.assert_allclose(out, [[1.2, 0.6, 0.3, 0.0]], rtol=1e-6)
+    assert clipped_floor(filled * 3, photo, shading, new, 1.2, face)[0, 0, 0] == pytest.approx(1.5)
