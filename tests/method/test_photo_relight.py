@@ -25,14 +25,17 @@ def _albedo(face, rng):
     return np.dstack([level * detail * c for c in (1.0, 0.8, 0.65)])
 
 
-def test_lit_skin_keeps_its_detail_and_the_shadowed_side_takes_the_matched_fill():
-    rng = np.random.default_rng(0)
+def _side_lit_sphere(seed: int):
+    """The textured sphere lit from 37 degrees to the left: normals, disc, true albedo (RGB),
+    shading n . s, the photo and its lit pixels."""
     n, face = _sphere()
-    truth = _albedo(face, rng)
-    s = np.array([-0.6, 0.0, 0.8])
-    shading = np.clip(n @ s, 0, None)
-    photo = truth * shading[..., None]
-    lit = face & (shading > 0)
+    truth = _albedo(face, np.random.default_rng(seed))
+    shading = np.clip(n @ np.array([-0.6, 0.0, 0.8]), 0, None)
+    return n, face, truth, shading, truth * shading[..., None], face & (shading > 0)
+
+
+def test_lit_skin_keeps_its_detail_and_the_shadowed_side_takes_the_matched_fill():
+    n, face, truth, shading, photo, lit = _side_lit_sphere(0)
     w = trusted_weight(photo, shading, lit, face, 2.0)
     coarse = 0.7 * truth.mean(axis=-1)  # the fit's albedo: grey, smooth in truth, wrong in level
     albedo = photo_albedo(photo, shading, w, coarse, face, 6.0)
@@ -100,13 +103,7 @@ def test_low_shading_is_trusted_when_the_new_light_does_not_amplify_it():
     """I / S at a grazing pixel carries the normals' errors divided by a small S; relit by a light
     that leaves S' no larger, the error is not amplified, so the photo's own detail is kept there:
     relit with its own light, every lit pixel above the noise floor is the photo's."""
-    rng = np.random.default_rng(1)
-    n, face = _sphere()
-    truth = _albedo(face, rng)
-    s = np.array([-0.6, 0.0, 0.8])
-    shading = np.clip(n @ s, 0, None)
-    photo = truth * shading[..., None]
-    lit = face & (shading > 0)
+    n, face, truth, shading, photo, lit = _side_lit_sphere(1)
     grazing = face & (shading > 0.2) & (shading < 0.35) & (ndimage.distance_transform_edt(lit) > 6)
     assert grazing.sum() > 100
     plain = trusted_weight(photo, shading, lit, face, 2.0)
