@@ -7,7 +7,7 @@ import os
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -19,12 +19,19 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     The file gets ordinary permissions (0666 less the umask), not mkstemp's 0600. An
     ``OSError`` (e.g. disk full) leaves no temporary file behind and names ``path``.
     """
+    return atomic_write_chunks(path, (data,))
+
+
+def atomic_write_chunks(path: str | os.PathLike, chunks: Iterable[bytes]) -> Path:
+    """``atomic_write_bytes`` of the concatenated ``chunks``, written as they come: a large file
+    made piece by piece (a report of thousands of rows) is never whole in memory."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            for data in chunks:
+                f.write(data)
         os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
     except BaseException as exc:
