@@ -138,14 +138,17 @@ class RerunSink(Sink):
                 self.rec.send_columns(self._entity(f"{path}/{name}", frame), indexes=index(rs),
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
-        if _ndim(rows[0].value) == 1:  # a vector per iteration: a bar chart each (the SDK sends no
-            for e in rows:             # batch of tensors in one call)
-                a = display(e.value, e.kind)
-                if a.ndim != 1:
-                    raise ValueError(f"{entity}: iterations mix vectors and images")
-                self.rec.set_time("frame", sequence=frame)
-                self.rec.set_time("iteration", sequence=e.iteration)
-                self.rec.log(entity, rr.BarChart(a))
+        if _ndim(rows[0].value) == 1:  # a vector per iteration: the bar chart of the latest one held
+            # (normally the frame's last). The SDK sends no batch of tensors in one call, and one log
+            # call per iteration made a 128x128 recorded run 2.55x the unrecorded one instead of 1.77x;
+            # every iteration's vector stays in the MCAP (``replay``, ``diff``)
+            e = rows[-1]
+            a = display(e.value, e.kind)
+            if a.ndim != 1:
+                raise ValueError(f"{entity}: iterations mix vectors and images")
+            self.rec.set_time("frame", sequence=frame)
+            self.rec.set_time("iteration", sequence=e.iteration)
+            self.rec.log(entity, rr.BarChart(a))
             return
         images = display_stack(rows)
         n, h, w = images.shape[:3]
