@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import shutil
 import statistics
 import sys
 import tempfile
@@ -67,20 +68,24 @@ def measure(model, grid: int, frames: int, repeats: int, tmp: Path) -> list[dict
     # untimed: per-mask caches (integration operator, meshes) and the Rerun import are one-off
     run_stream(paths[:2], tmp / f"warm-{grid}-{model.n_modes}", model, MethodOptions(),
                RunOptions(record=("rerun", "mcap"), quiet=True))
-    rows, base = [], None
-    for name, record, ropt in CASES:
-        times, size = [], 0
-        for r in range(repeats):
+    # the cases take turns within each repeat: this shared machine's speed drifts by tens of percent
+    # over minutes, and running every repeat of one case before the next put that drift in the ratios
+    times: dict[str, list[float]] = {name: [] for name, _, _ in CASES}
+    size: dict[str, float] = {}
+    for r in range(repeats):
+        for name, record, ropt in CASES:
             out = tmp / f"out-{grid}-{model.n_modes}-{name}-{r}".replace(" ", "").replace(",", "")
             t0 = time.perf_counter()
             run_stream(paths, out, model, MethodOptions(), RunOptions(record=record, record_options=ropt, quiet=True))
-            times.append((time.perf_counter() - t0) / frames)
-            size = sum(f.stat().st_size for f in out.glob("run.*")) / frames
-        med = statistics.median(times)
-        base = base or med
+            times[name].append((time.perf_counter() - t0) / frames)
+            size[name] = sum(f.stat().st_size for f in out.glob("run.*")) / frames
+            shutil.rmtree(out, ignore_errors=True)
+    rows, base = [], statistics.median(times[CASES[0][0]])
+    for name, _, _ in CASES:
+        med = statistics.median(times[name])
         rows.append({"grid": grid, "K": model.n_modes, "recording": name, "ms_per_frame": round(1000 * med, 1),
-                     "ratio_to_off": round(med / base, 3), "mib_per_frame": round(size / 2**20, 3)})
-        print(f"| {grid} | {model.n_modes} | {name} | {1000 * med:.0f} | {med / base:.2f} | {size / 2**20:.2f} |",
+                     "ratio_to_off": round(med / base, 3), "mib_per_frame": round(size[name] / 2**20, 3)})
+        print(f"| {grid} | {model.n_modes} | {name} | {1000 * med:.0f} | {med / base:.2f} | {size[name] / 2**20:.2f} |",
               flush=True)
     return rows
 
