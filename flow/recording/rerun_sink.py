@@ -249,4 +249,4 @@ def _normals_rgb(n: Any) -> np.ndarray:
 
 def _unit32(a: Any) -> np.ndarray:
     """``_finite32`` clipped to [0, 1]: an image as a viewer shows it."""
-    return np.clip(_finite32(a), 0.0, 1.0, out=None)
+    return np.clip(_finite32(a), 0.0, 1.0)

@@ -31,7 +31,7 @@ from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, rea
 from ..photo.mouth import face_length_factor
 from .albedo import estimate_albedo
 from .light import estimate_light, mean_face_weights
-from .photo_relight import clipped_floor, composite, exposure_gain, grow, photo_albedo, trusted_weight
+from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -384,8 +384,9 @@ class PhotoRelightNode:
         # a shadow's soft edge (penumbra) is not lit skin either
         lit = face & ~grow(shadow, 1.5 * px)
         coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
-        weight = trusted_weight(photo, shading, lit, face, 1.5 * px)
-        albedo = photo_albedo(photo, shading, weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
+        measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
+        match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
+        albedo = photo_albedo(photo, shading, measured * shading_trust(shading), coarse, face, match_px)
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
         gain = np.float32(gain)
         exposed_photo, exposed = gain * full_photo, gain * photo
@@ -397,8 +398,8 @@ class PhotoRelightNode:
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             image = exposed_photo.copy()
             # the albedo this light can trust: I / S also where S is small but S' is no larger
-            light_weight = trusted_weight(photo, shading, lit, face, 1.5 * px, new_shading)
-            light_albedo = photo_albedo(photo, shading, light_weight, coarse, face, PHOTO_MATCH_SIGMA * self.iod * al.scale)
+            light_albedo = photo_albedo(photo, shading, measured * shading_trust(shading, new_shading), coarse, face,
+                                        match_px)
             face_image = clipped_floor(gain * light_albedo * new_shading[..., None], photo, shading, new_shading, gain, face)
             image[y0:y1, x0:x1] = composite(exposed, face_image, face, feather)
             relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))
