@@ -12,10 +12,11 @@ on-disk formats are documented in ``recordings/README.md``. Knows nothing about 
 from .codec import decode_array, encode_array, log_time_ns
 from .events import Event, Kind, OnMask, Sink
 from .mcap_sink import McapSink
+from .process import ProcessSinks
 from .reader import FrameRecording, FrameStream, Recording, RecordingError, read_mcap
 from .recorder import Recorder, RecordOptions
 from .rerun_sink import RerunSink
 from .tap import ScalarsTap
 
-__all__ = ["Event", "FrameRecording", "FrameStream", "Kind", "McapSink", "OnMask", "RecordOptions", "Recorder", "Recording",
+__all__ = ["Event", "FrameRecording", "FrameStream", "Kind", "McapSink", "OnMask", "ProcessSinks", "RecordOptions", "Recorder", "Recording",
            "RecordingError", "RerunSink", "ScalarsTap", "Sink", "decode_array", "encode_array", "log_time_ns", "read_mcap"]

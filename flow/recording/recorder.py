@@ -13,10 +13,12 @@ from .events import ARRAY_KINDS, Event, Kind, OnMask, Sink
 @dataclass
 class RecordOptions:
     """every: keep iterations 1, 1 + every, ... and the last; float16: store float arrays as
-    float16 (half the bytes, about 3 significant digits)."""
+    float16 (half the bytes, about 3 significant digits); own_process: the file sinks write in a
+    process of their own (``ProcessSinks``), else on the recorder's thread."""
 
     every: int = 1
     float16: bool = False
+    own_process: bool = True
 
     def keep(self, iteration: int, last: bool = False) -> bool:
         """Is fit iteration ``iteration`` (1-based) recorded? 1, 1 + every, ... and the last."""

@@ -36,6 +36,7 @@ from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
+from .blueprint import default_blueprint
 from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
@@ -44,7 +45,6 @@ from .record import (
     CONVERGENCE_LABELS,
     CONVERGENCE_PLOTS,
     DISPLAY_KINDS,
-    default_blueprint,
     frame_name,
     stage_rank,
 )

@@ -23,7 +23,8 @@ from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode, summary_record
-from .record import FitRecorder, RecordNode, default_blueprint
+from .blueprint import default_blueprint
+from .record import FitRecorder, RecordNode
 
 DASK_METAVAR = "local[:N]|tcp://HOST:PORT|env"
 DASK_HELP = ("run frames as tasks on Dask: local (a LocalCluster, one worker process per core), local:N "

@@ -114,38 +114,6 @@ class RecordNode:
         return frame
 
 
-def default_blueprint():
-    """Rerun layout: the frame's images and its surface above the fit's convergence (sigma, mean
-    change, mean residual) and its coefficients as a bar chart, on the ``iteration`` timeline.
-    Entities are ``/<node>/<name>/<input stem>``; each view gathers its channel from every frame
-    (``/<node>/<name>/**``), and the image and surface views show the frame at the time cursor of
-    the ``frame`` timeline (the plots: every frame's curve on the ``iteration`` timeline)."""
-    import rerun.blueprint as rrb
-
-    this_frame = [rrb.VisibleTimeRange("frame", start=rrb.TimeRangeBoundary.cursor_relative(),
-                                       end=rrb.TimeRangeBoundary.cursor_relative())]
-    images = [("input", "load/grid_image"), ("weights", "robust_fit/weights"), ("normals", "robust_fit/normals"),
-              ("shadow", "shadow/cast"), ("albedo", "albedo/albedo"), ("relit", "relight/relit")]
-    plots = [("sigma (radians)", "robust_fit/convergence/sigma"),
-             ("mean change (degrees)", "robust_fit/convergence/change_deg"),
-             ("mean residual (radians)", "robust_fit/convergence/residual_mean")]
-    return rrb.Blueprint(
-        rrb.Vertical(
-            rrb.Horizontal(
-                rrb.Grid(*[rrb.Spatial2DView(name=n, origin=f"/{p}", time_ranges=this_frame) for n, p in images]),
-                rrb.Spatial3DView(name="surface", origin="/integrate/mesh", time_ranges=this_frame),
-                column_shares=[3, 2],
-            ),
-            rrb.Horizontal(
-                *[rrb.TimeSeriesView(name=n, origin=f"/{p}") for n, p in plots],
-                rrb.BarChartView(name="coefficients b", origin="/robust_fit/b"),
-            ),
-            row_shares=[3, 2],
-        ),
-        collapse_panels=True,
-    )
-
-
 def frame_name(fr: FrameRecording) -> str:
     """What a recorded frame is called across runs: its input's file name once it finished (output
     names and frame ids depend on what else a run was given), else ``#<frame id>``. ``diff`` pairs

@@ -10,6 +10,7 @@ import os
 import socket
 import sys
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -28,7 +29,7 @@ from ...flow.manifest import (
     input_key,
 )
 from ...flow.pipeline import Pipeline, Stage
-from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink, ScalarsTap
+from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
@@ -41,7 +42,8 @@ from .outputs import (
     write_summary,
 )
 from .process import one_blas_thread, release_large_frees
-from .record import CONVERGENCE, FitRecorder, RecordNode, default_blueprint
+from .blueprint import rerun_sink
+from .record import CONVERGENCE, FitRecorder, RecordNode
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
 
 
@@ -209,18 +211,23 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     manifest = RunManifest(config, list(previous.recordings) if previous else [],
                            dict(previous.entries) if previous else {})
 
-    sinks = []
+    specs: list = []  # the recording's file sinks, as (factory, args, kwargs)
     parts = {suffix: _recording_path(out, suffix, run.resume) for suffix in ("mcap", "rrd")}
     for path in parts.values():  # a link planted in --out would send the recording elsewhere
         refuse_link(path)
     for name in (MANIFEST_NAME, JOURNAL_NAME, "summary.json"):
         refuse_link(out / name)
+    recording_id = str(uuid.uuid4())  # the Rerun recording's id: a distributed run's parts share it
     if "mcap" in run.record:
-        sinks.append(McapSink(parts["mcap"]))
+        specs.append((McapSink, (str(parts["mcap"]),), {}))
         manifest.recordings.append(parts["mcap"].name)
     if "rerun" in run.record:
-        sinks.append(RerunSink(parts["rrd"], blueprint=default_blueprint()))
+        specs.append((rerun_sink, (str(parts["rrd"]), recording_id), {}))
         manifest.recordings.append(parts["rrd"].name)
+    if specs and run.record_options.own_process and client is None:
+        sinks: list = [ProcessSinks(specs)]  # encoding and compression on the other core
+    else:
+        sinks = [factory(*args, **kwargs) for factory, args, kwargs in specs]
     # the report's convergence plot from what this run records, instead of reading the recording
     # back at the end (it decompresses every array: 0.7 s for 12 frames); a resumed or distributed
     # job's frames are recorded elsewhere too, so its report reads the recording
@@ -365,9 +372,8 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         from ...flow.distributed import DaskPipeline
         from .cluster import WorkerChain
 
-        rerun_ids = [sink.recording_id for sink in sinks if isinstance(sink, RerunSink)]
         chain = WorkerChain(options, out.resolve(), frozenset(protected), tuple(run.record), run.record_options,
-                            rerun_ids[0] if rerun_ids else "")
+                            recording_id if "rerun" in run.record else "")
         pipeline = DaskPipeline(client, chain, shared=model, on_done=done, frame_timeout=run.frame_timeout)
     try:
         with one_blas_thread():
@@ -385,8 +391,9 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
                 print(f"note: {exc}", file=sys.stderr)
         save_summary(force=True)
         for sink in sinks:  # a long run's .rrd goes on in segment files: the job's parts too
-            for path in getattr(sink, "paths", ())[1:]:
-                manifest.recordings.append(path.name)
+            for path in getattr(sink, "paths", ()):
+                if path.name not in manifest.recordings:
+                    manifest.recordings.append(path.name)
         try:
             manifest.save(out)
         except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both

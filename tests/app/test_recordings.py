@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +74,26 @@ def _wait_for_records(out: Path, n: int, timeout: float = 120.0) -> None:
     deadline = time.time() + timeout
     while time.time() < deadline and len(_done(out)) < n:
         time.sleep(0.05)
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux)."""
+    return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie nobody has reaped yet counts as ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _wait_gone(pids: list[int], timeout: float = 60.0) -> None:
+    deadline = time.time() + timeout
+    while time.time() < deadline and any(_alive(p) for p in pids):
+        time.sleep(0.05)
+    assert not any(_alive(p) for p in pids), "the recording process outlived its run"
 
 
 def test_every_iteration_of_every_frame_is_recorded(demo):
@@ -313,8 +334,11 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     cmd = [sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(src), "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _wait_for_records(out, 2)
+    recording_process = _children(proc.pid)
+    assert len(recording_process) == 1  # the sinks write in a process of their own
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    _wait_gone(recording_process)  # it reads end-of-file and closes the files
     done_before = _done(out)  # the journal: every frame is there once its files and recording are
     assert 2 <= len(done_before) < 16
     listed = json.loads((out / "summary.json").read_text())  # rewritten about once a second: may lag
@@ -324,7 +348,8 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     for fr in rec.finished_frames():
         assert fr.iterations("robust_fit/normals") == list(range(1, fr.record["iterations"] + 1))
     rc = pytest.importorskip("rerun.chunk")
-    with pytest.warns(Warning, match="no footer"):  # killed: Rerun reads it by a whole-file scan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. "no footer": the file was cut, not closed
         store = rc.RrdReader(out / "run.rrd").stream().collect()
     killed_rrd = str(store.summary())
     for k in range(len(done_before) - 1):
