@@ -3,7 +3,8 @@
     python benchmarks/bench_soak.py [--frames 2000] [--record rerun,mcap] [--json soak.json] [--no-replay]
 
 Runs ``shadowflow run`` over N synthetic 128x128 faces (copies of 10, ``bench_stream.make_inputs``)
-in a child process and samples, every second, its resident memory (``/proc/PID/status`` VmRSS) and
+in a child process and samples, every second, its resident memory with its recording process's
+(``/proc/PID/status`` VmRSS, summed over the process tree) and
 how many frames it has finished (lines of its journal). Reports memory and frames/s over the first
 and the last tenth of the frames, and their ratios (flat: within 10 %). Then ``shadowflow replay``
 and ``shadowflow diff`` (the run against itself) of the run's folder, with their peak RSS
@@ -31,13 +32,19 @@ _HWM = ("import runpy, sys\nsys.argv = ['shadowflow'] + sys.argv[1:]\n"
 
 
 def _rss_kib(pid: int) -> int | None:
+    """Resident KiB of ``pid`` and its descendants (the run and its recording process)."""
     try:
-        for line in open(f"/proc/{pid}/status"):
-            if line.startswith("VmRSS"):
-                return int(line.split()[1])
-    except OSError:
+        own = next(int(line.split()[1]) for line in open(f"/proc/{pid}/status") if line.startswith("VmRSS"))
+    except (OSError, StopIteration):
         return None
-    return None
+    return own + sum(_rss_kib(c) or 0 for c in _children(pid))
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in open(f"/proc/{pid}/task/{pid}/children").read().split()]
+    except OSError:
+        return []
 
 
 def _done(out: Path) -> int:
