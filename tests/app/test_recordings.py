@@ -392,3 +392,23 @@ def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     assert not rec.truncated and len(rec.finished_frames()) == len(summary)  # closed properly
     rc = pytest.importorskip("rerun.chunk")
     assert f"/status/{summary[-1]['stem']}" in str(rc.RrdReader(out / "run.rrd").store().summary())
+
+
+def test_a_script_without_a_main_guard_records_through_the_api(tmp_path):
+    """``shadowflow.run`` from a plain script records in its own process without running the
+    script again (a spawned ``multiprocessing`` child would re-import ``__main__``): the script's
+    top level runs once, and the recording holds the frame."""
+    src = tmp_path / "in"
+    src.mkdir()
+    _golden_copies(src, 1)
+    script = tmp_path / "plain.py"
+    script.write_text(
+        "import shadowflow\n"
+        f"print('top level ran', flush=True)\n"
+        f"run = shadowflow.run([{str(src / 'face-00.png')!r}], {str(tmp_path / 'out')!r}, record=('mcap', 'rerun'))\n"
+        "print(run.records[0]['status'])\n")
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == ["top level ran", "ok"]
+    assert [fr.record["stem"] for fr in read_mcap(tmp_path / "out" / "run.mcap").finished_frames()] == ["face-00"]
+    assert (tmp_path / "out" / "run.rrd").stat().st_size > 0
