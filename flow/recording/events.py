@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -64,7 +65,10 @@ class OnMask:
 
 
 class Sink:
-    """Writes events somewhere. ``write`` runs on the recorder's thread only."""
+    """Writes events somewhere. ``write`` runs on the recorder's thread only. ``paths``: the files
+    it has written so far (none for a sink that keeps its events in memory)."""
+
+    paths: Sequence[Path] = ()
 
     def name_frame(self, frame: int, name: str) -> None:
         """What frame ``frame`` is called (e.g. its input's stem), before its events come."""

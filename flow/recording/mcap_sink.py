@@ -39,6 +39,7 @@ class McapSink(Sink):
         from mcap.writer import CompressionType, IndexType, Writer
 
         self.path = Path(path)
+        self.paths = [self.path]
         self._file = open(self.path, "wb")
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
         # chunk indexes, not message indexes: the writer holds every chunk's index until the file

@@ -183,7 +183,7 @@ def serve(fd: int) -> None:
 
 
 def _paths(sinks: list[Sink]) -> list[str]:
-    return [str(p) for s in sinks for p in (getattr(s, "paths", None) or [getattr(s, "path", None)]) if p]
+    return [str(p) for s in sinks for p in s.paths]
 
 
 def _describe(exc: BaseException) -> str:

@@ -5,10 +5,12 @@ the sink from here without loading the method.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 from ...flow.recording.rerun_sink import RerunSink
 
 
-def rerun_sink(path: str, recording_id: str | None = None) -> RerunSink:
+def rerun_sink(path: str | Path, recording_id: str | None = None) -> RerunSink:
     """The run's Rerun sink: ``path`` with the default blueprint (a ``ProcessSinks`` factory)."""
     return RerunSink(path, blueprint=default_blueprint(), recording_id=recording_id)
 

@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import Iterator
 
 from ...flow.frame import Frame
-from ...flow.recording import McapSink, Recorder, RecordOptions, RerunSink
+from ...flow.recording import McapSink, Recorder, RecordOptions
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode, summary_record
-from .blueprint import default_blueprint
+from .blueprint import rerun_sink
 from .record import FitRecorder, RecordNode
 
 DASK_METAVAR = "local[:N]|tcp://HOST:PORT|env"
@@ -63,7 +63,7 @@ class WorkerChain:
                 recorder.frame_done(frame.id, summary_record(frame), wait=True)
                 if recorder.error is not None:
                     frame.meta["recording_error"] = f"recording failed: {recorder.error}"
-            frame.meta["recording_parts"] = [p.name for sink in sinks for p in getattr(sink, "paths", [sink.path])]
+            frame.meta["recording_parts"] = [p.name for sink in sinks for p in sink.paths]
             frame.data = {}
 
         return nodes, finish, (recorder.close if recorder is not None else None)
@@ -74,7 +74,7 @@ class WorkerChain:
         if "mcap" in paths:
             sinks.append(McapSink(paths["mcap"]))
         if "rrd" in paths:
-            sinks.append(RerunSink(paths["rrd"], blueprint=default_blueprint(), recording_id=self.recording_id))
+            sinks.append(rerun_sink(paths["rrd"], self.recording_id))
         return Recorder(sinks, self.record_options), sinks
 
 

@@ -391,7 +391,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
                 print(f"note: {exc}", file=sys.stderr)
         save_summary(force=True)
         for sink in sinks:  # a long run's .rrd goes on in segment files: the job's parts too
-            for path in getattr(sink, "paths", ()):
+            for path in sink.paths:
                 if path.name not in manifest.recordings:
                     manifest.recordings.append(path.name)
         try:
