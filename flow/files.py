@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import json
 import os
 import tempfile
 from contextlib import contextmanager
@@ -41,6 +42,19 @@ def atomic_write_chunks(path: str | os.PathLike, chunks: Iterable[bytes]) -> Pat
             raise OSError(exc.errno, exc.strerror, str(path)) from exc
         raise
     return path
+
+
+def json_array_chunks(items: Iterable, indent: int, level: int = 0, default=None) -> Iterator[bytes]:
+    """``json.dumps(list(items), indent=indent)`` as it would appear nested ``level`` deep in an
+    indented document, produced item by item (never the whole list in memory). Byte-equal to
+    ``json.dumps`` of the list (tested)."""
+    pad = " " * (indent * (level + 1))
+    first = True
+    for item in items:
+        text = json.dumps(item, indent=indent, default=default).replace("\n", "\n" + pad)
+        yield (("[\n" if first else ",\n") + pad + text).encode()
+        first = False
+    yield b"[]" if first else ("\n" + " " * (indent * level) + "]").encode()
 
 
 class FolderBusy(RuntimeError):

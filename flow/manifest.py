@@ -14,10 +14,12 @@ import hashlib
 import json
 import os
 import stat
+from collections.abc import Iterator, MutableMapping
 from dataclasses import asdict, dataclass, field
+from itertools import chain
 from pathlib import Path
 
-from .files import atomic_write_bytes
+from .files import atomic_write_chunks, json_array_chunks
 from .recording.codec import jsonable
 
 MANIFEST_NAME = "manifest.json"
@@ -130,15 +132,22 @@ def _read_json_file(path: Path) -> bytes | None:
 class RunManifest:
     """config: the caller's configuration of the run that last started in the folder;
     recordings: file names (in the folder) of the job's recording parts, in order; entries:
-    every input processed into the folder, by ``input_key``."""
+    every input processed into the folder, by ``input_key`` (a dict, or a mapping whose values come
+    by frame id, e.g. ``flow.runstore.EntryStore`` on disk)."""
 
     config: dict
     recordings: list[str] = field(default_factory=list)
-    entries: dict[str, InputEntry] = field(default_factory=dict)
+    entries: MutableMapping[str, InputEntry] = field(default_factory=dict)
 
     @property
     def config_id(self) -> str:
         return config_hash(self.config)
+
+    def by_frame(self) -> Iterator[InputEntry]:
+        """The entries by frame id."""
+        if isinstance(self.entries, dict):
+            return iter(sorted(self.entries.values(), key=lambda e: e.frame))
+        return iter(self.entries.values())
 
     def next_frame(self) -> int:
         return 1 + max((e.frame for e in self.entries.values()), default=-1)
@@ -176,9 +185,11 @@ class RunManifest:
     def save(self, folder: str | os.PathLike) -> None:
         """Write ``manifest.json`` atomically, then empty the journal it now includes."""
         folder = Path(folder)
-        body = {"format": FORMAT, "config": self.config, "config_id": self.config_id, "recordings": self.recordings,
-                "inputs": [asdict(e) for e in sorted(self.entries.values(), key=lambda e: e.frame)]}
-        atomic_write_bytes(folder / MANIFEST_NAME, (json.dumps(body, indent=1, default=jsonable) + "\n").encode())
+        head = {"format": FORMAT, "config": self.config, "config_id": self.config_id, "recordings": self.recordings,
+                "inputs": []}
+        text = json.dumps(head, indent=1, default=jsonable)  # ends '"inputs": []\n}': the entries go there, streamed
+        inputs = json_array_chunks((asdict(e) for e in self.by_frame()), indent=1, level=1, default=jsonable)
+        atomic_write_chunks(folder / MANIFEST_NAME, chain([text[:-len("[]\n}")].encode()], inputs, [b"\n}\n"]))
         journal = folder / JOURNAL_NAME
         if journal.is_symlink() or journal.exists():
             journal.unlink()

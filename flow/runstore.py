@@ -1,0 +1,133 @@
+"""A run's records and input entries kept on disk, not in memory, so a job of any length keeps
+the process flat.
+
+``RunStore`` is an SQLite file (``.run.sqlite``) in the output folder for the length of one run:
+the records (JSON objects keyed by a unique name, in the order first put) and the manifest's
+input entries (``EntryStore``, a mapping by input key). It is a scratch, never the durable
+copy: the journal holds every finished frame and ``summary.json`` / ``manifest.json`` are
+written from the store (streamed, ``flow.files.json_array_chunks``), after which it is removed. A run
+killed before that leaves it behind; the next run replaces it. Face-agnostic.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import threading
+from collections.abc import Iterator, MutableMapping
+from dataclasses import asdict
+from pathlib import Path
+
+from .manifest import InputEntry
+from .recording.codec import jsonable
+
+STORE_NAME = ".run.sqlite"
+_PAGE = 512  # rows read at a time when streaming
+
+
+class RunStore:
+    """The scratch store in ``folder`` (whatever is at its name, a stale store or a link, is
+    removed first: a link is never followed).
+    Safe to use from several threads (one connection, one lock)."""
+
+    def __init__(self, folder: str | os.PathLike):
+        self.path = Path(folder) / STORE_NAME
+        self.path.unlink(missing_ok=True)
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+        for pragma in ("journal_mode=OFF", "synchronous=OFF", "cache_size=-2048", "temp_store=FILE"):
+            self._db.execute(f"PRAGMA {pragma}")  # a scratch: no rollback journal, no fsync, 2 MiB of cache
+        self._db.executescript(
+            "CREATE TABLE records (pos INTEGER PRIMARY KEY, name TEXT UNIQUE NOT NULL, body TEXT NOT NULL);"
+            "CREATE TABLE entries (key TEXT PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL);"
+            "CREATE INDEX entries_by_frame ON entries (frame, key);")
+        self.entries = EntryStore(self)
+        self.records = RecordView(self)
+
+    def put_record(self, name: str, record: dict) -> None:
+        """Add ``record`` under ``name``, or replace the one of that name in its place."""
+        body = json.dumps(record, separators=(",", ":"))
+        with self._lock:
+            self._db.execute("INSERT INTO records (name, body) VALUES (?, ?) "
+                             "ON CONFLICT (name) DO UPDATE SET body = excluded.body", (name, body))
+
+    def _execute(self, sql: str, args: tuple = ()) -> list:
+        with self._lock:
+            return self._db.execute(sql, args).fetchall()
+
+    def _pages(self, sql: str, start: tuple) -> Iterator[tuple]:
+        """Rows of ``sql`` (keyset-paged: it takes the last row's sort key and a limit), a page at a
+        time under the lock, so other threads may write between pages."""
+        after = start
+        while True:
+            rows = self._execute(sql, (*after, _PAGE))
+            yield from rows
+            if len(rows) < _PAGE:
+                return
+            after = rows[-1][:len(start)]
+
+    def close(self, remove: bool = True) -> None:
+        with self._lock:
+            self._db.close()
+        if remove:
+            self.path.unlink(missing_ok=True)
+
+
+class RecordView:
+    """The store's records in order: ``len`` and re-iterable (each pass reads the file again)."""
+
+    def __init__(self, store: RunStore):
+        self._store = store
+
+    def __len__(self) -> int:
+        return self._store._execute("SELECT count(*) FROM records")[0][0]
+
+    def __iter__(self) -> Iterator[dict]:
+        for _, body in self._store._pages("SELECT pos, body FROM records WHERE pos > ? ORDER BY pos LIMIT ?", (-1,)):
+            yield json.loads(body)
+
+
+class EntryStore(MutableMapping):
+    """The manifest's input entries by input key, in the store (``RunManifest.entries``)."""
+
+    def __init__(self, store: RunStore):
+        self._store = store
+
+    def __getitem__(self, key: str) -> InputEntry:
+        rows = self._store._execute("SELECT body FROM entries WHERE key = ?", (key,))
+        if not rows:
+            raise KeyError(key)
+        return InputEntry(**json.loads(rows[0][0]))
+
+    def __setitem__(self, key: str, entry: InputEntry) -> None:
+        body = json.dumps(asdict(entry), separators=(",", ":"), default=jsonable)
+        self._store._execute("INSERT OR REPLACE INTO entries (key, frame, body) VALUES (?, ?, ?)",
+                             (key, entry.frame, body))
+
+    def __delitem__(self, key: str) -> None:
+        if key not in self:
+            raise KeyError(key)
+        self._store._execute("DELETE FROM entries WHERE key = ?", (key,))
+
+    def __contains__(self, key: object) -> bool:
+        return bool(self._store._execute("SELECT 1 FROM entries WHERE key = ?", (key,)))
+
+    def __len__(self) -> int:
+        return self._store._execute("SELECT count(*) FROM entries")[0][0]
+
+    def __iter__(self) -> Iterator[str]:
+        for (key,) in self._store._pages("SELECT key FROM entries WHERE key > ? ORDER BY key LIMIT ?", ("",)):
+            yield key
+
+    def values(self) -> Iterator[InputEntry]:  # type: ignore[override]
+        return self.by_frame()
+
+    def by_frame(self) -> Iterator[InputEntry]:
+        """Every entry, by frame id."""
+        sql = "SELECT frame, key, body FROM entries WHERE (frame, key) > (?, ?) ORDER BY frame, key LIMIT ?"
+        for _, _, body in self._store._pages(sql, (-1, "")):
+            yield InputEntry(**json.loads(body))
+
+    def max_frame(self) -> int:
+        """The largest frame id, -1 when empty."""
+        return self._store._execute("SELECT coalesce(max(frame), -1) FROM entries")[0][0]
