@@ -216,9 +216,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         total = len(stream)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
-    records = result.records
-    failures = sum(r["status"] != "ok" for r in records)
-    note(f"{len(records) - failures} of {len(records)} done in {time.perf_counter() - t0:.1f} s; "
+    failures = result.not_ok
+    note(f"{result.frames - failures} of {result.frames} done in {time.perf_counter() - t0:.1f} s; "
          f"report: {out / 'report.html'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
     watch_error = watch.error if watch is not None else None
     if watch_error:

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import os
 import re
 import unicodedata
 from pathlib import Path
+from typing import Iterable
 
 import cv2
 import numpy as np
 
-from ...flow.files import atomic_write_bytes
+from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_chunks
 from ...flow.frame import Frame
 from ..method.products import input_grid_products, photo_mesh
 from ..model.shape_model import ShapeModel
@@ -160,5 +162,8 @@ def summary_record(frame: Frame) -> dict:
     return rec
 
 
-def write_summary(out_dir: Path, records: list[dict]) -> None:
-    atomic_write_bytes(out_dir / "summary.json", (json.dumps(records, indent=2) + "\n").encode())
+def write_summary(out_dir: Path, records: Iterable[dict]) -> None:
+    """``out_dir/summary.json``: the records (input order) as a JSON list, written atomically and
+    record by record (a run's records come from its store on disk, never all in memory)."""
+    chunks = json_array_chunks(records, indent=2)
+    atomic_write_chunks(out_dir / "summary.json", itertools.chain(chunks, [b"\n"]))

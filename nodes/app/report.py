@@ -14,6 +14,7 @@ import html
 import io
 import json
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from urllib.parse import quote
 
@@ -32,21 +33,28 @@ LINKED = (("shadow", "shadow.png"), ("relit", "relit.png"), ("novel view", "nove
           ("albedo", "albedo.png"))
 
 
-def write_report(out: Path, records: list[dict], recording: Path | None = None, title: str = "shadowflow run",
+def write_report(out: Path, records: Iterable[dict], recording: Path | None = None, title: str = "shadowflow run",
                  series: list[tuple[str, dict]] | None = None) -> Path:
-    """Write ``out/report.html`` for the run whose summary records are ``records`` (input order).
+    """Write ``out/report.html`` for the run whose summary records are ``records`` (input order; read
+    twice, so a list or a re-iterable view such as ``RunStore.records``).
     The convergence plot draws ``series`` (``(frame name, {iteration: scalars})`` per frame, as the
     run kept them, ``ScalarsTap``) when given, else reads ``recording`` (the run's MCAP, a file or
     the folder); neither, or unreadable: the report says so. Returns the report's path."""
-    ok = [r for r in records if _written(out, r)]
-    failed = [r for r in records if r not in ok]
-    doubtful = sum(str(r.get("status", "")).startswith("doubtful") for r in ok)
+    frames = n_ok = doubtful = 0
+    failed = []  # (input, step, reason) of each frame without outputs
+    for r in records:
+        frames += 1
+        if _written(out, r):
+            n_ok += 1
+            doubtful += str(r.get("status", "")).startswith("doubtful")
+        else:
+            failed.append((r.get("source"), r.get("failed_in", ""), r.get("status")))
     if series is None and recording is not None:
         series = _recorded_series(recording)
     plot = _convergence_png(series) if series else None
     parts = [_HEAD.format(title=html.escape(title)),
              f"<h1>{html.escape(title)}</h1>",
-             f"<p class=meta>{len(records)} frames: {len(ok) - doubtful} ok, {doubtful} doubtful (outputs written, "
+             f"<p class=meta>{frames} frames: {n_ok - doubtful} ok, {doubtful} doubtful (outputs written, "
              f"look before trusting them), {len(failed)} failed. Written {time.strftime('%Y-%m-%d %H:%M')}; "
              f"<a href=summary.json>summary.json</a>.</p>"]
     parts.append("<h2>Convergence</h2>")
@@ -56,16 +64,16 @@ def write_report(out: Path, records: list[dict], recording: Path | None = None, 
         parts.append("<p class=meta>No recording to plot (run with <code>--record mcap</code>).</p>")
     if failed:
         parts.append(f"<h2>Failed ({len(failed)})</h2><table class=failed><tr><th>input<th>step<th>reason</tr>")
-        parts += [f"<tr><td>{_text(r.get('source'))}<td>{_text(r.get('failed_in', ''))}<td>{_text(r.get('status'))}"
-                  for r in failed]
+        parts += [f"<tr><td>{_text(source)}<td>{_text(step)}<td>{_text(status)}" for source, step, status in failed]
         parts.append("</table>")
-    parts.append(f"<h2>Frames ({len(ok)})</h2><table class=sheet><tr><th>frame<th>input<th>weights"
+    parts.append(f"<h2>Frames ({n_ok})</h2><table class=sheet><tr><th>frame<th>input<th>weights"
                  + "".join(f"<th>{name}" for name, _ in LINKED) + "</tr>")
 
     def page():  # row by row: 2,000 frames' embedded thumbnails are tens of MB
         yield "\n".join(parts).encode()
-        for r in ok:
-            yield ("\n" + _row(out, r)).encode()
+        for r in records:  # read again, a row at a time
+            if _written(out, r):
+                yield ("\n" + _row(out, r)).encode()
         yield b"\n</table></body></html>\n"
 
     return atomic_write_chunks(out / REPORT_NAME, page())

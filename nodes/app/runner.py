@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import errno
+import functools
 import json
 import math
 import os
@@ -29,6 +30,7 @@ from ...flow.manifest import (
     input_key,
 )
 from ...flow.pipeline import Pipeline, Stage
+from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
@@ -137,12 +139,21 @@ class Progress:
 
 @dataclass
 class RunResult:
-    """records: the summary records, in input order; stopped: a stop (signal) cut the run short;
+    """out: the output folder; frames: how many frames have a summary record; not_ok: how many of
+    those are not "ok" (failed or doubtful); stopped: a stop (signal) cut the run short;
     storage_error: why the output folder stopped taking data, if it did (the run stopped then)."""
 
-    records: list[dict]
+    out: Path
+    frames: int
+    not_ok: int
     stopped: bool
     storage_error: str | None = None
+
+    @functools.cached_property
+    def records(self) -> list[dict]:
+        """The summary records, in input order (``summary.json`` read back: the run kept them on
+        disk, not in memory)."""
+        return json.loads((self.out / "summary.json").read_bytes())
 
 
 def tool_version() -> str:
@@ -208,15 +219,28 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     if previous is not None and previous.config_id != config_id and previous.entries:
         changed = ", ".join(_differences(previous.config, config)[:6])
         note(f"note: the model or options differ from the earlier run in {out} ({changed}): its frames are redone")
-    manifest = RunManifest(config, list(previous.recordings) if previous else [],
-                           dict(previous.entries) if previous else {})
+    for name in (MANIFEST_NAME, JOURNAL_NAME, "summary.json"):
+        refuse_link(out / name)
+    store = RunStore(out)  # the records and input entries, on disk (a long job stays flat in memory)
+    try:
+        store.entries.update(previous.entries if previous else {})
+        manifest = RunManifest(config, list(previous.recordings) if previous else [], store.entries)
+        return _run_stored(paths, out, model, options, run, total, client, manifest, previous is not None, store)
+    finally:
+        store.close()
+
+
+def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions, run: RunOptions,
+                total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore) -> RunResult:
+    """The run, its manifest's entries and its records in ``store``; ``resumed``: it goes on from an
+    earlier run's manifest."""
+    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+    config_id = manifest.config_id
 
     specs: list = []  # the recording's file sinks, as (factory, args, kwargs)
     parts = {suffix: _recording_path(out, suffix, run.resume) for suffix in ("mcap", "rrd")}
     for path in parts.values():  # a link planted in --out would send the recording elsewhere
         refuse_link(path)
-    for name in (MANIFEST_NAME, JOURNAL_NAME, "summary.json"):
-        refuse_link(out / name)
     recording_id = str(uuid.uuid4())  # the Rerun recording's id: a distributed run's parts share it
     if "mcap" in run.record:
         specs.append((McapSink, (str(parts["mcap"]),), {}))
@@ -231,7 +255,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     # the report's convergence plot from what this run records, instead of reading the recording
     # back at the end (it decompresses every array: 0.7 s for 12 frames); a resumed or distributed
     # job's frames are recorded elsewhere too, so its report reads the recording
-    tap = ScalarsTap(CONVERGENCE, PLOT_FRAMES) if sinks and previous is None and client is None else None
+    tap = ScalarsTap(CONVERGENCE, PLOT_FRAMES) if sinks and not resumed and client is None else None
     if tap is not None:
         sinks.append(tap)
     manifest.save(out)  # the job's parts and inputs so far, before any frame
@@ -248,8 +272,6 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         nodes.append(WriteNode(model, out, protected))
         stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
-    records: list[dict] = []
-    record_index: dict[str, int] = {}  # output name -> its record's place in records
     progress = Progress(total, not run.quiet)
     storage: list[str] = []  # the first storage failure, which stops the run
     summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
@@ -268,7 +290,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             return
         t0 = time.perf_counter()
         try:
-            write_summary(out, records)
+            write_summary(out, store.records)
         except OSError as exc:
             out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
         summary_clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
@@ -331,8 +353,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             frame.data.clear()
             return
         if frame.skipped:
-            record_index[frame.meta["stem"]] = len(records)
-            records.append(frame.meta["previous"])
+            store.put_record(frame.meta["stem"], frame.meta["previous"])
             save_summary()
             progress.update(True)
             return
@@ -341,11 +362,7 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             frame.data.clear()
             return
         rec = summary_record(frame)
-        if frame.meta["stem"] in record_index:  # taken again (it changed while watched): the newer record
-            records[record_index[frame.meta["stem"]]] = rec
-        else:
-            record_index[frame.meta["stem"]] = len(records)
-            records.append(rec)
+        store.put_record(frame.meta["stem"], rec)  # taken again (it changed while watched): the newer record
         worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
         if worker_parts:
             new_parts = [p for p in worker_parts if p not in manifest.recordings]
@@ -400,11 +417,15 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             print(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})", file=sys.stderr)
         if not storage:
             try:
-                write_report(out, records, out if "mcap" in run.record else None,
+                write_report(out, store.records, out if "mcap" in run.record else None,
                              series=tap.series() if tap is not None else None)
             except OSError as exc:  # the outputs and the summary are written: the report is a view of them
                 print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
-    return RunResult(records, pipeline.stopped and not storage, storage[0] if storage else None)
+    frames_done = not_ok = 0
+    for rec in store.records:
+        frames_done += 1
+        not_ok += rec.get("status") != "ok"
+    return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None)
