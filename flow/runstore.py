@@ -10,6 +10,7 @@ killed before that leaves it behind; the next run replaces it. Face-agnostic.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import sqlite3
@@ -46,14 +47,17 @@ class RunStore:
 
     def put_record(self, name: str, record: dict) -> None:
         """Add ``record`` under ``name``, or replace the one of that name in its place."""
-        body = json.dumps(record, separators=(",", ":"))
-        with self._lock:
-            self._db.execute("INSERT INTO records (name, body) VALUES (?, ?) "
-                             "ON CONFLICT (name) DO UPDATE SET body = excluded.body", (name, body))
+        self._execute("INSERT INTO records (name, body) VALUES (?, ?) ON CONFLICT (name) DO UPDATE SET body = excluded.body",
+                      (name, json.dumps(record, separators=(",", ":"))))
 
     def _execute(self, sql: str, args: tuple = ()) -> list:
+        """The statement's rows; a failure of the file (full disk, I/O error) as ``OSError`` naming it."""
         with self._lock:
-            return self._db.execute(sql, args).fetchall()
+            try:
+                return self._db.execute(sql, args).fetchall()
+            except sqlite3.OperationalError as exc:
+                code = errno.ENOSPC if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL else errno.EIO
+                raise OSError(code, str(exc), str(self.path)) from exc
 
     def _pages(self, sql: str, start: tuple) -> Iterator[tuple]:
         """Rows of ``sql`` (keyset-paged: it takes the last row's sort key and a limit), a page at a

@@ -342,18 +342,28 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         size, mtime = frame.meta.get("identity") or (-1, -1)
         entry = InputEntry(frame.meta["input_key"], size, mtime, frame.meta["stem"], frame.id, config_id, rec,
                            frame.meta.get("sha256", ""))
-        manifest.entries[entry.path] = entry
         try:
+            manifest.entries[entry.path] = entry
             journal.append(entry)
         except OSError as exc:
-            out_of_storage(f"{out / JOURNAL_NAME}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(f"{exc.filename or out / JOURNAL_NAME}: cannot be written ({exc.strerror or exc})")
+
+    def stored(name: str, rec: dict) -> bool:
+        """The frame's record put in the store; False (and the run stops) when the folder takes no more."""
+        try:
+            store.put_record(name, rec)
+            return True
+        except OSError as exc:
+            out_of_storage(f"{exc.filename}: cannot be written ({exc.strerror or exc})")
+            return False
 
     def done(frame: Frame) -> None:
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
             frame.data.clear()
             return
         if frame.skipped:
-            store.put_record(frame.meta["stem"], frame.meta["previous"])
+            if not stored(frame.meta["stem"], frame.meta["previous"]):
+                return
             save_summary()
             progress.update(True)
             return
@@ -362,7 +372,9 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             frame.data.clear()
             return
         rec = summary_record(frame)
-        store.put_record(frame.meta["stem"], rec)  # taken again (it changed while watched): the newer record
+        if not stored(frame.meta["stem"], rec):  # (taken again, as a watched file that changed: the newer record)
+            frame.data.clear()
+            return
         worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
         if worker_parts:
             new_parts = [p for p in worker_parts if p not in manifest.recordings]

@@ -305,6 +305,55 @@ def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_pa
     assert [r["status"] for r in summary] == ["ok"] * 3
 
 
+def test_a_run_store_that_takes_no_more_stops_the_run_and_resume_finishes(tmp_path, monkeypatch, capsys,
+                                                                          procedural_model):
+    """The records' store (``OUT/.run.sqlite``) failing as a full disk does: the same as any output."""
+    import errno
+
+    import shadowflow
+    from shadowflow.flow.runstore import RunStore
+
+    src = _faces(tmp_path / "in", 3, seed=5)
+    out = tmp_path / "out"
+    put, calls = RunStore.put_record, []
+
+    def full_on_the_second(self, name, record):
+        calls.append(name)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "database or disk is full", str(self.path))
+        put(self, name, record)
+
+    monkeypatch.setattr(RunStore, "put_record", full_on_the_second)
+    result = shadowflow.run([src], out, model=procedural_model, record=())
+    err = capsys.readouterr().err
+    assert result.storage_error == f"{out / '.run.sqlite'}: cannot be written (database or disk is full)"
+    assert f"error: {result.storage_error}; stopping" in err and not result.stopped
+    summary = json.loads((out / "summary.json").read_text())  # frames already under way may finish
+    assert result.frames == len(summary) < 3 and all(r["status"] == "ok" for r in summary)
+    assert calls[1] not in [r["stem"] for r in summary]
+    assert not (out / ".run.sqlite").exists()
+    monkeypatch.setattr(RunStore, "put_record", put)
+    again = shadowflow.run([src], out, model=procedural_model, record=(), resume=True)
+    assert again.storage_error is None and [r["status"] for r in again.records] == ["ok"] * 3
+
+
+def test_the_run_store_names_itself_when_the_disk_is_full(tmp_path):
+    """A real write limit (RLIMIT_FSIZE, as a full disk): ``OSError`` naming the store's file."""
+    code = ("import resource, sys\n"
+            "from shadowflow.flow.runstore import RunStore\n"
+            "store = RunStore(sys.argv[1])\n"
+            "resource.setrlimit(resource.RLIMIT_FSIZE, (40_000, 40_000))\n"
+            "try:\n"
+            "    for i in range(10_000):\n"
+            "        store.put_record(f'r{i}', {'x': 'y' * 200})\n"
+            "except OSError as exc:\n"
+            "    print(exc.errno, exc.filename, exc.strerror, sep='|')\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=120)
+    errno_, filename, why = proc.stdout.strip().split("|")
+    assert filename == str(tmp_path / ".run.sqlite") and why, proc.stderr
+    assert int(errno_) > 0
+
+
 def test_an_unwritable_out_is_refused_before_any_work(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
