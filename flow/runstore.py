@@ -2,8 +2,9 @@
 the process flat.
 
 ``RunStore`` is an SQLite file (``.run.sqlite``) in the output folder for the length of one run:
-the records (JSON objects keyed by a unique name, in the order first put) and the manifest's
-input entries (``EntryStore``, a mapping by input key). It is a scratch, never the durable
+the records (JSON objects keyed by a unique name, in the order first put), the manifest's input
+entries (``EntryStore``, a mapping by input key), the output names handed out (``NameSet``) and
+what this run gave each input (``Assigned``). It is a scratch, never the durable
 copy: the journal holds every finished frame and ``summary.json`` / ``manifest.json`` are
 written from the store (streamed, ``flow.files.json_array_chunks``), after which it is removed. A run
 killed before that leaves it behind; the next run replaces it. Face-agnostic.
@@ -15,7 +16,7 @@ import json
 import os
 import sqlite3
 import threading
-from collections.abc import Iterator, MutableMapping
+from collections.abc import Iterator, MutableMapping, MutableSet
 from dataclasses import asdict
 from pathlib import Path
 
@@ -41,9 +42,14 @@ class RunStore:
         self._db.executescript(
             "CREATE TABLE records (pos INTEGER PRIMARY KEY, name TEXT UNIQUE NOT NULL, body TEXT NOT NULL);"
             "CREATE TABLE entries (key TEXT PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL);"
-            "CREATE INDEX entries_by_frame ON entries (frame, key);")
+            "CREATE INDEX entries_by_frame ON entries (frame, key);"
+            "CREATE TABLE names (name TEXT PRIMARY KEY);"
+            "CREATE TABLE assigned (key TEXT PRIMARY KEY, name TEXT NOT NULL, frame INTEGER NOT NULL, "
+            "size INTEGER, mtime_ns INTEGER);")
         self.entries = EntryStore(self)
         self.records = RecordView(self)
+        self.names = NameSet(self)
+        self.assigned = Assigned(self)
 
     def put_record(self, name: str, record: dict) -> None:
         """Add ``record`` under ``name``, or replace the one of that name in its place."""
@@ -135,3 +141,46 @@ class EntryStore(MutableMapping):
     def max_frame(self) -> int:
         """The largest frame id, -1 when empty."""
         return self._store._execute("SELECT coalesce(max(frame), -1) FROM entries")[0][0]
+
+
+class NameSet(MutableSet):
+    """A set of names (the output names taken), in the store."""
+
+    def __init__(self, store: RunStore):
+        self._store = store
+
+    def __contains__(self, name: object) -> bool:
+        return bool(self._store._execute("SELECT 1 FROM names WHERE name = ?", (name,)))
+
+    def add(self, name: str) -> None:
+        self._store._execute("INSERT OR IGNORE INTO names (name) VALUES (?)", (name,))
+
+    def discard(self, name: str) -> None:
+        self._store._execute("DELETE FROM names WHERE name = ?", (name,))
+
+    def __len__(self) -> int:
+        return self._store._execute("SELECT count(*) FROM names")[0][0]
+
+    def __iter__(self) -> Iterator[str]:
+        for (name,) in self._store._pages("SELECT name FROM names WHERE name > ? ORDER BY name LIMIT ?", ("",)):
+            yield name
+
+
+class Assigned:
+    """What this run gave each input key: its output name, frame id and file identity
+    (``(size, mtime_ns)`` or None)."""
+
+    def __init__(self, store: RunStore):
+        self._store = store
+
+    def get(self, key: str) -> tuple[str, int, tuple[int, int] | None] | None:
+        rows = self._store._execute("SELECT name, frame, size, mtime_ns FROM assigned WHERE key = ?", (key,))
+        if not rows:
+            return None
+        name, frame, size, mtime = rows[0]
+        return name, frame, None if size is None else (size, mtime)
+
+    def put(self, key: str, name: str, frame: int, identity: tuple[int, int] | None) -> None:
+        size, mtime = identity if identity is not None else (None, None)
+        self._store._execute("INSERT OR REPLACE INTO assigned (key, name, frame, size, mtime_ns) VALUES (?, ?, ?, ?, ?)",
+                             (key, name, frame, size, mtime))

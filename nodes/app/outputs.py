@@ -8,6 +8,7 @@ import json
 import os
 import re
 import unicodedata
+from collections.abc import MutableSet
 from pathlib import Path
 from typing import Iterable
 
@@ -31,12 +32,12 @@ def real_path(path: str | Path) -> Path:
         return Path(os.path.abspath(path))
 
 
-def safe_stem(path: str, taken: set[str]) -> str:
+def safe_stem(path: str, taken: MutableSet[str]) -> str:
     """A file-system-safe, unique output folder name for an input path.
 
     Keeps letters, digits, ``.``, ``_`` and ``-`` (after Unicode NFKD folding), never starts
     with ``.`` or ``-``, and appends ``-2``, ``-3``... when the name is already in ``taken``
-    (which it then joins).
+    (lower-case names, a set or one on disk; the name then joins it).
     """
     stem = Path(path).stem
     stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")

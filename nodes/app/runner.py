@@ -12,6 +12,7 @@ import socket
 import sys
 import time
 import uuid
+from collections.abc import MutableSet
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -30,7 +31,7 @@ from ...flow.manifest import (
     input_key,
 )
 from ...flow.pipeline import Pipeline, Stage
-from ...flow.runstore import RunStore
+from ...flow.runstore import Assigned, RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
@@ -296,17 +297,25 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         summary_clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
 
     def frames() -> Iterator[Frame]:
-        taken = manifest.names()
-        assigned: dict[str, tuple[str, int, tuple[int, int] | None]] = {}  # this run: key -> name, id, identity
+        """The inputs as frames, each with its output name and frame id (this run's choices, the
+        names taken, are kept in the store); a store that takes no more ends them."""
+        try:
+            yield from _frames(store.names, store.assigned)
+        except OSError as exc:
+            out_of_storage(f"{exc.filename}: cannot be written ({exc.strerror or exc})")
+
+    def _frames(taken: MutableSet[str], assigned: Assigned) -> Iterator[Frame]:
+        taken |= manifest.names()
         next_id = manifest.next_frame()
         for path in paths:
             key, identity = input_key(path), file_identity(path)
             earlier = manifest.entries.get(key)
-            if key in assigned:
-                if assigned[key][2] == identity:
+            given = assigned.get(key)  # this run's: name, id, identity
+            if given is not None:
+                if given[2] == identity:
                     note(f"{path}: given more than once; processed once")
                     continue
-                name, fid = assigned[key][:2]  # changed since this run took it (a watched folder): redone
+                name, fid = given[:2]  # changed since this run took it (a watched folder): redone
                 earlier = None
             elif earlier is not None:
                 name, fid = earlier.name, earlier.frame
@@ -314,7 +323,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             else:
                 name, fid = safe_stem(path, taken), next_id
                 next_id += 1
-            assigned[key] = (name, fid, identity)
+            assigned.put(key, name, fid, identity)
             protected.add(real_path(path))
             frame = Frame(fid, path)
             frame.meta.update(stem=name, input_key=key, identity=identity)

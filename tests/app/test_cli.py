@@ -228,3 +228,21 @@ def test_every_option_says_what_it_does_and_the_version_is_shown(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])
     assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"shadowflow {tool_version()}"
+
+
+def test_an_input_given_twice_is_processed_once_under_one_name(tmp_path, demo_run, capsys):
+    """The run remembers what it gave each input (in its store on disk): the second mention is
+    said and skipped, and a same-named file elsewhere gets the next name."""
+    good = sorted((demo_run / "demo-inputs").glob("*.png"))[0]
+    other = tmp_path / "other"
+    other.mkdir()
+    for suffix in (".png", ".json"):
+        shutil.copy(good.with_suffix(suffix), other / ("face" + suffix))
+        shutil.copy(good.with_suffix(suffix), tmp_path / ("face" + suffix))
+    face, twin = tmp_path / "face.png", other / "face.png"
+    out = tmp_path / "out"
+    code = main(["run", str(face), str(twin), str(face), "--out", str(out), "--record", "none"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert err.count(f"{face}: given more than once; processed once") == 1
+    assert [r["stem"] for r in json.loads((out / "summary.json").read_text())] == ["face", "face-2"]

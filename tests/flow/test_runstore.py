@@ -96,6 +96,25 @@ def test_a_link_or_stale_store_in_the_folder_is_replaced_never_followed(tmp_path
     store.close()
 
 
+def test_names_taken_and_what_the_run_gave_each_input(tmp_path):
+    from shadowflow.nodes.app.outputs import safe_stem
+
+    store = RunStore(tmp_path)
+    taken = store.names
+    taken |= {"face", "a_b"}
+    assert [safe_stem(p, taken) for p in ("/x/face.png", "/y/face.jpg", "/x/a b.png", "/x/other.png")] == \
+        ["face-2", "face-3", "a_b-2", "other"]
+    assert sorted(taken) == ["a_b", "a_b-2", "face", "face-2", "face-3", "other"] and "FACE" not in taken
+    assert store.assigned.get("/x/face.png") is None
+    store.assigned.put("/x/face.png", "face-2", 7, (120, 10**18 + 3))
+    store.assigned.put("/x/gone.png", "gone", 8, None)
+    assert store.assigned.get("/x/face.png") == ("face-2", 7, (120, 10**18 + 3))
+    assert store.assigned.get("/x/gone.png") == ("gone", 8, None)
+    store.assigned.put("/x/face.png", "face-2", 7, (121, 5))  # changed while watched: the newer identity
+    assert store.assigned.get("/x/face.png") == ("face-2", 7, (121, 5))
+    store.close()
+
+
 def test_writers_and_a_reader_on_other_threads(tmp_path):
     store = RunStore(tmp_path)
 
