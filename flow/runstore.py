@@ -25,27 +25,33 @@ from .recording.codec import jsonable
 
 STORE_NAME = ".run.sqlite"
 _PAGE = 512  # rows read at a time when streaming
+_SCHEMA = (
+    # a scratch: no rollback journal, no fsync, 2 MiB of page cache
+    "PRAGMA journal_mode=OFF", "PRAGMA synchronous=OFF", "PRAGMA cache_size=-2048", "PRAGMA temp_store=FILE",
+    "CREATE TABLE records (pos INTEGER PRIMARY KEY, name TEXT UNIQUE NOT NULL, body TEXT NOT NULL)",
+    "CREATE TABLE entries (key TEXT PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL)",
+    "CREATE INDEX entries_by_frame ON entries (frame, key)",
+    "CREATE TABLE names (name TEXT PRIMARY KEY)",
+    "CREATE TABLE assigned (key TEXT PRIMARY KEY, name TEXT NOT NULL, frame INTEGER NOT NULL, size INTEGER, "
+    "mtime_ns INTEGER)",
+)
 
 
 class RunStore:
     """The scratch store in ``folder`` (whatever is at its name, a stale store or a link, is
-    removed first: a link is never followed).
-    Safe to use from several threads (one connection, one lock)."""
+    removed first: a link is never followed). Safe to use from several threads (one connection,
+    one lock). A failure of its file is an ``OSError`` naming it."""
 
     def __init__(self, folder: str | os.PathLike):
         self.path = Path(folder) / STORE_NAME
         self.path.unlink(missing_ok=True)
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
-        for pragma in ("journal_mode=OFF", "synchronous=OFF", "cache_size=-2048", "temp_store=FILE"):
-            self._db.execute(f"PRAGMA {pragma}")  # a scratch: no rollback journal, no fsync, 2 MiB of cache
-        self._db.executescript(
-            "CREATE TABLE records (pos INTEGER PRIMARY KEY, name TEXT UNIQUE NOT NULL, body TEXT NOT NULL);"
-            "CREATE TABLE entries (key TEXT PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL);"
-            "CREATE INDEX entries_by_frame ON entries (frame, key);"
-            "CREATE TABLE names (name TEXT PRIMARY KEY);"
-            "CREATE TABLE assigned (key TEXT PRIMARY KEY, name TEXT NOT NULL, frame INTEGER NOT NULL, "
-            "size INTEGER, mtime_ns INTEGER);")
+        try:
+            self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+        except sqlite3.OperationalError as exc:
+            raise OSError(errno.EIO, str(exc), str(self.path)) from exc
+        for sql in _SCHEMA:
+            self._execute(sql)
         self.entries = EntryStore(self)
         self.records = RecordView(self)
         self.names = NameSet(self)
