@@ -28,13 +28,23 @@ _PAGE = 512  # rows read at a time when streaming
 _SCHEMA = (
     # a scratch: no rollback journal, no fsync, 2 MiB of page cache
     "PRAGMA journal_mode=OFF", "PRAGMA synchronous=OFF", "PRAGMA cache_size=-2048", "PRAGMA temp_store=FILE",
-    "CREATE TABLE records (pos INTEGER PRIMARY KEY, name TEXT UNIQUE NOT NULL, body TEXT NOT NULL)",
-    "CREATE TABLE entries (key TEXT PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL)",
+    # keys and names are stored as bytes (``_blob``): a path need not be valid UTF-8
+    "CREATE TABLE records (pos INTEGER PRIMARY KEY, name BLOB UNIQUE NOT NULL, body TEXT NOT NULL)",
+    "CREATE TABLE entries (key BLOB PRIMARY KEY, frame INTEGER NOT NULL, body TEXT NOT NULL)",
     "CREATE INDEX entries_by_frame ON entries (frame, key)",
-    "CREATE TABLE names (name TEXT PRIMARY KEY)",
-    "CREATE TABLE assigned (key TEXT PRIMARY KEY, name TEXT NOT NULL, frame INTEGER NOT NULL, size INTEGER, "
+    "CREATE TABLE names (name BLOB PRIMARY KEY)",
+    "CREATE TABLE assigned (key BLOB PRIMARY KEY, name BLOB NOT NULL, frame INTEGER NOT NULL, size INTEGER, "
     "mtime_ns INTEGER)",
 )
+
+
+def _blob(text: str) -> bytes:
+    """A key or name as bytes, undecodable file-name bytes (``surrogateescape``) kept as they were."""
+    return text.encode("utf-8", "surrogateescape")
+
+
+def _text(blob: bytes) -> str:
+    return blob.decode("utf-8", "surrogateescape")
 
 
 class RunStore:
@@ -60,7 +70,7 @@ class RunStore:
     def put_record(self, name: str, record: dict) -> None:
         """Add ``record`` under ``name``, or replace the one of that name in its place."""
         self._execute("INSERT INTO records (name, body) VALUES (?, ?) ON CONFLICT (name) DO UPDATE SET body = excluded.body",
-                      (name, json.dumps(record, separators=(",", ":"))))
+                      (_blob(name), json.dumps(record, separators=(",", ":"))))
 
     def _execute(self, sql: str, args: tuple = ()) -> list:
         """The statement's rows; a failure of the file (full disk, I/O error) as ``OSError`` naming it."""
@@ -110,7 +120,7 @@ class EntryStore(MutableMapping):
         self._store = store
 
     def __getitem__(self, key: str) -> InputEntry:
-        rows = self._store._execute("SELECT body FROM entries WHERE key = ?", (key,))
+        rows = self._store._execute("SELECT body FROM entries WHERE key = ?", (_blob(key),))
         if not rows:
             raise KeyError(key)
         return InputEntry(**json.loads(rows[0][0]))
@@ -118,22 +128,22 @@ class EntryStore(MutableMapping):
     def __setitem__(self, key: str, entry: InputEntry) -> None:
         body = json.dumps(asdict(entry), separators=(",", ":"), default=jsonable)
         self._store._execute("INSERT OR REPLACE INTO entries (key, frame, body) VALUES (?, ?, ?)",
-                             (key, entry.frame, body))
+                             (_blob(key), entry.frame, body))
 
     def __delitem__(self, key: str) -> None:
         if key not in self:
             raise KeyError(key)
-        self._store._execute("DELETE FROM entries WHERE key = ?", (key,))
+        self._store._execute("DELETE FROM entries WHERE key = ?", (_blob(key),))
 
     def __contains__(self, key: object) -> bool:
-        return bool(self._store._execute("SELECT 1 FROM entries WHERE key = ?", (key,)))
+        return isinstance(key, str) and bool(self._store._execute("SELECT 1 FROM entries WHERE key = ?", (_blob(key),)))
 
     def __len__(self) -> int:
         return self._store._execute("SELECT count(*) FROM entries")[0][0]
 
     def __iter__(self) -> Iterator[str]:
-        for (key,) in self._store._pages("SELECT key FROM entries WHERE key > ? ORDER BY key LIMIT ?", ("",)):
-            yield key
+        for (key,) in self._store._pages("SELECT key FROM entries WHERE key > ? ORDER BY key LIMIT ?", (b"",)):
+            yield _text(key)
 
     def values(self) -> Iterator[InputEntry]:  # type: ignore[override]
         return self.by_frame()
@@ -141,7 +151,7 @@ class EntryStore(MutableMapping):
     def by_frame(self) -> Iterator[InputEntry]:
         """Every entry, by frame id."""
         sql = "SELECT frame, key, body FROM entries WHERE (frame, key) > (?, ?) ORDER BY frame, key LIMIT ?"
-        for _, _, body in self._store._pages(sql, (-1, "")):
+        for _, _, body in self._store._pages(sql, (-1, b"")):
             yield InputEntry(**json.loads(body))
 
     def max_frame(self) -> int:
@@ -156,20 +166,20 @@ class NameSet(MutableSet):
         self._store = store
 
     def __contains__(self, name: object) -> bool:
-        return bool(self._store._execute("SELECT 1 FROM names WHERE name = ?", (name,)))
+        return isinstance(name, str) and bool(self._store._execute("SELECT 1 FROM names WHERE name = ?", (_blob(name),)))
 
     def add(self, name: str) -> None:
-        self._store._execute("INSERT OR IGNORE INTO names (name) VALUES (?)", (name,))
+        self._store._execute("INSERT OR IGNORE INTO names (name) VALUES (?)", (_blob(name),))
 
     def discard(self, name: str) -> None:
-        self._store._execute("DELETE FROM names WHERE name = ?", (name,))
+        self._store._execute("DELETE FROM names WHERE name = ?", (_blob(name),))
 
     def __len__(self) -> int:
         return self._store._execute("SELECT count(*) FROM names")[0][0]
 
     def __iter__(self) -> Iterator[str]:
-        for (name,) in self._store._pages("SELECT name FROM names WHERE name > ? ORDER BY name LIMIT ?", ("",)):
-            yield name
+        for (name,) in self._store._pages("SELECT name FROM names WHERE name > ? ORDER BY name LIMIT ?", (b"",)):
+            yield _text(name)
 
 
 class Assigned:
@@ -180,13 +190,13 @@ class Assigned:
         self._store = store
 
     def get(self, key: str) -> tuple[str, int, tuple[int, int] | None] | None:
-        rows = self._store._execute("SELECT name, frame, size, mtime_ns FROM assigned WHERE key = ?", (key,))
+        rows = self._store._execute("SELECT name, frame, size, mtime_ns FROM assigned WHERE key = ?", (_blob(key),))
         if not rows:
             return None
         name, frame, size, mtime = rows[0]
-        return name, frame, None if size is None else (size, mtime)
+        return _text(name), frame, None if size is None else (size, mtime)
 
     def put(self, key: str, name: str, frame: int, identity: tuple[int, int] | None) -> None:
         size, mtime = identity if identity is not None else (None, None)
         self._store._execute("INSERT OR REPLACE INTO assigned (key, name, frame, size, mtime_ns) VALUES (?, ?, ?, ?, ?)",
-                             (key, name, frame, size, mtime))
+                             (_blob(key), _blob(name), frame, size, mtime))

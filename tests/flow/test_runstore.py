@@ -115,6 +115,20 @@ def test_names_taken_and_what_the_run_gave_each_input(tmp_path):
     store.close()
 
 
+def test_a_path_that_is_not_utf8_is_a_key_like_any_other(tmp_path):
+    """A Linux file name may hold any bytes; Python gives them as lone surrogates."""
+    key = b"/in/caf\xe9 \xff.png".decode("utf-8", "surrogateescape")
+    store = RunStore(tmp_path)
+    store.entries[key] = _entry(1, 3)
+    store.assigned.put(key, "caf", 3, (10, 20))
+    store.names.add(key)
+    store.put_record(key, {"source": key})
+    assert list(store.entries) == [key] and key in store.entries and store.entries[key].frame == 3
+    assert store.assigned.get(key) == ("caf", 3, (10, 20)) and list(store.names) == [key] and key in store.names
+    assert [r["source"] for r in store.records] == [key]
+    store.close()
+
+
 def test_writers_and_a_reader_on_other_threads(tmp_path):
     store = RunStore(tmp_path)
 
