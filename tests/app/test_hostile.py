@@ -354,6 +354,26 @@ def test_the_run_store_names_itself_when_the_disk_is_full(tmp_path):
     assert int(errno_) > 0
 
 
+def test_an_input_whose_name_is_not_utf8_runs_and_resumes(tmp_path):
+    src = _faces(tmp_path / "in", 1, seed=4)
+    for suffix in (".png", ".json"):  # bytes that are no UTF-8 in the name
+        os.rename(src / f"f0{suffix}", os.fsencode(src) + b"/caf\xe9\xff" + suffix.encode())
+    with open(os.fsencode(src) + b"/junk\xfe.png", "wb") as f:  # and one that fails
+        f.write(b"not an image")
+    out = tmp_path / "out"
+    cmd = CLI + ["run", str(src), "--out", str(out), "--record", "mcap", "--max-iterations", "10"]
+    first = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert first.returncode == 1 and "Traceback" not in first.stderr, first.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert [r["status"] == "ok" for r in summary] == [True, False]
+    assert (out / summary[0]["stem"] / "relit.png").is_file() and "not a recognised image" in summary[1]["status"]
+    report = (out / "report.html").read_text()  # valid UTF-8; the undecodable bytes shown as U+FFFD
+    assert "junk\ufffd.png" in report and "1 failed" in report
+    again = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert again.returncode == 1 and "Traceback" not in again.stderr and "caf" not in again.stderr, again.stderr
+    assert json.loads((out / "summary.json").read_text())[0] == summary[0]
+
+
 def test_an_unwritable_out_is_refused_before_any_work(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
