@@ -150,7 +150,7 @@ def plot_convergence(series: Iterable[tuple[object, Mapping]], path: str | Path,
     return path
 
 
-def _printable(text: str) -> str:
+def printable(text: str) -> str:
     """``text`` as a font can draw it: bytes of a file name that were not UTF-8 (lone surrogates)
     become U+FFFD."""
     return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
@@ -189,7 +189,7 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
             pts = np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
             if len(pts):
                 colour = cmap(k / max(len(series) - 1, 1)) if many else cmap(k % 10)
-                ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7, label=_printable(str(label)),
+                ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7, label=printable(str(label)),
                         marker="." if len(pts) < 3 else None)
                 plotted.append(pts[:, 1])
         if plotted and all((v > 0).all() for v in plotted):

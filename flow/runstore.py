@@ -112,6 +112,12 @@ class RecordView:
         for _, body in self._store._pages("SELECT pos, body FROM records WHERE pos > ? ORDER BY pos LIMIT ?", (-1,)):
             yield json.loads(body)
 
+    def counts(self) -> tuple[int, int]:
+        """(records, records whose "status" is not "ok"), counted in the file."""
+        n, not_ok = self._store._execute(
+            "SELECT count(*), coalesce(sum(coalesce(json_extract(body, '$.status'), '') IS NOT 'ok'), 0) FROM records")[0]
+        return n, not_ok
+
 
 class EntryStore(MutableMapping):
     """The manifest's input entries by input key, in the store (``RunManifest.entries``)."""

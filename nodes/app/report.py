@@ -183,8 +183,9 @@ def _num(x, digits: int = 3) -> str:
 
 def _text(x) -> str:
     """``x`` as HTML text; bytes of a file name that were not UTF-8 show as U+FFFD."""
-    text = x if isinstance(x, str) else json.dumps(x, default=str)
-    return html.escape(text.encode("utf-8", "surrogateescape").decode("utf-8", "replace"))
+    from ...flow.replay import printable
+
+    return html.escape(printable(x if isinstance(x, str) else json.dumps(x, default=str)))
 
 
 _HEAD = """<!doctype html><html lang=en><head><meta charset=utf-8><title>{title}</title>

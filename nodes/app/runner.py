@@ -12,7 +12,6 @@ import socket
 import sys
 import time
 import uuid
-from collections.abc import MutableSet
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -31,7 +30,7 @@ from ...flow.manifest import (
     input_key,
 )
 from ...flow.pipeline import Pipeline, Stage
-from ...flow.runstore import Assigned, RunStore
+from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
@@ -90,6 +89,11 @@ def refuse_link(path: Path) -> None:
     if path.is_symlink():
         raise ValueError(f"{path}: is a symbolic link; shadowflow writes nothing through links in --out "
                          "(remove it, or choose another --out)")
+
+
+def cannot_write(path, exc: OSError) -> str:
+    """The one line said when ``path`` could not be written."""
+    return f"{path}: cannot be written ({exc.strerror or exc})"
 
 
 def check_writable(out: Path) -> None:
@@ -293,18 +297,20 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         try:
             write_summary(out, store.records)
         except OSError as exc:
-            out_of_storage(f"{out / 'summary.json'}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(cannot_write(out / "summary.json", exc))
         summary_clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
 
     def frames() -> Iterator[Frame]:
-        """The inputs as frames, each with its output name and frame id (this run's choices, the
-        names taken, are kept in the store); a store that takes no more ends them."""
+        """The inputs as frames; a store that takes no more ends them."""
         try:
-            yield from _frames(store.names, store.assigned)
+            yield from named_frames()
         except OSError as exc:
-            out_of_storage(f"{exc.filename}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(cannot_write(exc.filename, exc))
 
-    def _frames(taken: MutableSet[str], assigned: Assigned) -> Iterator[Frame]:
+    def named_frames() -> Iterator[Frame]:
+        """Each input with its output name and frame id (the names taken and this run's choices
+        are kept in the store)."""
+        taken, assigned = store.names, store.assigned
         taken |= manifest.names()
         next_id = manifest.next_frame()
         for path in paths:
@@ -345,7 +351,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             manifest.save(out)
             journal.reopen()
         except OSError as exc:
-            out_of_storage(f"{out / MANIFEST_NAME}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(cannot_write(out / MANIFEST_NAME, exc))
 
     def journal_entry(frame: Frame, rec: dict) -> None:
         size, mtime = frame.meta.get("identity") or (-1, -1)
@@ -355,7 +361,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             manifest.entries[entry.path] = entry
             journal.append(entry)
         except OSError as exc:
-            out_of_storage(f"{exc.filename or out / JOURNAL_NAME}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(cannot_write(exc.filename or out / JOURNAL_NAME, exc))
 
     def stored(name: str, rec: dict) -> bool:
         """The frame's record put in the store; False (and the run stops) when the folder takes no more."""
@@ -363,7 +369,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             store.put_record(name, rec)
             return True
         except OSError as exc:
-            out_of_storage(f"{exc.filename}: cannot be written ({exc.strerror or exc})")
+            out_of_storage(cannot_write(exc.filename, exc))
             return False
 
     def done(frame: Frame) -> None:
@@ -445,8 +451,5 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
-    frames_done = not_ok = 0
-    for rec in store.records:
-        frames_done += 1
-        not_ok += rec.get("status") != "ok"
+    frames_done, not_ok = store.records.counts()
     return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None)
