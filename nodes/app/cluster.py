@@ -10,7 +10,6 @@ for the client to record, two workers gave 1.25x one; recorded where they run, s
 """
 from __future__ import annotations
 
-import logging
 import os
 import re
 from contextlib import contextmanager
@@ -18,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
+from ...flow.cluster_host import local_cluster
 from ...flow.frame import Frame
 from ...flow.recording import McapSink, Recorder, RecordOptions
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
@@ -144,17 +144,17 @@ def parse_dask(spec: str) -> tuple[str, int | str | None]:
 @contextmanager
 def dask_client(spec: str) -> Iterator[object]:
     """A ``distributed.Client`` for ``--dask SPEC`` (a LocalCluster of worker processes, one thread
-    each, or a running scheduler), closed afterwards."""
+    each, hosted in a child process that ends with this one; or a running scheduler), closed
+    afterwards."""
     kind, arg = parse_dask(spec)
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError:
         raise ValueError("--dask needs Dask: pip install 'shadowflow[dask]'") from None
     if kind == "local":
-        n = arg or os.cpu_count() or 1
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                          silence_logs=logging.ERROR) as cluster, \
-                Client(cluster) as client:
+        # the cluster's scheduler runs in a process of its own, not in this one: it keeps state per
+        # task, which would grow the client's memory with the stream (``flow.cluster_host``)
+        with local_cluster(arg or os.cpu_count() or 1) as address, Client(address, timeout="20s") as client:
             client.run(worker_setup)
             yield client
     else:

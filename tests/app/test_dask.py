@@ -176,3 +176,13 @@ def test_eval_spread_over_a_cluster_reports_the_same_figures(tmp_path):
         b.pop("seconds_per_face")
         assert a == b, (angle, a, b)
     assert 0 < reports["dask"]["results"]["gauss-newton"]["45"]["err_all"] < 30
+
+
+def test_local_runs_its_scheduler_outside_the_client():
+    """``--dask local:N``: the scheduler keeps state per task, so it runs in a process of its own and
+    the client's memory does not grow with the stream (``flow.cluster_host``)."""
+    from shadowflow.nodes.app.cluster import dask_client
+
+    with dask_client("local:1") as client:
+        assert client.run_on_scheduler(os.getpid) != os.getpid()
+        assert os.getpid() not in client.run(os.getpid).values()
