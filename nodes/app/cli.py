@@ -197,7 +197,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
                                             args.cone_trust),
                             integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
-                            detect_eyes=args.eyes == "auto", shadows=args.shadows,
+                            detect_eyes=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
                             face_length=_face_length(args.face_length),
                             extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                             novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
@@ -272,7 +272,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
                                             cone_trust=args.cone_trust), light="yaleb",
                             integrator=args.integrator, remap=args.remap, shadows=args.shadows,
-                            face_length=_face_length(args.face_length))
+                            albedo_fill=args.albedo_fill, face_length=_face_length(args.face_length))
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
@@ -334,7 +334,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         for name in fits:
             opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds,
                                                  cone_trust=args.cone_trust),
-                                 integrator=args.integrator, remap=args.remap, shadows=args.shadows)
+                                 integrator=args.integrator, remap=args.remap, shadows=args.shadows,
+                                 albedo_fill=args.albedo_fill)
             res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
             report["results"][name] = res["per_angle"]
             for angle, row in res["per_angle"].items():
@@ -416,6 +417,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
     r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
                    help="cast shadows traced and checked against the image (default) or traced only (paper)")
+    r.add_argument("--albedo-fill", choices=["ceiling", "mirror"], default="ceiling",
+                   help="albedo under shadow: mirrored or interpolated, never brighter than the face's typical "
+                        "measured albedo (default) or mirrored as measured (paper)")
     r.add_argument("--eyes", default="auto",
                    help="auto (detect; default) | centre (a frontal crop framed like the model) | "
                         "X1,Y1,X2,Y2 input eye centres, image-left eye first; a sidecar's eyes win")
@@ -481,6 +485,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq", help="as run --integrator")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed", help="as run --shadows")
+    e.add_argument("--albedo-fill", choices=["ceiling", "mirror"], default="ceiling", help="as run --albedo-fill")
     e.add_argument("--json", help="write the report here")
     e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "

@@ -29,7 +29,7 @@ from ..photo.align import (
 from ..photo.eyes import detect_eyes
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
-from .albedo import estimate_albedo
+from .albedo import FILL_CEILING, estimate_albedo
 from .light import estimate_light, mean_face_weights
 from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
@@ -56,6 +56,9 @@ class MethodOptions:
     integrator: str = "lsq"
     remap: str = "ratio"  # brightness scale: "ratio" (median ratio to the mean face) or "peak" (the paper)
     shadows: str = "confirmed"  # "geometric": traced only (the paper); "confirmed": checked against the image
+    # "ceiling": filled albedo no brighter than the face's typical measured albedo (``albedo.FILL_CEILING``);
+    # "mirror": the paper's, mirrored values as measured
+    albedo_fill: str = "ceiling"
     light: str | np.ndarray = "auto"
     eyes: np.ndarray | None = None
     detect_eyes: bool = True
@@ -323,14 +326,17 @@ class ShadowNode:
 class AlbedoNode:
     name = "albedo"
 
-    def __init__(self, model: ShapeModel):
+    def __init__(self, model: ShapeModel, fill: str = "ceiling"):
+        if fill not in ("ceiling", "mirror"):
+            raise ValueError(f"albedo fill must be 'ceiling' or 'mirror', not {fill!r}")
         self.model = model
         self.axis_col = float(np.mean(model.eyes[:, 0]))
+        self.ceiling = FILL_CEILING if fill == "ceiling" else None
 
     def __call__(self, frame: Frame) -> Frame:
         frame.data["albedo"], frame.data["albedo_source"] = estimate_albedo(
             frame.data["grid_image"], shading_normals(frame), frame.data["grid_light"],
-            frame.data["shadow"].lit, self.model.mask, self.axis_col)
+            frame.data["shadow"].lit, self.model.mask, self.axis_col, fill_ceiling=self.ceiling)
         return frame
 
 
@@ -453,7 +459,7 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         CombineNode(model, options.fit.cone_trust),
         IntegrateNode(model, options.integrator),
         ShadowNode(options.shadows, options.fit.dark_threshold),
-        AlbedoNode(model),
+        AlbedoNode(model, "mirror" if options.fit.solver == "paper" else options.albedo_fill),  # the paper's fill
         QualityNode(model),  # before the relighting: a frame with no face fails without paying for it
     ]
     if with_views:

@@ -27,7 +27,7 @@ def test_estimated_albedo_is_measured_where_lit_mirrored_in_shadow_and_filled_be
     """A symmetric face-like surface with a symmetric albedo (darker 'brows'), lit from the side:
     lit pixels give ``I / n.s`` exactly; the shadowed side takes its mirror pixel's value, which
     is the truth again; pixels with neither (a shadow on both sides) are filled smoothly between
-    their neighbours. Source codes say which is which."""
+    their neighbours. Source codes say which is which. (The paper's fill: ``fill_ceiling=None``.)"""
     from shadowflow.nodes.method.albedo import MIN_SHADING, estimate_albedo
 
     h = w = 80
@@ -42,7 +42,7 @@ def test_estimated_albedo_is_measured_where_lit_mirrored_in_shadow_and_filled_be
     lit = mask & (shading > 0)
     lit[60:66, :] = False  # a cast shadow across both halves
     image = np.where(lit, truth * np.clip(shading, 0, None), 0.0)
-    albedo, source = estimate_albedo(image, n, s, lit, mask, axis_col=39.5)
+    albedo, source = estimate_albedo(image, n, s, lit, mask, axis_col=39.5, fill_ceiling=None)
     measured, mirrored, filled = source == 1, source == 2, source == 3
     assert measured.sum() > 0.3 * mask.sum() and mirrored.sum() > 0.2 * mask.sum() and filled.any()
     assert (source[~mask] == 0).all() and np.isnan(albedo[~mask]).all()
@@ -52,3 +52,36 @@ def test_estimated_albedo_is_measured_where_lit_mirrored_in_shadow_and_filled_be
     # the shadow band across the face: filled between the rows above and below, no value off range
     band = filled & (yy >= 60) & (yy < 66)
     assert band.any() and np.all((albedo[band] > 0.6) & (albedo[band] < 0.85))
+
+
+def test_filled_albedo_is_never_brighter_than_typical_skin_but_keeps_dark_features():
+    """The default fill (``FILL_CEILING``): a speck of shine on the lit side (``I / n.s`` far above
+    the skin's) is not carried to the shadowed side as bright skin; the dark 'brows' are; measured
+    pixels keep their values, shine included."""
+    from shadowflow.nodes.method.albedo import FILL_CEILING, estimate_albedo
+
+    h = w = 80
+    yy, xx = np.mgrid[:h, :w]
+    x, y = (xx - 39.5) / 36.0, -(yy - 39.5) / 36.0
+    mask = x**2 + y**2 < 1.0
+    n = np.dstack([x, y, np.sqrt(np.clip(1.0 - x**2 - y**2, 0.0, None))]) * mask[..., None]
+    skin = np.where(np.abs(y - 0.4) < 0.08, 0.45, 0.8)  # uniform skin, darker brows
+    s = np.array([-0.6, 0.0, 0.8])
+    shading = n @ s
+    lit = mask & (shading > 0)
+    shine = mask & (np.hypot(xx - 15, yy - 50) < 3)  # on the lit side
+    image = np.where(lit, skin * np.clip(shading, 0, None), 0.0)
+    image[shine] *= 2.5
+    albedo, source = estimate_albedo(image, n, s, lit, mask, axis_col=39.5)
+    paper, _ = estimate_albedo(image, n, s, lit, mask, axis_col=39.5, fill_ceiling=None)
+    mirror_of_shine = np.zeros_like(shine)
+    mirror_of_shine[:, ::-1] = shine
+    mirrored = (source == 2) & mirror_of_shine
+    assert mirrored.sum() > 10
+    assert np.all(paper[mirrored] > 1.9)  # the paper's fill copies the shine
+    np.testing.assert_allclose(albedo[mirrored], FILL_CEILING * 0.8, rtol=1e-6)  # the skin's median
+    brows = (source == 2) & (skin < 0.5)
+    np.testing.assert_allclose(albedo[brows], 0.45, rtol=1e-5)
+    measured = source == 1
+    np.testing.assert_allclose(albedo[measured], paper[measured])
+    assert np.all(albedo[measured & shine] > 1.9)
