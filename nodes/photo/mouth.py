@@ -19,7 +19,7 @@ from scipy import ndimage
 
 
 def mouth_row(grid_image: np.ndarray, mouth: np.ndarray, eye_row: float, band: float = 0.22,
-              search: float = 0.3, smooth: float = 5.0, reach: int = 3) -> float:
+              search: float = 0.3, smooth: float = 5.0, reach: int = 3, prior: float | None = 0.15) -> float:
     """Row of the lips' parting line in an image on the model grid (model pixels).
 
     grid_image: (Hm, Wm) brightness on the model grid (eyes on the model's eyes); mouth: (2,)
@@ -28,8 +28,13 @@ def mouth_row(grid_image: np.ndarray, mouth: np.ndarray, eye_row: float, band: f
     after dividing by its Gaussian-smoothed surroundings (``smooth`` px, so that shading and albedo
     that vary slowly drop out). The parting line is a valley of that profile: darker than both the
     rows ``reach`` px above and below it (the lips), which the edge of the nose's cast shadow (a
-    step) is not. The deepest valley within ``search`` x the eye-to-mouth distance of the model's
-    mouth row wins, refined to sub-pixel by a parabola.
+    step) is not. Within ``search`` x the eye-to-mouth distance of the model's mouth row, the
+    valley deepest after weighting by a Gaussian prior on its distance from that row (``prior`` x
+    the eye-to-mouth distance: 2.5 x the 6 % by which real faces' lengths vary, leaving room for
+    the eyes' own error) wins, refined to sub-pixel by a parabola; ``prior`` None: the deepest.
+    Without the prior, a valley near the search's end (a nostril's shadow, the chin's crease)
+    could outweigh the parting line: Yale B subject 03's normals went 18.1 -> 13.5 deg at
+    (-35, +15) and 18.8 -> 15.4 at (+85, +20) with it, and no other subject or light moved.
     """
     g = np.asarray(grid_image, np.float64)
     span = float(mouth[1] - eye_row)
@@ -41,7 +46,11 @@ def mouth_row(grid_image: np.ndarray, mouth: np.ndarray, eye_row: float, band: f
     depth[reach:-reach] = np.minimum(profile[:-2 * reach], profile[2 * reach:]) - profile[reach:-reach]
     r0 = max(int(np.floor(mouth[1] - search * span)), reach + 1)
     r1 = min(int(np.ceil(mouth[1] + search * span)) + 1, g.shape[0] - reach - 1)
-    r = r0 + int(np.argmax(depth[r0:r1]))
+    score = depth[r0:r1]
+    if prior is not None and np.any(score > 0):
+        weight = np.exp(-0.5 * ((np.arange(r0, r1) - mouth[1]) / (prior * span)) ** 2)
+        score = np.where(score > 0, score * weight, -np.inf)
+    r = r0 + int(np.argmax(score))
     a, b, c = depth[r - 1], depth[r], depth[r + 1]
     denom = a - 2 * b + c
     offset = 0.5 * (a - c) / denom if np.isfinite(denom) and denom < -1e-12 else 0.0

@@ -33,6 +33,15 @@ def test_mouth_row_finds_the_lips_line_not_the_edge_of_a_shadow():
     assert face_length_factor(_face_like(99.0), MOUTH, EYE_ROW, limits=(0.85, 1.15)) == 1.15
 
 
+def test_a_deeper_valley_far_from_the_model_mouth_loses_to_the_lips_near_it():
+    """A nostril's shadow 11 rows above the model's mouth row, darker than the lips' line 1 row
+    below it: the prior on the distance keeps the lips; without it the deeper valley won."""
+    rows = np.mgrid[0:128, 0:128][0].astype(float)
+    img = _face_like(88.0) * (1 - 0.8 * np.exp(-0.5 * ((rows - 76.0) / 0.9) ** 2))
+    assert abs(mouth_row(img, MOUTH, EYE_ROW) - 88.0) < 0.5
+    assert abs(mouth_row(img, MOUTH, EYE_ROW, prior=None) - 76.0) < 0.5
+
+
 def test_the_ict_models_know_their_mouth_and_keep_it_in_the_file(tmp_path):
     from shadowflow.nodes.model.default_model import default_model
     from shadowflow.nodes.model.shape_model import load_model, save_model
