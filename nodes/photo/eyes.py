@@ -125,18 +125,19 @@ def iris_centre(patch: np.ndarray, reach: float, dark_sigma: float, highlight: f
     strong = mag > mag.mean() + 0.3 * mag.std()
     if strong.sum() < 8 or float(mag.max()) < 1e-4:
         return None
-    ys, xs = np.nonzero(strong)
+    ys, xs = (v.astype(np.float32) for v in np.nonzero(strong))
     ux, uy = gx[strong] / mag[strong], gy[strong] / mag[strong]
     h, w = g.shape
-    cy, cx = np.nonzero(np.hypot(*np.mgrid[:h, :w] - np.array([(h - 1) / 2, (w - 1) / 2])[:, None, None]) <= reach)
-    dx = xs[None, :] - cx[:, None]
-    dy = ys[None, :] - cy[:, None]
-    dist = np.maximum(np.hypot(dx, dy), 1e-6)
-    agree = np.maximum((dx * ux + dy * uy) / dist, 0.0)  # gradients point outward from a dark centre
-    score = np.mean(agree**2, axis=1)
+    iy, ix = np.nonzero(np.hypot(*np.mgrid[:h, :w] - np.array([(h - 1) / 2, (w - 1) / 2])[:, None, None]) <= reach)
+    cy, cx = iy.astype(np.float32), ix.astype(np.float32)
+    # (centres, gradient pixels): the displacement d from each centre to each pixel, d . u over |d|
+    along = (xs * ux + ys * uy)[None, :] - np.outer(cx, ux) - np.outer(cy, uy)
+    dist2 = (xs * xs + ys * ys)[None, :] - 2.0 * (np.outer(cx, xs) + np.outer(cy, ys)) + (cx * cx + cy * cy)[:, None]
+    agree = np.maximum(along, 0.0) ** 2 / np.maximum(dist2, 1e-6)  # gradients point outward from a dark centre
+    score = np.mean(agree, axis=1)
     dark = 1.0 - cv2.GaussianBlur(g, (0, 0), dark_sigma) / max(float(g.max()), 1e-6)
-    best = int(np.argmax(score * dark[cy, cx]))
-    return float(cx[best]), float(cy[best])
+    best = int(np.argmax(score * dark[iy, ix]))
+    return float(ix[best]), float(iy[best])
 
 
 def refine_eyes(image: np.ndarray, eyes: np.ndarray, which=(True, True)) -> np.ndarray:
