@@ -28,8 +28,7 @@ MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
 # brightened 5x would otherwise light its dark background up as a halo)
 RATIO_OUTSIDE = (0.5, 1.6)
-EXPOSURE_PERCENTILE = 50.0  # the relit face's median ...
-EXPOSURE_TARGET = 0.6  # ... is exposed at this level (``exposure_gain``)
+EXPOSURE_TARGET = 0.6  # the relit face's mean brightness, seen frontally (``exposure_gain``)
 
 
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -165,18 +164,20 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
-def exposure_gain(albedo: np.ndarray, normals: np.ndarray, face: np.ndarray, target: float = EXPOSURE_TARGET,
-                  percentile: float = EXPOSURE_PERCENTILE) -> float:
+def exposure_gain(albedo: np.ndarray, normals: np.ndarray, face: np.ndarray, target: float = EXPOSURE_TARGET) -> float:
     """The factor that exposes a relit photo the same whatever the input light: the face seen
-    frontally (``rho x n . z``) gets its ``percentile`` of brightness at ``target``. A photo alone
-    cannot say how strong its lamp was (Yale B's lamps differ by up to 1.5x between positions, and
-    the fitted brightness scale drifts with the light's angle), so the relit photo is auto-exposed
-    on the face, as a camera's face exposure mode does; the rest of the photo gets the same gain."""
+    frontally (``rho x n . z``) gets its mean brightness at ``target``. A photo alone cannot say how
+    strong its lamp was (Yale B's lamps differ by up to 1.5x between positions, and the fitted
+    brightness scale drifts with the light's angle), so the relit photo is auto-exposed on the face,
+    as a camera's face metering does; the rest of the photo gets the same gain. The mean, not the
+    median: how much of the face is filled changes with the input light, and with it the albedo's
+    distribution, so the median held the relit face's mean level within 6 % across (+-25..70, 0)
+    (Yale B, B05), the mean within 1 %."""
     frontal = np.atleast_3d(albedo).mean(axis=-1) * np.clip(normals[..., 2], 0.0, None)
     ok = face & np.isfinite(frontal)
     if ok.sum() < 50:
         return 1.0
-    have = float(np.percentile(frontal[ok], percentile))
+    have = float(np.mean(frontal[ok]))
     return target / have if have > 1e-6 else 1.0
 
 
