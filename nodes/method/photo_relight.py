@@ -28,7 +28,11 @@ MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
 # brightened 5x would otherwise light its dark background up as a halo)
 RATIO_OUTSIDE = (0.5, 1.6)
-EXPOSURE_TARGET = 0.6  # the relit face's mean brightness, seen frontally (``exposure_gain``)
+# the relit face's mean brightness, seen frontally (``exposure_gain``). 0.5 leaves the highlights room: on the
+# five Yale B subjects (+-25..70, 0 and frontal inputs) 0.1 % of the relit face is clipped at the top of the
+# range (at most 0.9 % in one photo), against 1.8 % (at most 4.6 %) at 0.6, and a frontal photo relit by its
+# own light keeps 98.9-100 % of its gradient energy, against 92.3-98.0 % at 0.6
+EXPOSURE_TARGET = 0.5
 
 
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
