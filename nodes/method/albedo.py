@@ -24,7 +24,8 @@ MIN_SHADING = 0.4
 # n . s divided by) than brighter skin, and the other side of the face need not share it; the face's real
 # detail is darker than its skin (brows, eyes, lips, nostrils), which the ceiling keeps. Measured on the
 # five Yale B subjects (frontal relighting, the photo-grid fill built on this map): 21.75 / 18.71 dB at
-# +-50 / +-70 without the ceiling, 21.95 / 19.13 dB with it, and better at each of twelve other lights.
+# +-50 / +-70 without the ceiling, 21.95 / 19.13 dB with it (exposed on the median then), and better at each
+# of twelve other lights.
 # None: the paper's fill, values as measured.
 FILL_CEILING = 1.0
 
