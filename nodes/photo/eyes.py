@@ -21,6 +21,8 @@ from itertools import combinations
 import cv2
 import numpy as np
 
+from .align import Alignment, to_model_grid
+
 
 @lru_cache(maxsize=1)
 def _cascade() -> cv2.CascadeClassifier:
@@ -140,7 +142,7 @@ def iris_centre(patch: np.ndarray, reach: float, dark_sigma: float, highlight: f
     return float(ix[best]), float(iy[best])
 
 
-def refine_eyes(image: np.ndarray, eyes: np.ndarray, which=(True, True)) -> np.ndarray:
+def refine_eyes(image: np.ndarray, eyes: np.ndarray, which: tuple[bool, bool] | list[bool] = (True, True)) -> np.ndarray:
     """(2, 2) ``eyes`` (box centres, pixels) moved to their iris centres (``iris_centre``) in
     ``image`` (H, W) [0, 1]. An eye in shadow (its patch's median under ``SHADOWED_EYE`` of the
     face's bright level, the 95th percentile between brows and mouth) shows no iris, only the
@@ -163,15 +165,13 @@ def refine_eyes(image: np.ndarray, eyes: np.ndarray, which=(True, True)) -> np.n
     for k, (x, y) in enumerate(eyes):
         if not which[k] or x - r < 0 or y - r < 0 or x + r > w - 1 or y + r > h - 1:
             continue
-        # the eye's surroundings, blurred against aliasing when a large photo is shrunk; then
-        # patch pixel (u, v) shows photo (x + (u - half) / zoom, y + (v - half) / zoom)
-        xa, ya = int(x - r) - 2, int(y - r) - 2
-        crop = img[max(ya, 0):int(y + r) + 3, max(xa, 0):int(x + r) + 3]
-        if zoom < 1:
-            crop = cv2.GaussianBlur(crop, (0, 0), 0.5 / zoom)
-        m = np.array([[zoom, 0.0, half - zoom * (x - max(xa, 0))], [0.0, zoom, half - zoom * (y - max(ya, 0))]])
-        patch = cv2.warpAffine(crop, m, (2 * half + 1, 2 * half + 1), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_REPLICATE)
+        # the eye's surroundings resampled as the photo is onto the model grid (area-averaged when a
+        # large photo shrinks): patch pixel (u, v) shows photo (x + (u - half) / zoom, y + (v - half) / zoom)
+        xa, ya = max(int(x - r) - 2, 0), max(int(y - r) - 2, 0)
+        crop = img[ya:int(y + r) + 3, xa:int(x + r) + 3]
+        to_crop = Alignment(np.array([[1 / zoom, 0.0, x - xa - half / zoom], [0.0, 1 / zoom, y - ya - half / zoom]]),
+                            "iris patch")
+        patch = to_model_grid(crop, to_crop, (2 * half + 1, 2 * half + 1))
         if float(np.median(patch)) < SHADOWED_EYE * bright:
             continue
         found = iris_centre(patch, IRIS_REACH * IRIS_SCALE, IRIS_DARK_SIGMA * IRIS_SCALE, IRIS_HIGHLIGHT * IRIS_SCALE)
