@@ -11,6 +11,11 @@ which re-runs the caller's ``__main__`` in the child: a user's script without a 
 start over). The sinks are named, not pickled: ``(callable, args, kwargs)`` with JSON arguments,
 imported by name in the child. If the run dies, the child reads end-of-file and closes its files
 as a finished run would; it ignores SIGINT and SIGTERM (the run closes it).
+
+The child's allocator gives freed memory back at once (``CHILD_ENV``): sinks written in Rust
+(Rerun's bindings) allocate through mimalloc, which by default keeps freed pages for later and,
+over a long recording, let the child's RSS saw by about 30 MiB around its level
+(``benchmarks/bench_soak.py``); with them returned at once it moves by a few MiB, at the same speed.
 """
 from __future__ import annotations
 
@@ -23,7 +28,7 @@ import sys
 from collections import OrderedDict
 from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -31,6 +36,15 @@ from . import wire
 from .events import Event, OnMask, Sink
 
 SinkSpec = tuple[Callable[..., Sink], tuple, dict]  # a sink factory and its JSON arguments
+
+# set in the child's environment unless the caller's environment sets them already
+CHILD_ENV = {"MIMALLOC_PURGE_DELAY": "0"}  # mimalloc: return freed pages to the system at once
+
+
+def child_environment(environ: Mapping[str, str]) -> dict[str, str]:
+    """The recording process's environment: ``environ`` with ``CHILD_ENV`` where it sets none of its
+    own, and this interpreter's ``sys.path`` as ``PYTHONPATH`` (the sinks are imported by name)."""
+    return {**CHILD_ENV, **environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
 
 
 class ProcessSinks(Sink):
@@ -41,23 +55,42 @@ class ProcessSinks(Sink):
     closes them and waits for the child. ``paths``: the files the sinks have written (a Rerun
     sink's segments included), as of the last ``frame_done`` or ``close``.
     ``max_masks``: ``OnMask`` grids the child keeps (each is sent once, then named by key).
+    ``renew_frames``: with one sink, a new child every this many frames (``_renew``; the sink's
+    factory then takes ``previous_paths``), for a sink whose library grows with what it has seen.
     """
 
-    def __init__(self, specs: Sequence[SinkSpec], max_masks: int = 16):
+    def __init__(self, specs: Sequence[SinkSpec], max_masks: int = 16, renew_frames: int | None = None):
         named = [[f"{fn.__module__}:{fn.__qualname__}", list(args), dict(kwargs)] for fn, args, kwargs in specs]
         json.dumps(named)  # TypeError now, for an argument the child could not be given
+        if renew_frames is not None and (len(named) != 1 or renew_frames < 1):
+            raise ValueError("renew_frames: one sink, renewed after a whole number of frames")
         self.paths: list[Path] = []
-        self.max_masks = max_masks
+        self.max_masks, self.renew_frames = max_masks, renew_frames
+        self._named = named
+        self._frames = 0  # frames done by this child
+        self._start(named)
+
+    def _start(self, named: list) -> None:
+        """A child making the sinks ``named``; masks are sent anew."""
         self._masks: OrderedDict[int, tuple[np.ndarray, int]] = OrderedDict()  # id(mask) -> (mask, key)
         self._next_key = 0
         self._conn, child = Pipe(duplex=True)
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+        env = child_environment(os.environ)
         self._proc = subprocess.Popen(
             [sys.executable, "-c", f"from {__name__} import serve; serve({child.fileno()})"],
             pass_fds=(child.fileno(),), stdin=subprocess.DEVNULL, env=env)
         child.close()
         self._closed = False
         self._send({"op": "open", "sinks": named})
+
+    def _renew(self) -> None:
+        """Close the child and go on in a new one, its sink made with ``previous_paths=`` the files
+        the last one wrote (it goes on after them): whatever a sink's library keeps for the life of
+        a process is let go."""
+        self.close()
+        name, args, kwargs = self._named[0]
+        self._frames = 0
+        self._start([[name, args, {**kwargs, "previous_paths": [str(p) for p in self.paths]}]])
 
     def _send(self, header: dict, value: Any = None) -> None:
         data = wire.encode(header, value, self._mask_key)
@@ -106,7 +139,10 @@ class ProcessSinks(Sink):
             if reply.get("error"):
                 raise RuntimeError(reply["error"])
             if reply["op"] == "done" and reply["frame"] == frame:
-                return
+                break
+        self._frames += 1
+        if self.renew_frames is not None and self._frames >= self.renew_frames:
+            self._renew()
 
     def close(self) -> None:
         if self._closed:
@@ -128,6 +164,18 @@ class ProcessSinks(Sink):
             raise RuntimeError(reply["error"])
 
 
+def renewed_sink(factory: str, args: list, kwargs: dict, every: int) -> ProcessSinks:
+    """The sink ``factory`` (``module:name``) makes from ``args`` and ``kwargs``, in a process of its
+    own made anew every ``every`` frames (``ProcessSinks.renew_frames``): a ``ProcessSinks`` factory
+    of its own, so the recording process hosts it beside its other sinks."""
+    return ProcessSinks([(_factory(factory), tuple(args), kwargs)], renew_frames=every)
+
+
+def _factory(name: str) -> Callable[..., Sink]:
+    module, _, attr = name.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
 def serve(fd: int) -> None:
     """The child: make the sinks, then write what comes down ``fd`` until ``close`` or end of file.
 
@@ -141,8 +189,7 @@ def serve(fd: int) -> None:
     error = None
     try:
         for name, args, kwargs in wire.decode(conn.recv_bytes(), masks)["sinks"]:
-            module, _, attr = name.partition(":")
-            sinks.append(getattr(importlib.import_module(module), attr)(*args, **kwargs))
+            sinks.append(_factory(name)(*args, **kwargs))
     except BaseException as exc:  # noqa: BLE001 - the run hears of it at its next frame_done
         error = _describe(exc)
     while True:
