@@ -18,7 +18,10 @@ class RerunSink(Sink):
     first, so one view gathers a channel of every frame with ``/<node>/<name>/**`` (a viewer's
     path filters take a wildcard at the end only), and a default blueprint (images side by side and the
     convergence plots), streamed to disk as it goes; after every ``segment_frames`` frames it goes
-    on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``).
+    on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``), opened when
+    the next frame's first event comes. ``previous_paths``: the files an earlier sink of this
+    recording wrote (``recording_id`` the same; e.g. in a process since renewed, see
+    ``ProcessSinks``): this one goes on in the next segment after them.
 
     Per-iteration images, vectors and scalars are held per entity until the frame ends (or
     ``batch`` iterations are waiting) and sent in one ``send_columns`` call: Rerun's cost is
@@ -28,7 +31,8 @@ class RerunSink(Sink):
     """
 
     def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
-                 batch: int = 32, segment_frames: int | None = 100, recording_id: str | None = None):
+                 batch: int = 32, segment_frames: int | None = 100, recording_id: str | None = None,
+                 previous_paths: list[str] | None = None):
         import uuid
 
         import rerun as rr
@@ -39,11 +43,15 @@ class RerunSink(Sink):
         self.blueprint, self.application_id = blueprint, application_id
         self.recording_id = recording_id or str(uuid.uuid4())  # files of one id: one recording in the viewer
         self.segment_frames = segment_frames
-        self.paths: list[Path] = []  # the files written: path, then path's segments
+        self.paths: list[Path] = [Path(p) for p in previous_paths or []]  # the files written: path, then its segments
         self._frames_in_segment = 0
         self._pending: dict[tuple[int, str], list[Event]] = {}
         self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
-        self._open(self.path)
+        self.rec = None
+        if self.paths:
+            self._next_segment()
+        else:
+            self._open(self.path)
 
     def _open(self, path: Path) -> None:
         if path.is_symlink():
@@ -61,7 +69,8 @@ class RerunSink(Sink):
         new file every ``segment_frames`` frames bounds that: RSS then saws by about 10 MiB at 100
         frames a file instead of climbing (``benchmarks/bench_soak.py``). The viewer merges the
         files of one recording id: ``rerun OUT/run*.rrd``."""
-        self._drop_stream()
+        if self.rec is not None:
+            self._drop_stream()
         k = len(self.paths) + 1
         self._open(self.path.with_name(f"{self.path.stem}.s{k}{self.path.suffix}"))
         self._frames_in_segment = 0
@@ -74,6 +83,8 @@ class RerunSink(Sink):
         return f"{path}/{self._names.get(frame) or f'{frame:05d}'}"
 
     def write(self, event: Event) -> None:
+        if self.rec is None:  # the last segment is full
+            self._next_segment()
         if event.iteration is not None and self._columnar(event):
             rows = self._pending.setdefault((event.frame, event.path), [])
             rows.append(event)
@@ -162,16 +173,19 @@ class RerunSink(Sink):
             self._send(f, path)
 
     def frame_done(self, frame: int) -> None:
+        if self.rec is None:  # a frame that recorded nothing, after a full segment
+            self._next_segment()
         self._send_frame(frame)
         self._names.pop(frame, None)
         self.rec.flush()
         self._frames_in_segment += 1
         if self.segment_frames and self._frames_in_segment >= self.segment_frames:
-            self._next_segment()
+            self._drop_stream()  # the next segment opens with the next frame's first event
 
     def close(self) -> None:
-        self._send_frame(None)
-        self._drop_stream()
+        if self.rec is not None:
+            self._send_frame(None)
+            self._drop_stream()
 
     def _drop_stream(self) -> None:
         """Flush and close the file, and let the stream's threads end: a dropped stream is kept

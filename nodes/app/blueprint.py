@@ -10,9 +10,10 @@ from pathlib import Path
 from ...flow.recording.rerun_sink import RerunSink
 
 
-def rerun_sink(path: str | Path, recording_id: str | None = None) -> RerunSink:
-    """The run's Rerun sink: ``path`` with the default blueprint (a ``ProcessSinks`` factory)."""
-    return RerunSink(path, blueprint=default_blueprint(), recording_id=recording_id)
+def rerun_sink(path: str | Path, recording_id: str | None = None, previous_paths: list[str] | None = None) -> RerunSink:
+    """The run's Rerun sink: ``path`` with the default blueprint (a ``ProcessSinks`` factory;
+    ``previous_paths``: see ``RerunSink``)."""
+    return RerunSink(path, blueprint=default_blueprint(), recording_id=recording_id, previous_paths=previous_paths)
 
 
 def default_blueprint():

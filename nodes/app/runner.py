@@ -33,6 +33,7 @@ from ...flow.pipeline import Pipeline, Stage
 from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
+from ...flow.recording.process import renewed_sink
 from ..method.nodes import LoadNode, MethodOptions, method_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import (
@@ -78,6 +79,10 @@ def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
 
 # errors that fail every later write too: the run stops instead of failing frame after frame
 STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+# the Rerun sink's process is made anew every this many frames (five of its 100-frame segments):
+# the SDK keeps a few hundred bytes for every entity path a process has logged, about 20 kB a frame
+# here, for the life of the process (benchmarks/bench_soak.py: RSS 330 -> 371 MiB over 2,000 frames)
+RERUN_RENEW_FRAMES = 500
 
 
 class StorageError(OSError):
@@ -250,10 +255,15 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     if "mcap" in run.record:
         specs.append((McapSink, (str(parts["mcap"]),), {}))
         manifest.recordings.append(parts["mcap"].name)
+    own_process = run.record_options.own_process and client is None
     if "rerun" in run.record:
-        specs.append((rerun_sink, (str(parts["rrd"]), recording_id), {}))
+        rrd_args = (str(parts["rrd"]), recording_id)
+        if own_process:  # the Rerun SDK keeps something of every entity path a process logs: renewed
+            specs.append((renewed_sink, (f"{rerun_sink.__module__}:rerun_sink", list(rrd_args), {}, RERUN_RENEW_FRAMES), {}))
+        else:
+            specs.append((rerun_sink, rrd_args, {}))
         manifest.recordings.append(parts["rrd"].name)
-    if specs and run.record_options.own_process and client is None:
+    if specs and own_process:
         sinks: list = [ProcessSinks(specs)]  # encoding and compression on the other core
     else:
         sinks = [factory(*args, **kwargs) for factory, args, kwargs in specs]
