@@ -68,6 +68,7 @@ class ProcessSinks(Sink):
         self.max_masks, self.renew_frames = max_masks, renew_frames
         self._named = named
         self._frames = 0  # frames done by this child
+        self._names: dict[int, str] = {}  # frames named and not done: a renewed child is told them again
         self._start(named)
 
     def _start(self, named: list) -> None:
@@ -91,6 +92,8 @@ class ProcessSinks(Sink):
         name, args, kwargs = self._named[0]
         self._frames = 0
         self._start([[name, args, {**kwargs, "previous_paths": [str(p) for p in self.paths]}]])
+        for frame, frame_name in self._names.items():  # frames under way: their rows go on under their names
+            self._send({"op": "name", "frame": frame, "name": frame_name})
 
     def _send(self, header: dict, value: Any = None) -> None:
         data = wire.encode(header, value, self._mask_key)
@@ -125,6 +128,8 @@ class ProcessSinks(Sink):
         return key
 
     def name_frame(self, frame: int, name: str) -> None:
+        if self.renew_frames is not None:
+            self._names[frame] = name
         self._send({"op": "name", "frame": frame, "name": name})
 
     def write(self, event: Event) -> None:
@@ -132,6 +137,7 @@ class ProcessSinks(Sink):
                     "iteration": event.iteration}, event.value)
 
     def frame_done(self, frame: int) -> None:
+        self._names.pop(frame, None)
         self._send({"op": "done", "frame": frame})
         while True:
             reply = self._recv()

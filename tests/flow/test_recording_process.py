@@ -102,11 +102,18 @@ def test_a_renewed_recording_process_goes_on_in_the_next_files_of_one_recording(
         for it in (1, 2):
             sink.write(Event(frame, "fit/w", Kind.IMAGE, np.full((4, 4), frame + it / 10, np.float32), it))
         sink.frame_done(frame)
+    sink.name_frame(5, "face5")  # a frame under way when the process is renewed keeps its name
+    sink.name_frame(6, "face6")
+    sink.frame_done(6)  # the sixth frame done: renewed
+    sink.write(Event(5, "fit/w", Kind.IMAGE, np.full((4, 4), 5.1, np.float32), 1))
+    sink.frame_done(5)
     sink.close()
     assert pids[0] == pids[1] != pids[2] == pids[3] != pids[4] and pids[0] != pids[4]
-    names = ["run.rrd"] + [f"run.s{k}.rrd" for k in range(2, 6)]
+    names = ["run.rrd"] + [f"run.s{k}.rrd" for k in range(2, 8)]  # frame 6 in s6, frame 5 after the renewal
     assert [p.name for p in sink.paths] == names and sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
-    for frame, path in enumerate(sink.paths):
+    assert sorted(rrd_rows(sink.paths[-1], "/fit/w/face5", "Image:buffer")) == [1]
+    assert not rrd_rows(sink.paths[-1], "/fit/w/00005", "Image:buffer")
+    for frame, path in enumerate(sink.paths[:5]):
         assert [e.recording_id for e in rc.RrdReader(path).recordings()] == ["one"]
         for other in range(5):
             rows = rrd_rows(path, f"/fit/w/face{other}", "Image:buffer")
