@@ -29,6 +29,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+from scipy.stats import theilslopes
+
 from bench_stream import make_inputs
 
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
@@ -105,6 +108,7 @@ def soak(n: int, record: str, tmp: Path, renew_frames: int | None = None) -> tup
         return fps, sum(x[2] for x in s) / len(s) / 1024, 1000 * (s[-1][3] - s[0][3]) / frames
 
     tenth = n // 10
+    rss_trend, fps_trend = trend(samples, n, tenth // 2, n - tenth // 2)
     fps_a, rss_a, cpu_a = window(tenth // 2, tenth // 2 + tenth)  # past the start-up
     fps_b, rss_b, cpu_b = window(n - tenth - tenth // 2, n - tenth // 2)  # short of the drain
     fps_end, rss_end, _ = window(n - tenth, n)
@@ -112,7 +116,7 @@ def soak(n: int, record: str, tmp: Path, renew_frames: int | None = None) -> tup
            "fps_early": round(fps_a, 2), "fps_late": round(fps_b, 2), "fps_ratio": round(fps_b / fps_a, 3),
            "rss_early_mib": round(rss_a, 1), "rss_late_mib": round(rss_b, 1), "rss_ratio": round(rss_b / rss_a, 3),
            "cpu_ms_per_frame_early": round(cpu_a, 1), "cpu_ms_per_frame_late": round(cpu_b, 1),
-           "cpu_ratio": round(cpu_b / cpu_a, 3),
+           "cpu_ratio": round(cpu_b / cpu_a, 3), "rss_trend": round(rss_trend, 3), "fps_trend": round(fps_trend, 3),
            "fps_last_tenth": round(fps_end, 2), "rss_last_tenth_mib": round(rss_end, 1),
            "rss_peak_mib": round(max(x[2] for x in samples) / 1024, 1),
            "recording_mib": round(sum(f.stat().st_size for f in out.glob("run.*")) / 2**20, 1),
@@ -120,6 +124,27 @@ def soak(n: int, record: str, tmp: Path, renew_frames: int | None = None) -> tup
            "samples": [{"s": round(t, 1), "frames": d, "rss_mib": round(r / 1024, 1), "cpu_s": round(c, 2),
                         "cpu_run_s": round(o, 2), "rss_run_mib": round(q / 1024, 1)} for t, d, r, c, o, q in samples]}
     return row, out
+
+
+def trend(samples: list[tuple], n: int, lo: int, hi: int) -> tuple[float, float]:
+    """(RSS, frames/s): where a Theil-Sen line ends against where it starts over frames lo..hi of
+    n, through every RSS sample and through the frames/s of each 5 % of the frames. ``samples``:
+    (seconds, frames done, RSS, ...). A window's mean can land on either end of a saw (a recording
+    process growing, then renewed); the line weighs the whole run."""
+    s = [x for x in samples if lo <= x[1] < hi]
+    f, m = np.array([x[1] for x in s], float), np.array([x[2] for x in s], float)
+    slope, icept, *_ = theilslopes(m, f)
+    step, mids, rates = max(n // 20, 1), [], []
+    for a in range(lo, hi - step + 1, step):
+        w = [x for x in s if a <= x[1] < a + step]
+        if len(w) > 1 and w[-1][0] > w[0][0]:
+            mids.append(a + step / 2)
+            rates.append((w[-1][1] - w[0][1]) / (w[-1][0] - w[0][0]))
+    if len(rates) < 3:
+        return float("nan"), float("nan")
+    fslope, ficept, *_ = theilslopes(rates, mids)
+    return (float((icept + slope * hi) / (icept + slope * lo)),
+            float((ficept + fslope * mids[-1]) / (ficept + fslope * mids[0])))
 
 
 def peak_of(cmd: list[str]) -> tuple[int, float, float]:
@@ -157,6 +182,7 @@ def main() -> None:
     print(f"RSS MiB over the tenth before 1/4, 1/2, 3/4 and all of the frames: {r['rss_mib_by_quarter']}")
     print(f"CPU ms a frame (the run and its recording processes), same windows: {r['cpu_ms_per_frame_early']} / "
           f"{r['cpu_ms_per_frame_late']} ({r['cpu_ratio']}x)")
+    print(f"Theil-Sen lines over the same span, end against start: RSS {r['rss_trend']}x, frames/s {r['fps_trend']}x")
     print(f"the very last tenth (the drain included): {r['fps_last_tenth']} frames/s, {r['rss_last_tenth_mib']} MiB")
     if args.json:
         Path(args.json).write_text(json.dumps(row, indent=2) + "\n")
