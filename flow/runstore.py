@@ -72,6 +72,10 @@ class RunStore:
         self._execute("INSERT INTO records (name, body) VALUES (?, ?) ON CONFLICT (name) DO UPDATE SET body = excluded.body",
                       (_blob(name), json.dumps(record, separators=(",", ":"))))
 
+    def drop_record(self, name: str) -> None:
+        """Remove the record under ``name``, if any."""
+        self._execute("DELETE FROM records WHERE name = ?", (_blob(name),))
+
     def _execute(self, sql: str, args: tuple = ()) -> list:
         """The statement's rows; a failure of the file (full disk, I/O error) as ``OSError`` naming it."""
         with self._lock:

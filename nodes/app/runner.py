@@ -382,6 +382,12 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             out_of_storage(cannot_write(exc.filename, exc))
             return False
 
+    def drop_record(name: str) -> None:
+        try:
+            store.drop_record(name)
+        except OSError:
+            pass  # the store takes no more either: the run is stopping, and says why already
+
     def done(frame: Frame) -> None:
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
             frame.data.clear()
@@ -396,6 +402,9 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             out_of_storage(frame.status)
             frame.data.clear()
             return
+        if storage:  # finished after the run stopped taking data: not journaled, so --resume redoes it
+            frame.data.clear()  # and summary.json does not call it done
+            return
         rec = summary_record(frame)
         if not stored(frame.meta["stem"], rec):  # (taken again, as a watched file that changed: the newer record)
             frame.data.clear()
@@ -406,12 +415,16 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             if new_parts:  # listed at once, so a killed run's parts are still read as the job's
                 manifest.recordings.extend(new_parts)
                 save_manifest()
-        if "recording_error" in frame.meta:
-            out_of_storage(f"{out}: {frame.meta.pop('recording_error')}")
-        elif recorder is not None and worker_parts is None:
+        failed = frame.meta.pop("recording_error", None)
+        if failed is None and recorder is not None and worker_parts is None:
             recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
             if recorder.error is not None:
-                out_of_storage(f"{out}: recording failed ({recorder.error})")
+                failed = f"recording failed ({recorder.error})"
+        if failed is not None:  # --resume redoes the frame: summary.json does not call it done
+            out_of_storage(f"{out}: {failed}")
+            drop_record(frame.meta["stem"])
+            frame.data.clear()
+            return
         if not storage:
             journal_entry(frame, rec)
         save_summary()

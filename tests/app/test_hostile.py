@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 import pytest
 from shadowflow.flow.frame import Frame
+from shadowflow.flow.manifest import RunManifest
 from shadowflow.flow.pipeline import Pipeline
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.normals import angle_deg
@@ -298,6 +299,10 @@ def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_pa
         if p.suffix == ".npy":
             np.load(p, allow_pickle=False)
     done = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else []
+    # summary.json calls done exactly the frames --resume will reuse: not the one whose output or
+    # recording failed, nor any that finished after the run stopped taking data
+    journaled = RunManifest.load(out)
+    assert sorted(r["stem"] for r in done) == sorted(e.name for e in journaled.entries.values())
     assert len(done) < 3
     resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, cwd=REPO, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
@@ -328,9 +333,12 @@ def test_a_run_store_that_takes_no_more_stops_the_run_and_resume_finishes(tmp_pa
     err = capsys.readouterr().err
     assert result.storage_error == f"{out / '.run.sqlite'}: cannot be written (database or disk is full)"
     assert f"error: {result.storage_error}; stopping" in err and not result.stopped
-    summary = json.loads((out / "summary.json").read_text())  # frames already under way may finish
+    summary = json.loads((out / "summary.json").read_text())
     assert result.frames == len(summary) < 3 and all(r["status"] == "ok" for r in summary)
     assert calls[1] not in [r["stem"] for r in summary]
+    # frames that finish after the stop are not recorded as done: --resume redoes them
+    assert len(calls) == 2
+    assert sorted(r["stem"] for r in summary) == sorted(e.name for e in RunManifest.load(out).entries.values())
     assert not (out / ".run.sqlite").exists()
     monkeypatch.setattr(RunStore, "put_record", put)
     again = shadowflow.run([src], out, model=procedural_model, record=(), resume=True)
