@@ -48,9 +48,7 @@ class RerunSink(Sink):
         self._pending: dict[tuple[int, str], list[Event]] = {}
         self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
         self.rec = None
-        if self.paths:
-            self._next_segment()
-        else:
+        if not self.paths:  # else the next segment opens with the first event, as after a full one
             self._open(self.path)
 
     def _open(self, path: Path) -> None:
