@@ -64,6 +64,14 @@ class OnMask:
         return out.reshape(self.mask.shape + rest)
 
 
+def value_nbytes(value: Any) -> int:
+    """Bytes an event's value holds in arrays: an array's, or an ``OnMask``'s values' (the mask is
+    shared between events); anything else (a dict of scalars, a record): 0."""
+    if isinstance(value, OnMask):
+        return int(value.values.nbytes)
+    return int(value.nbytes) if isinstance(value, np.ndarray) else 0
+
+
 class Sink:
     """Writes events somewhere. ``write`` runs on the recorder's thread only. ``paths``: the files
     it has written so far (none for a sink that keeps its events in memory)."""

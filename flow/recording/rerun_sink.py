@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from .codec import jsonable
-from .events import Event, Kind, OnMask, Sink
+from .events import Event, Kind, OnMask, Sink, value_nbytes
 
 
 class RerunSink(Sink):
@@ -28,11 +28,16 @@ class RerunSink(Sink):
     per call (about 0.3 ms to turn one array into Arrow, whatever its size), and a frame
     makes dozens of them. The file holds the same rows, times and values as one ``log`` per
     iteration would write; a frame's rows reach the file when the frame is flushed, as before.
+    ``max_held_bytes``: the rows held, over all frames, are at most about this many bytes; past it
+    the largest held batch is sent at once. A run's pipeline has several frames in its fit at a
+    time, each with per-iteration images held here until it ends: without the bound the held rows
+    ranged from 1 to 100 MiB with how many frames the pipeline's timing kept in flight (the
+    recording process's RSS 130-300 MiB in a soak, ``benchmarks/bench_soak.py``).
     """
 
     def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
                  batch: int = 32, segment_frames: int | None = 100, recording_id: str | None = None,
-                 previous_paths: list[str] | None = None):
+                 previous_paths: list[str] | None = None, max_held_bytes: int = 24 << 20):
         import uuid
 
         import rerun as rr
@@ -46,6 +51,8 @@ class RerunSink(Sink):
         self.paths: list[Path] = [Path(p) for p in previous_paths or []]  # the files written: path, then its segments
         self._frames_in_segment = 0
         self._pending: dict[tuple[int, str], list[Event]] = {}
+        self.max_held_bytes = max_held_bytes
+        self.held_bytes = 0  # of the values in ``_pending``
         self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
         self.rec = None
         if not self.paths:  # else the next segment opens with the first event, as after a full one
@@ -86,8 +93,11 @@ class RerunSink(Sink):
         if event.iteration is not None and self._columnar(event):
             rows = self._pending.setdefault((event.frame, event.path), [])
             rows.append(event)
+            self.held_bytes += value_nbytes(event.value)
             if len(rows) >= self.batch:
                 self._send(event.frame, event.path)
+            while self.held_bytes > self.max_held_bytes:
+                self._send(*max(self._pending, key=lambda k: sum(value_nbytes(e.value) for e in self._pending[k])))
             return
         self._log(event)
 
@@ -134,6 +144,7 @@ class RerunSink(Sink):
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
         rr, rows = self.rr, self._pending.pop((frame, path))
+        self.held_bytes -= sum(value_nbytes(e.value) for e in rows)
         entity = self._entity(path, frame)
 
         def index(rs: list[Event]) -> list:
