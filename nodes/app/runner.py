@@ -44,7 +44,7 @@ from .outputs import (
     summary_record,
     write_summary,
 )
-from .process import one_blas_thread, release_large_frees
+from .process import HeapTrimmer, one_blas_thread, release_large_frees
 from .blueprint import rerun_sink
 from .record import CONVERGENCE, FitRecorder, RecordNode
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
@@ -288,6 +288,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
     progress = Progress(total, not run.quiet)
+    trim_heap = HeapTrimmer()
     storage: list[str] = []  # the first storage failure, which stops the run
     summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
 
@@ -432,6 +433,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         if not frame.ok:
             progress.write(f"error: {frame.status}")
         frame.data.clear()  # the frame's arrays are on disk now: free them
+        trim_heap()
 
     if client is None:
         pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
