@@ -42,10 +42,10 @@ def release_large_frees() -> None:
 
 class HeapTrimmer:
     """glibc only: ``malloc_trim(0)`` (the heap's free pages given back to the system) when called,
-    at most once every ``period`` seconds; elsewhere nothing. A burst (the pipeline's queues filling
-    while the recording process is renewed) leaves the heap with tens of MiB freed but kept: glibc
-    returns free memory by itself only from the heap's top, and only past a trim threshold it has
-    raised to up to 64 MiB by then. Measured: a call takes 2-13 ms."""
+    at most once every ``period`` seconds; elsewhere nothing. A burst (e.g. the pipeline's queues
+    filling while the recording process is renewed) leaves the heap with tens of MiB freed but
+    kept: glibc returns free memory by itself only from the heap's top, and only past a trim
+    threshold it has raised to up to 64 MiB by then. Measured: a call takes 2-13 ms."""
 
     def __init__(self, period: float = 10.0):
         import ctypes
@@ -68,4 +68,3 @@ class HeapTrimmer:
         self._trim(0)
         self._last = self._clock()
         return True
-
