@@ -11,8 +11,9 @@ def _rss_kib() -> int:
 
 
 def test_the_heap_trimmer_gives_back_freed_pages_held_below_a_live_block_and_no_more_often_than_its_period():
-    """64 MiB freed in 64 kB blocks below one block still in use stays resident (glibc returns only
-    the heap's top by itself); the trimmer gives it back, then waits out its period."""
+    """64 MiB freed in 64 kB blocks, each below a small block still in use, stays resident (glibc
+    returns free memory by itself only from the heap's top); the trimmer gives it back, then waits
+    out its period."""
     name = ctypes.util.find_library("c")
     libc = ctypes.CDLL(name) if name else None
     if libc is None or not hasattr(libc, "malloc_trim") or not hasattr(libc, "mallopt"):
@@ -27,10 +28,11 @@ def test_the_heap_trimmer_gives_back_freed_pages_held_below_a_live_block_and_no_
     libc.mallopt(-1, 1 << 30)  # M_TRIM_THRESHOLD: nothing given back by free() itself
     libc.mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD: the blocks from the heap
     try:
-        blocks = [libc.malloc(64 << 10) for _ in range(1024)]
-        for b in blocks:
-            libc.memset(b, 1, 64 << 10)
-        pin = libc.malloc(64)  # above them: the heap's top cannot shrink past it
+        blocks, pins = [], []
+        for _ in range(1024):
+            blocks.append(libc.malloc(64 << 10))
+            libc.memset(blocks[-1], 1, 64 << 10)
+            pins.append(libc.malloc(64))  # after each: the freed blocks cannot merge into one
         for b in blocks:
             libc.free(b)
         trim = HeapTrimmer(period=3600.0)
@@ -39,7 +41,8 @@ def test_the_heap_trimmer_gives_back_freed_pages_held_below_a_live_block_and_no_
         assert trim() is True
         given_back = held - _rss_kib()
         assert trim() is False  # within its period
-        libc.free(pin)
+        for p in pins:
+            libc.free(p)
     finally:
         libc.mallopt(-1, 128 << 10)
     assert given_back > 48 << 10, given_back
