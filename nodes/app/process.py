@@ -3,7 +3,8 @@ memory back. Used by runs, fits, evaluations and Dask workers alike."""
 from __future__ import annotations
 
 from contextlib import contextmanager
-from typing import Iterator
+from functools import cache
+from typing import Callable, Iterator
 
 
 @contextmanager
@@ -27,17 +28,28 @@ def release_large_frees() -> None:
     dozen threads gets an arena of its own, whose freed pieces other threads cannot reuse: RSS
     grew by about 40 kB a frame (192 -> 207 MiB over 360 unrecorded frames; flat with two
     arenas, ``benchmarks/bench_soak.py``). Call it before the threads start. Elsewhere: nothing."""
+    mallopt = _libc_function("mallopt")
+    if mallopt is not None:
+        mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
+        mallopt(-8, 2)  # M_ARENA_MAX
+
+
+def _libc_function(name: str) -> Callable | None:
+    """The C library's function ``name`` (glibc's allocator tuning), or None where there is none."""
+    return getattr(_libc(), name, None)
+
+
+@cache
+def _libc():
+    """The C library, loaded once a process (``find_library`` runs ``ldconfig``), or None."""
     import ctypes
     import ctypes.util
 
-    name = ctypes.util.find_library("c")
+    path = ctypes.util.find_library("c")
     try:
-        libc = ctypes.CDLL(name) if name else None
-        if libc is not None and hasattr(libc, "mallopt"):
-            libc.mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
-            libc.mallopt(-8, 2)  # M_ARENA_MAX
+        return ctypes.CDLL(path) if path else None
     except OSError:
-        pass
+        return None
 
 
 class HeapTrimmer:
@@ -48,17 +60,10 @@ class HeapTrimmer:
     threshold it has raised to up to 64 MiB by then. Measured: a call takes 2-13 ms."""
 
     def __init__(self, period: float = 10.0):
-        import ctypes
-        import ctypes.util
         import time
 
         self.period, self._clock, self._last = period, time.monotonic, time.monotonic()
-        name = ctypes.util.find_library("c")
-        try:
-            libc = ctypes.CDLL(name) if name else None
-        except OSError:
-            libc = None
-        self._trim = getattr(libc, "malloc_trim", None)
+        self._trim = _libc_function("malloc_trim")
 
     def __call__(self) -> bool:
         """Trim if ``period`` has passed since the last; True if it did."""
