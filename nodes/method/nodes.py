@@ -437,7 +437,7 @@ class QualityNode:
         al: Alignment = d["alignment"]
         h, w = d["image"].shape[:2]
         q = assess(eyes=d.get("eyes_found", "given"),
-                   explained=explained_variance(d["remapped"][m.mask], shading, use),
+                   explained=explained_variance(d["remapped"][m.mask], shading, use, r.weights),
                    downweighted=float(np.mean(r.weights[seen] < 0.5)) if seen.any() else 1.0,
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
                    face_area=float(m.n_pixels * al.scale**2 / (h * w)), inside=float(np.mean(seen[self.core])))
