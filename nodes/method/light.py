@@ -5,30 +5,28 @@ import numpy as np
 
 
 def estimate_light(intensity: np.ndarray, normals: np.ndarray, min_intensity: float = 0.05,
-                   iterations: int = 10, weights: np.ndarray | None = None) -> np.ndarray:
+                   iterations: int = 10) -> np.ndarray:
     """Least-squares light from the clamped Lambertian model ``I = rho max(n . s, 0)``.
 
-    intensity: (N,) brightness; normals: (N, 3) unit, camera frame (e.g. the model's mean
-    face); weights: (N,) how far each pixel's normal is to be trusted (default all alike; see
-    ``mean_face_weights``). Starts from ``l = rho s`` fitted over pixels brighter than
-    ``min_intensity`` of the peak, then refits over the pixels the current ``l`` lights
-    (``n . l > 0``), dark ones included, so the shadowed side pulls the light away from the view
-    axis as it should; ``iterations`` refits. Returns ``s = l / |l|`` (3,), forced toward the
-    camera (z >= 0.05). On Yale B photos with the ICT mean face: 8.8 / 8.5 / 7.7 deg at 25 / 50 /
-    70 deg azimuth unweighted, 7.8 / 8.3 / 7.8 with ``mean_face_weights``.
+    intensity: (N,) brightness; normals: (N, 3) camera frame, the normals' best guess (e.g. a
+    model's ``expected_normals``; need not be unit). Starts from ``l = rho s`` fitted over pixels
+    brighter than ``min_intensity`` of the peak, then refits over the pixels the current ``l``
+    lights (``n . l > 0``), dark ones included, so the shadowed side pulls the light away from the
+    view axis as it should; ``iterations`` refits. Returns ``s = l / |l|`` (3,), forced toward the
+    camera (z >= 0.05). On Yale B photos with the ICT model's expected normals: 6.7 / 6.2 / 7.1 /
+    5.2 deg at (25, 0) / (50, 0) / (70, 0) / (35, 15) (docs/accuracy.md).
     """
     I = np.asarray(intensity, np.float64)
     n = np.asarray(normals, np.float64)
-    sw = np.ones(len(I)) if weights is None else np.sqrt(np.asarray(weights, np.float64))
     use = I > min_intensity * max(float(I.max()), 1e-12)
     if use.sum() < 10:
         raise ValueError("too few lit pixels to estimate the light")
-    l, *_ = np.linalg.lstsq(n[use] * sw[use, None], I[use] * sw[use], rcond=None)
+    l, *_ = np.linalg.lstsq(n[use], I[use], rcond=None)
     for _ in range(iterations):
         lit = (n @ l) > 0
         if lit.sum() < 10:
             break
-        l_new, *_ = np.linalg.lstsq(n[lit] * sw[lit, None], I[lit] * sw[lit], rcond=None)
+        l_new, *_ = np.linalg.lstsq(n[lit], I[lit], rcond=None)
         if np.allclose(l_new, l):
             break
         l = l_new
@@ -37,10 +35,15 @@ def estimate_light(intensity: np.ndarray, normals: np.ndarray, min_intensity: fl
     return s / np.linalg.norm(s)
 
 
-def mean_face_weights(normal_variance: np.ndarray, noise: float = 0.003) -> np.ndarray:
-    """(N,) weights for ``estimate_light`` with a model's mean face standing in for the photo's
-    normals: ``1 / (var + noise)``, var (N,) the model's variance of each pixel's normal (radians
-    squared, ``ShapeModel.normal_variance``), noise the rest of a pixel's error in the same units
-    (0.003: about 3 degrees). Where faces differ little the mean face's normal is nearly the
-    photo's, and its brightness says more about the light (errors in the variables)."""
-    return 1.0 / (np.asarray(normal_variance, np.float64) + noise)
+def expected_normals(mean_normals: np.ndarray, normal_variance: np.ndarray) -> np.ndarray:
+    """(N, 3) the expected normal of each pixel over a model's faces, ``exp(-var / 2) x mean``
+    (to first order in the variance, for AEP coordinates drawn from a zero-mean Gaussian around
+    the mean normal): mean_normals (N, 3) unit; normal_variance (N,) radians squared, both AEP
+    axes (``ShapeModel.normal_variance``).
+
+    A photo's brightness is ``rho n . s`` with ``n`` the photo's normal, which the mean face only
+    guesses: its expected value is ``rho E[n] . s``, not ``rho mean . s``. Where faces differ
+    much (around the nose, the eyes, the jaw) ``E[n]`` is shorter, and a light fitted on the mean
+    normals leans toward wherever those pixels face (on ICT renders: 1-2.5 deg too high)."""
+    var = np.asarray(normal_variance, np.float64)
+    return np.asarray(mean_normals, np.float64) * np.exp(-0.5 * var)[:, None]

@@ -30,7 +30,7 @@ from ..photo.eyes import detect_eyes
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
 from .albedo import FILL_CEILING, estimate_albedo
-from .light import estimate_light, mean_face_weights
+from .light import estimate_light, expected_normals
 from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
@@ -185,8 +185,8 @@ class LoadNode:
             return opt, "given"
         if opt == "yaleb":
             return yaleb_light(source), "yaleb name"
-        weights = mean_face_weights(self.model.normal_variance[seen])
-        grid_light = estimate_light(grid_image[self.model.mask][seen], self.model.mean_normals[seen], weights=weights)
+        normals = expected_normals(self.model.mean_normals[seen], self.model.normal_variance[seen])
+        grid_light = estimate_light(grid_image[self.model.mask][seen], normals)
         return al.vector_to_input(grid_light), "estimated"
 
 
