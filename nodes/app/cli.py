@@ -30,6 +30,7 @@ from ..evaluation.scenes import write_shadowed_face
 from ..evaluation.synthetic import evaluate, model_floor
 from ..evaluation.yaleb_benchmark import evaluate_yaleb, summarise
 from ..geometry.reflectance import light_from_angles
+from ..method.eye_detail import CONTRAST as EYE_CONTRAST
 from ..method.nodes import MethodOptions
 from ..method.robust_fit import FitConfig
 from ..model.default_model import resolve_model, train_from_recipe
@@ -113,9 +114,16 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
     _view_size(args.view_size)
+    _eye_contrast(args.eye_contrast)
     _max_pixels(args.max_megapixels)
     for light in args.relight or ():
         parse_light(light)
+
+
+def _eye_contrast(c: float) -> float:
+    if not (0.0 <= c <= 1.0):
+        raise ValueError(f"--eye-contrast is between 0 (off) and 1, not {c:g}")
+    return c
 
 
 def _view_angle(deg: float) -> float:
@@ -201,7 +209,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                             face_length=_face_length(args.face_length),
                             extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                             novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
-                            max_pixels=_max_pixels(args.max_megapixels))
+                            eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels))
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout, dask=args.dask)
@@ -426,6 +434,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--relight", action="append", metavar="X,Y,Z",
                    help="also relight toward this light (camera frame; repeatable): relit_A<az>E<el>.png per light, "
                         "beside relit.png (frontal)")
+    r.add_argument("--eye-contrast", type=float, default=EYE_CONTRAST, metavar="C",
+                   help="an eye in shadow or grazing light gets the lit eye's detail (irises, lids) at this contrast "
+                        f"(default {EYE_CONTRAST}; 0: off, the eye stays the smooth fill; 1: as the side light shows it)")
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",

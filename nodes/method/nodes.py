@@ -31,6 +31,7 @@ from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, rea
 from ..photo.mouth import face_length_factor
 from .albedo import FILL_CEILING, estimate_albedo
 from .light import estimate_light, expected_normals
+from .eye_detail import CONTRAST as EYE_CONTRAST, eye_detail
 from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
@@ -69,6 +70,8 @@ class MethodOptions:
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
+    # the lit eye's detail put into eyes whose albedo was filled, at this contrast (``eye_detail``); 0: off
+    eye_contrast: float = EYE_CONTRAST
     novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
@@ -392,7 +395,15 @@ class PhotoRelightNode:
         coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
         measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
         match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
-        albedo = photo_albedo(photo, shading, measured * shading_trust(shading), coarse, face, match_px)
+        # eyes placed by a guess (a centred crop) have no eye to take detail from
+        eyes = (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2] if d.get("eyes_found") not in ("centre asked", "none") else None
+        contrast = self.options.eye_contrast
+
+        def albedo_for(trust: np.ndarray) -> np.ndarray:
+            a = photo_albedo(photo, shading, trust, coarse, face, match_px)
+            return a if eyes is None else eye_detail(photo, a, trust, lit, eyes, contrast)
+
+        albedo = albedo_for(measured * shading_trust(shading))
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
         gain = np.float32(gain)
         exposed_photo, exposed = gain * full_photo, gain * photo
@@ -404,8 +415,7 @@ class PhotoRelightNode:
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             image = exposed_photo.copy()
             # the albedo this light can trust: I / S also where S is small but S' is no larger
-            light_albedo = photo_albedo(photo, shading, measured * shading_trust(shading, new_shading), coarse, face,
-                                        match_px)
+            light_albedo = albedo_for(measured * shading_trust(shading, new_shading))
             face_image = clipped_floor(gain * light_albedo * new_shading[..., None], photo, shading, new_shading, gain, face)
             image[y0:y1, x0:x1] = composite(exposed, face_image, face, feather)
             relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))

@@ -455,6 +455,7 @@ def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
     (["--eyes", "nan,1,2,3"], "four finite numbers"),
     (["--eyes", "5,5,5,5"], "two distinct eye centres"),
     (["--view-angle", "120"], "--view-angle"),
+    (["--eye-contrast", "1.5"], "--eye-contrast"),
 ])
 def test_arguments_that_cannot_work_are_refused_before_any_work(tmp_path, args, says):
     """Each once hung (--workers 0), failed every frame (--frame-timeout inf, --max-iterations 0)

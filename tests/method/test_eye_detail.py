@@ -1,0 +1,55 @@
+"""The lit eye's detail put into a filled eye (nodes/method/eye_detail.py), on a synthetic photo
+whose eyes and light are known."""
+import numpy as np
+from shadowflow.nodes.method.eye_detail import EYE_AXES, eye_detail
+
+H, W = 120, 200
+EYES = np.array([[60.0, 50.0], [140.0, 50.0]])  # image-left eye first; 80 px apart
+SKIN = 0.6
+
+
+def _photo(iris_offset: float = 6.0):
+    """A side-lit face patch: the skin's brightness falls from right to left (the light is on the
+    right), both eyes have a dark iris (albedo 0.3 of the skin's), each moved toward the nose by
+    ``iris_offset`` pixels, as eyes that converge a little. Returns (photo (H, W, 1), albedo)."""
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    shading = 0.2 + 0.8 * xx / W
+    albedo = np.full((H, W), SKIN)
+    for (ex, ey), toward_nose in zip(EYES, (1.0, -1.0)):
+        albedo[np.hypot(xx - ex - toward_nose * iris_offset, yy - ey) < 7] = 0.3 * SKIN
+    return (albedo * shading)[..., None], albedo
+
+
+def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
+    photo, true_albedo = _photo()
+    filled = np.full((H, W, 1), SKIN, np.float32)  # the fill: smooth skin, no eyes
+    trust = np.ones((H, W))
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    left = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1.6**2
+    trust[left] = 0.0  # the left eye is in shadow: its albedo was filled
+    filled[~left] = true_albedo[~left, None]  # measured elsewhere, the right eye's iris included
+    trust[48:53, 45:49] = 1.0  # a few pixels inside the filled eye were measured: they must stay
+    filled[48:53, 45:49] = 0.123
+    lit = ~left
+    out = eye_detail(photo, filled, trust, lit, EYES, contrast=1.0)
+    assert np.all(out[48:53, 45:49] == np.float32(0.123))
+    # the left eye's iris comes back where the mirror of the right eye's puts it: toward the nose (+x)
+    iris = (60 + 6, 50)
+    assert out[iris[1], iris[0], 0] < 0.45 * SKIN, out[iris[1], iris[0], 0]
+    away = (60 - 6, 50)  # where the iris is not: skin
+    assert out[away[1], away[0], 0] > 0.85 * SKIN, out[away[1], away[0], 0]
+    # dark where the truth is dark, across the eye's opening
+    opening = (((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2) < 0.5
+    err_after = np.abs(out[..., 0] - true_albedo)[opening].mean()
+    err_before = np.abs(filled[..., 0] - true_albedo)[opening].mean()
+    assert err_after < 0.35 * err_before, (err_after, err_before)
+    # trusted albedo (the right eye, everything outside the filled eye) is left as it was
+    assert np.array_equal(out[trust == 1], filled[trust == 1])
+
+
+def test_eye_detail_is_off_at_zero_contrast_and_when_no_eye_is_lit():
+    photo, _ = _photo()
+    filled = np.full((H, W, 1), SKIN, np.float32)
+    trust = np.zeros((H, W))
+    assert np.array_equal(eye_detail(photo, filled, trust, np.ones((H, W), bool), EYES, contrast=0.0), filled)
+    assert np.array_equal(eye_detail(photo, filled, trust, np.zeros((H, W), bool), EYES), filled)
