@@ -401,7 +401,7 @@ class PhotoRelightNode:
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
             a = photo_albedo(photo, shading, trust, coarse, face, match_px)
-            return a if eyes is None else eye_detail(photo, a, trust, lit, eyes, contrast)
+            return a if eyes is None else eye_detail(photo, a, shading, trust, lit, eyes, contrast)
 
         albedo = albedo_for(measured * shading_trust(shading))
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light

@@ -11,17 +11,18 @@ SKIN = 0.6
 def _photo(iris_offset: float = 6.0):
     """A side-lit face patch: the skin's brightness falls from right to left (the light is on the
     right), both eyes have a dark iris (albedo 0.3 of the skin's), each moved toward the nose by
-    ``iris_offset`` pixels, as eyes that converge a little. Returns (photo (H, W, 1), albedo)."""
+    ``iris_offset`` pixels, as eyes that converge a little. Returns (photo (H, W, 1), albedo,
+    shading)."""
     yy, xx = np.mgrid[0:H, 0:W].astype(float)
     shading = 0.2 + 0.8 * xx / W
     albedo = np.full((H, W), SKIN)
     for (ex, ey), toward_nose in zip(EYES, (1.0, -1.0)):
         albedo[np.hypot(xx - ex - toward_nose * iris_offset, yy - ey) < 7] = 0.3 * SKIN
-    return (albedo * shading)[..., None], albedo
+    return (albedo * shading)[..., None], albedo, shading
 
 
 def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
-    photo, true_albedo = _photo()
+    photo, true_albedo, shading = _photo()
     filled = np.full((H, W, 1), SKIN, np.float32)  # the fill: smooth skin, no eyes
     trust = np.ones((H, W))
     yy, xx = np.mgrid[0:H, 0:W].astype(float)
@@ -31,7 +32,7 @@ def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
     trust[48:53, 45:49] = 1.0  # a few pixels inside the filled eye were measured: they must stay
     filled[48:53, 45:49] = 0.123
     lit = ~left
-    out = eye_detail(photo, filled, trust, lit, EYES, contrast=1.0)
+    out = eye_detail(photo, filled, shading, trust, lit, EYES, contrast=1.0)
     assert np.all(out[48:53, 45:49] == np.float32(0.123))
     # the left eye's iris comes back where the mirror of the right eye's puts it: toward the nose (+x)
     iris = (60 + 6, 50)
@@ -48,8 +49,23 @@ def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
 
 
 def test_eye_detail_is_off_at_zero_contrast_and_when_no_eye_is_lit():
-    photo, _ = _photo()
+    photo, _, shading = _photo()
     filled = np.full((H, W, 1), SKIN, np.float32)
     trust = np.zeros((H, W))
-    assert np.array_equal(eye_detail(photo, filled, trust, np.ones((H, W), bool), EYES, contrast=0.0), filled)
-    assert np.array_equal(eye_detail(photo, filled, trust, np.zeros((H, W), bool), EYES), filled)
+    assert np.array_equal(eye_detail(photo, filled, shading, trust, np.ones((H, W), bool), EYES, contrast=0.0), filled)
+    assert np.array_equal(eye_detail(photo, filled, shading, trust, np.zeros((H, W), bool), EYES), filled)
+
+
+def test_the_sockets_own_shading_is_not_taken_for_the_eyes_albedo():
+    """A face with no eye texture (a render): the lit eye's socket is darker only by its shading,
+    which the fitted shading knows. The filled eye must stay skin, not get a dark blot."""
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    shading = 0.2 + 0.8 * xx / W
+    for ex, ey in EYES:
+        shading = shading * (1.0 - 0.6 * np.exp(-((xx - ex) ** 2 / 200.0 + (yy - ey) ** 2 / 60.0)))
+    photo = (SKIN * shading)[..., None]
+    filled = np.full((H, W, 1), SKIN, np.float32)
+    trust = np.where(xx < 100, 0.0, 1.0)
+    out = eye_detail(photo, filled, shading, trust, np.ones((H, W), bool), EYES, contrast=1.0)
+    eye = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1
+    assert np.abs(out[eye, 0] - SKIN).max() < 0.05 * SKIN, out[eye, 0].min()
