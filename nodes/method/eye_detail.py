@@ -51,9 +51,10 @@ def eye_detail(photo: np.ndarray, albedo: np.ndarray, shading: np.ndarray, trust
 
     photo (H, W, C) in [0, 1]; albedo (H, W, C) from ``photo_albedo``; shading (H, W) the fitted
     ``n . s`` under the photo's light; trust (H, W) in [0, 1] the weight the albedo's measured part
-    had; lit (H, W) bool, not in shadow on the photo; eyes (2, 2) the eye centres, ``[x, y]`` pixels. The source is the eye whose skin ring is brighter and lit; an
-    eye is filled when its region's mean trust is under ``TRUSTED``. contrast: 0 leaves the albedo
-    as it was. Returns a new array (float32)."""
+    had; lit (H, W) bool, not in shadow on the photo; eyes (2, 2) the eye centres, ``[x, y]``
+    pixels. The source is the eye whose skin ring is brighter and lit; an eye is filled when its
+    region's mean trust is under ``TRUSTED``. contrast: 0 leaves the albedo as it was. Returns a
+    new array (float32)."""
     photo = np.atleast_3d(np.asarray(photo, np.float64))
     out = np.array(albedo, np.float32, copy=True)
     eyes = np.asarray(eyes, np.float64)
@@ -113,6 +114,6 @@ def eye_detail(photo: np.ndarray, albedo: np.ndarray, shading: np.ndarray, trust
         inside = np.clip((1.0 - r["e"]) / 0.35, 0.0, 1.0)
         blend = (inside * inside * (3.0 - 2.0 * inside)) * (1.0 - trust[r["box"]])
         region = out[r["box"]]
-        out[r["box"]] = np.where(np.isfinite(region), blend[..., None] * level * ratio + (1.0 - blend[..., None]) * region,
-                                 region).astype(np.float32)
+        detail = blend[..., None] * level * ratio + (1.0 - blend[..., None]) * region
+        out[r["box"]] = np.where(np.isfinite(region), detail, region).astype(np.float32)
     return out

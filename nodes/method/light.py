@@ -44,6 +44,6 @@ def expected_normals(mean_normals: np.ndarray, normal_variance: np.ndarray) -> n
     A photo's brightness is ``rho n . s`` with ``n`` the photo's normal, which the mean face only
     guesses: its expected value is ``rho E[n] . s``, not ``rho mean . s``. Where faces differ
     much (around the nose, the eyes, the jaw) ``E[n]`` is shorter, and a light fitted on the mean
-    normals leans toward wherever those pixels face (on ICT renders: 1-2.5 deg too high)."""
+    normals leans toward wherever those pixels face (on ICT renders: 2-3.5 deg too high)."""
     var = np.asarray(normal_variance, np.float64)
     return np.asarray(mean_normals, np.float64) * np.exp(-0.5 * var)[:, None]

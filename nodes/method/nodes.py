@@ -30,8 +30,8 @@ from ..photo.eyes import detect_eyes
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
 from .albedo import FILL_CEILING, estimate_albedo
-from .light import estimate_light, expected_normals
 from .eye_detail import CONTRAST as EYE_CONTRAST, eye_detail
+from .light import estimate_light, expected_normals
 from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
@@ -70,9 +70,9 @@ class MethodOptions:
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
+    novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
     # the lit eye's detail put into eyes whose albedo was filled, at this contrast (``eye_detail``); 0: off
     eye_contrast: float = EYE_CONTRAST
-    novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
 
@@ -396,7 +396,8 @@ class PhotoRelightNode:
         measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
         match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
         # eyes placed by a guess (a centred crop) have no eye to take detail from
-        eyes = (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2] if d.get("eyes_found") not in ("centre asked", "none") else None
+        placed = d.get("eyes_found") not in ("centre asked", "none")
+        eyes = (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2] if placed else None
         contrast = self.options.eye_contrast
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
