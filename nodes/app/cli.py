@@ -435,8 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also relight toward this light (camera frame; repeatable): relit_A<az>E<el>.png per light, "
                         "beside relit.png (frontal)")
     r.add_argument("--eye-contrast", type=float, default=EYE_CONTRAST, metavar="C",
-                   help="an eye in shadow or grazing light gets the lit eye's detail (irises, lids) at this contrast "
-                        f"(default {EYE_CONTRAST:g}; 0: off, the eye stays the smooth fill; 1: as the photo shows it)")
+                   help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
+                        f"lids) at this contrast (default {EYE_CONTRAST:g}; 0: off, the eye stays the smooth fill; "
+                        "1: as the photo shows it)")
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",

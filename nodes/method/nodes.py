@@ -395,8 +395,9 @@ class PhotoRelightNode:
         coarse = scalar_to_input(d["albedo"], m.mask, al, shape)
         measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
         match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
-        # eyes placed by a guess (a centred crop) have no eye to take detail from
-        placed = d.get("eyes_found") not in ("centre asked", "none")
+        # only eyes the detector found in the photo: given or guessed eyes may have no eye to show (a render
+        # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
+        placed = d.get("eyes_found") in ("detected", "one mirrored")
         eyes = (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2] if placed else None
         contrast = self.options.eye_contrast
 

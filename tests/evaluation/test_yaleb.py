@@ -90,6 +90,38 @@ def test_yaleb_light_auto_is_within_8_degrees_at_every_side_light():
     assert all(m < 8.0 for m in means.values()), means
 
 
+def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
+    """At (+-70, 0) both eyes' albedo is filled (one in shadow, one lit too obliquely to divide
+    by); the lit eye's detail must bring the irises back. The darkest 5 % of each relit eye's
+    opening over the skin around it: 0.06-0.14 (the frontal photos' own eyes: 0.07-0.19; the
+    smooth fill alone: 0.25-0.80)."""
+    from shadowflow.flow.chain import Chain
+    from shadowflow.flow.frame import Frame
+    from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, method_nodes
+    from shadowflow.nodes.model.default_model import default_model
+
+    subjects = sorted(YALEB.glob("yaleB*"))
+    if not subjects:
+        pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
+    model = default_model()
+    opts = MethodOptions(light="yaleb")
+    chain = Chain([LoadNode(model, opts), *method_nodes(model, opts)])
+    darkest = []
+    for folder in subjects:
+        for az in (70, -70):
+            frame = chain.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
+            assert frame.data["eyes_found"] in ("detected", "one mirrored")
+            relit = frame.data["photo_relit"][0][1][..., 0]
+            al = frame.data["alignment"]
+            eyes = (al.matrix[:, :2] @ model.eyes.T).T + al.matrix[:, 2]
+            iod = np.linalg.norm(eyes[1] - eyes[0])
+            yy, xx = np.mgrid[0:relit.shape[0], 0:relit.shape[1]]
+            for ex, ey in eyes:
+                e = ((xx - ex) / (0.24 * iod)) ** 2 + ((yy - ey) / (0.11 * iod)) ** 2
+                darkest.append(np.percentile(relit[e < 0.5], 5) / np.median(relit[(e > 1) & (e < 2.25)]))
+    assert max(darkest) < 0.2, np.round(darkest, 2)
+
+
 def test_yaleb_a_frontal_photo_relit_frontally_is_itself(yaleb_subject):
     """Relit with its own light, the photo must come back: 64.6 dB and 99.9 % of its gradient
     energy for subject 01 (42.7 dB and 97.9 % when the exposure clipped its highlights, 96.7 %
