@@ -52,7 +52,8 @@ class RerunSink(Sink):
         self._frames_in_segment = 0
         self._pending: dict[tuple[int, str], list[Event]] = {}
         self.max_held_bytes = max_held_bytes
-        self.held_bytes = 0  # of the values in ``_pending``
+        self._pending_bytes: dict[tuple[int, str], int] = {}  # of each held batch's values
+        self.held_bytes = 0  # of all of them
         self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
         self.rec = None
         if not self.paths:  # else the next segment opens with the first event, as after a full one
@@ -93,11 +94,13 @@ class RerunSink(Sink):
         if event.iteration is not None and self._columnar(event):
             rows = self._pending.setdefault((event.frame, event.path), [])
             rows.append(event)
-            self.held_bytes += value_nbytes(event.value)
+            key, size = (event.frame, event.path), value_nbytes(event.value)
+            self._pending_bytes[key] = self._pending_bytes.get(key, 0) + size
+            self.held_bytes += size
             if len(rows) >= self.batch:
                 self._send(event.frame, event.path)
             while self.held_bytes > self.max_held_bytes:
-                self._send(*max(self._pending, key=lambda k: sum(value_nbytes(e.value) for e in self._pending[k])))
+                self._send(*max(self._pending_bytes, key=self._pending_bytes.__getitem__))
             return
         self._log(event)
 
@@ -144,7 +147,7 @@ class RerunSink(Sink):
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
         rr, rows = self.rr, self._pending.pop((frame, path))
-        self.held_bytes -= sum(value_nbytes(e.value) for e in rows)
+        self.held_bytes -= self._pending_bytes.pop((frame, path))
         entity = self._entity(path, frame)
 
         def index(rs: list[Event]) -> list:

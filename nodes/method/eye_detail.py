@@ -45,75 +45,91 @@ def _quadratic_fit(values: np.ndarray, where: np.ndarray, u: np.ndarray, v: np.n
     return out
 
 
-def eye_detail(photo: np.ndarray, albedo: np.ndarray, shading: np.ndarray, trust: np.ndarray, lit: np.ndarray,
-               eyes: np.ndarray, contrast: float = CONTRAST) -> np.ndarray:
-    """(H, W, C) ``albedo`` with the lit eye's detail put into each eye whose albedo was filled.
+class EyeDetail:
+    """The lit eye's pattern in a photo, found once: ``apply`` puts it into an albedo, as often as
+    there are trust maps (the output albedo's and each relit light's).
 
-    photo (H, W, C) in [0, 1]; albedo (H, W, C) from ``photo_albedo``; shading (H, W) the fitted
-    ``n . s`` under the photo's light; trust (H, W) in [0, 1] the weight the albedo's measured part
-    had; lit (H, W) bool, not in shadow on the photo; eyes (2, 2) the eye centres, ``[x, y]``
-    pixels. The source is the eye whose skin ring is brighter and lit; an eye is filled when its
-    region's mean trust is under ``TRUSTED``. contrast: 0 leaves the albedo as it was. Returns a
-    new array (float32)."""
-    photo = np.atleast_3d(np.asarray(photo, np.float64))
-    out = np.array(albedo, np.float32, copy=True)
-    eyes = np.asarray(eyes, np.float64)
-    axis = eyes[1] - eyes[0]
-    iod = float(np.linalg.norm(axis))
-    if contrast <= 0 or iod < 8:
-        return out
-    along = axis / iod
-    across = np.array([-along[1], along[0]])
-    h, w = trust.shape
-    reach = RING * EYE_AXES[0] * iod + 2
-    regions = []
-    for centre in eyes:
-        x0, x1 = int(max(centre[0] - reach, 0)), int(min(centre[0] + reach + 1, w))
-        y0, y1 = int(max(centre[1] - reach, 0)), int(min(centre[1] + reach + 1, h))
-        if x1 - x0 < 4 or y1 - y0 < 4:
-            return out  # an eye outside the photo
-        yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-        d = np.stack([xx - centre[0], yy - centre[1]], axis=-1)
-        u, v = d @ along / iod, d @ across / iod
-        e = (u / EYE_AXES[0]) ** 2 + (v / EYE_AXES[1]) ** 2
-        ring = (e > 1.0) & (e < RING**2)
-        if ring.sum() < 30:
-            return out
-        box = (slice(y0, y1), slice(x0, x1))
-        regions.append({"box": box, "u": u, "v": v, "e": e, "ring": ring,
-                        "bright": float(np.mean(photo[box][ring])), "ring_lit": float(np.mean(lit[box][ring])),
-                        "trust": float(np.mean(trust[box][e < 1.0]))})
-    source = int(np.argmax([r["bright"] for r in regions]))
-    src = regions[source]
-    seen = np.asarray(lit[src["box"]], bool)
-    if src["ring_lit"] < MIN_RING_LIT or (src["ring"] & seen).sum() < 30:
-        return out  # neither eye is seen in the light
-    # the fitted shading divided out first: the socket's and the lids' own shading under the side light
-    # is not the eye's albedo (on a render without eye texture it alone made a dark blot)
-    albedo_seen = photo[src["box"]] / np.maximum(np.asarray(shading, np.float64)[src["box"]], MIN_SHADING)[..., None]
-    skin = _quadratic_fit(albedo_seen, src["ring"], src["u"], src["v"])
-    pattern = np.clip(albedo_seen / np.maximum(skin, 1e-3), 0.0, MAX_RATIO)
-    pattern = (1.0 + contrast * (pattern - 1.0)).astype(np.float32)
-    for k, r in enumerate(regions):
-        if r["trust"] >= TRUSTED:
-            continue
-        if k == source:
-            ratio = pattern
-        else:  # the source's pattern mirrored: each pixel's (u, v) about this eye is (-u, v) about the source
-            su, sv = -r["u"], r["v"]
-            pos = eyes[source] + (su * iod)[..., None] * along + (sv * iod)[..., None] * across
+    photo (H, W, C) in [0, 1]; shading (H, W) the fitted ``n . s`` under the photo's light; lit
+    (H, W) bool, not in shadow on the photo; eyes (2, 2) the eye centres, ``[x, y]`` pixels. The
+    source is the eye whose skin ring is brighter and lit. contrast: 0 leaves every albedo as it is.
+    """
+
+    def __init__(self, photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, eyes: np.ndarray,
+                 contrast: float = CONTRAST):
+        self.regions: list[dict] = []  # per eye: box, (u, v), ellipse e, ring, and its ratio (None: no detail)
+        photo = np.atleast_3d(np.asarray(photo, np.float64))
+        eyes = np.asarray(eyes, np.float64)
+        axis = eyes[1] - eyes[0]
+        iod = float(np.linalg.norm(axis))
+        if contrast <= 0 or iod < 8:
+            return
+        along = axis / iod
+        across = np.array([-along[1], along[0]])
+        h, w = lit.shape
+        reach = RING * EYE_AXES[0] * iod + 2
+        regions = []
+        for centre in eyes:
+            x0, x1 = int(max(centre[0] - reach, 0)), int(min(centre[0] + reach + 1, w))
+            y0, y1 = int(max(centre[1] - reach, 0)), int(min(centre[1] + reach + 1, h))
+            if x1 - x0 < 4 or y1 - y0 < 4:
+                return  # an eye outside the photo
+            yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
+            d = np.stack([xx - centre[0], yy - centre[1]], axis=-1)
+            u, v = d @ along / iod, d @ across / iod
+            e = (u / EYE_AXES[0]) ** 2 + (v / EYE_AXES[1]) ** 2
+            ring = (e > 1.0) & (e < RING**2)
+            if ring.sum() < 30:
+                return
+            box = (slice(y0, y1), slice(x0, x1))
+            regions.append({"box": box, "u": u, "v": v, "e": e, "ring": ring,
+                            "bright": float(np.mean(photo[box][ring])), "ring_lit": float(np.mean(lit[box][ring]))})
+        source = int(np.argmax([r["bright"] for r in regions]))
+        src = regions[source]
+        if src["ring_lit"] < MIN_RING_LIT or (src["ring"] & np.asarray(lit[src["box"]], bool)).sum() < 30:
+            return  # neither eye is seen in the light
+        # the fitted shading divided out first: the socket's and the lids' own shading under the side light
+        # is not the eye's albedo (on a render without eye texture it alone made a dark blot)
+        src_shading = np.asarray(shading, np.float64)[src["box"]]
+        albedo_seen = photo[src["box"]] / np.maximum(src_shading, MIN_SHADING)[..., None]
+        skin = _quadratic_fit(albedo_seen, src["ring"], src["u"], src["v"])
+        pattern = np.clip(albedo_seen / np.maximum(skin, 1e-3), 0.0, MAX_RATIO)
+        pattern = (1.0 + contrast * (pattern - 1.0)).astype(np.float32)
+        for k, r in enumerate(regions):
+            if k == source:
+                r["ratio"] = pattern
+                continue
+            # the source's pattern mirrored: each pixel's (u, v) about this eye is (-u, v) about the source
+            pos = eyes[source] + (-r["u"] * iod)[..., None] * along + (r["v"] * iod)[..., None] * across
             mx = (pos[..., 0] - src["box"][1].start).astype(np.float32)
             my = (pos[..., 1] - src["box"][0].start).astype(np.float32)
-            ratio = np.stack([cv2.remap(np.ascontiguousarray(pattern[..., c]), mx, my, cv2.INTER_LINEAR,
-                                        borderMode=cv2.BORDER_CONSTANT, borderValue=1.0)
-                              for c in range(pattern.shape[-1])], axis=-1)
-        known = r["ring"] & np.isfinite(out[r["box"]][..., 0])
-        if known.sum() < 30:
-            continue
-        level = _quadratic_fit(np.nan_to_num(out[r["box"]]).astype(np.float64), known, r["u"], r["v"])
-        inside = np.clip((1.0 - r["e"]) / 0.35, 0.0, 1.0)
-        blend = (inside * inside * (3.0 - 2.0 * inside)) * (1.0 - trust[r["box"]])
-        region = out[r["box"]]
-        detail = blend[..., None] * level * ratio + (1.0 - blend[..., None]) * region
-        out[r["box"]] = np.where(np.isfinite(region), detail, region).astype(np.float32)
-    return out
+            r["ratio"] = np.stack([cv2.remap(np.ascontiguousarray(pattern[..., c]), mx, my, cv2.INTER_LINEAR,
+                                             borderMode=cv2.BORDER_CONSTANT, borderValue=1.0)
+                                   for c in range(pattern.shape[-1])], axis=-1)
+        self.regions = regions
+
+    def apply(self, albedo: np.ndarray, trust: np.ndarray) -> np.ndarray:
+        """(H, W, C) ``albedo`` (from ``photo_albedo``) with the pattern put into each eye whose
+        region's mean ``trust`` (H, W, in [0, 1], the weight the albedo's measured part had) is under
+        ``TRUSTED``; trusted pixels keep their value. Returns a new array (float32)."""
+        out = np.array(albedo, np.float32, copy=True)
+        for r in self.regions:
+            box = r["box"]
+            if float(np.mean(trust[box][r["e"] < 1.0])) >= TRUSTED:
+                continue
+            known = r["ring"] & np.isfinite(out[box][..., 0])
+            if known.sum() < 30:
+                continue
+            level = _quadratic_fit(np.nan_to_num(out[box]).astype(np.float64), known, r["u"], r["v"])
+            inside = np.clip((1.0 - r["e"]) / 0.35, 0.0, 1.0)
+            blend = ((inside * inside * (3.0 - 2.0 * inside)) * (1.0 - trust[box]))[..., None]
+            region = out[box]
+            detail = blend * level * r["ratio"] + (1.0 - blend) * region
+            out[box] = np.where(np.isfinite(region), detail, region).astype(np.float32)
+        return out
+
+
+def eye_detail(photo: np.ndarray, albedo: np.ndarray, shading: np.ndarray, trust: np.ndarray, lit: np.ndarray,
+               eyes: np.ndarray, contrast: float = CONTRAST) -> np.ndarray:
+    """(H, W, C) ``albedo`` with the lit eye's detail put into each eye whose albedo was filled:
+    ``EyeDetail(photo, shading, lit, eyes, contrast).apply(albedo, trust)`` (arguments there)."""
+    return EyeDetail(photo, shading, lit, eyes, contrast).apply(albedo, trust)

@@ -30,7 +30,7 @@ from ..photo.eyes import detect_eyes
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
 from ..photo.mouth import face_length_factor
 from .albedo import FILL_CEILING, estimate_albedo
-from .eye_detail import CONTRAST as EYE_CONTRAST, eye_detail
+from .eye_detail import CONTRAST as EYE_CONTRAST, EyeDetail
 from .light import estimate_light, expected_normals
 from .photo_relight import clipped_floor, composite, exposure_gain, grow, lit_weight, photo_albedo, shading_trust
 from .quality import assess, core_face, explained_variance
@@ -398,12 +398,12 @@ class PhotoRelightNode:
         # only eyes the detector found in the photo: given or guessed eyes may have no eye to show (a render
         # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
         placed = d.get("eyes_found") in ("detected", "one mirrored")
-        eyes = (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2] if placed else None
-        contrast = self.options.eye_contrast
+        eyes = EyeDetail(photo, shading, lit, (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2],
+                         self.options.eye_contrast) if placed else None
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
             a = photo_albedo(photo, shading, trust, coarse, face, match_px)
-            return a if eyes is None else eye_detail(photo, a, shading, trust, lit, eyes, contrast)
+            return a if eyes is None else eyes.apply(a, trust)
 
         albedo = albedo_for(measured * shading_trust(shading))
         gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
