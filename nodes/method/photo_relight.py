@@ -117,6 +117,21 @@ def shading_trust(shading: np.ndarray, new_shading: np.ndarray | None = None) ->
     return trust
 
 
+def smooth_coarse(coarse: np.ndarray, face: np.ndarray, sigma_px: float) -> np.ndarray:
+    """(H, W) the fit's albedo map ``coarse`` (on the photo grid, NaN off ``face``) averaged over a
+    Gaussian of ``sigma_px`` photo pixels within ``face`` (normalised there, so a constant stays
+    constant up to the face's edge); NaN off ``face``.
+
+    The fit's map lives on the model grid, whose pixels are 1-3 photo pixels on a portrait. Brought
+    to the photo as it is, the steps where its measured, mirrored and filled parts meet show in the
+    fill as a staircase of the model grid's pixels (about a model pixel is what it takes; its detail
+    is no finer than that anyway, and the photo's own detail is kept where it is measured)."""
+    f = np.asarray(face, bool)
+    values = np.where(f, np.nan_to_num(np.asarray(coarse, np.float32)), np.float32(0.0))
+    average, _ = weighted_blur(values, f.astype(np.float32), sigma_px)
+    return np.where(f, average, np.nan).astype(np.float32)
+
+
 def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coarse: np.ndarray,
                  face: np.ndarray, sigma_px: float) -> np.ndarray:
     """(H, W, C) albedo at the photo's resolution.

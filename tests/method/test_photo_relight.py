@@ -3,7 +3,14 @@ back into the photo, exposure independent of the lamp, shadows found on the phot
 import numpy as np
 import pytest
 from scipy import ndimage
-from shadowflow.nodes.method.photo_relight import clipped_floor, composite, exposure_gain, photo_albedo, trusted_weight
+from shadowflow.nodes.method.photo_relight import (
+    clipped_floor,
+    composite,
+    exposure_gain,
+    photo_albedo,
+    smooth_coarse,
+    trusted_weight,
+)
 from shadowflow.nodes.method.shadow import far_darker, photo_shadows
 
 
@@ -48,6 +55,32 @@ def test_lit_skin_keeps_its_detail_and_the_shadowed_side_takes_the_matched_fill(
     row = albedo[60, :, 0]
     steps = np.abs(np.diff(row[np.isfinite(row)]))
     assert steps.max() < 0.25
+
+
+def test_the_fit_maps_pixels_do_not_show_in_the_fill():
+    """The fit's albedo map is 3x coarser than the photo and blocky (its measured and mirrored parts
+    disagree pixel by pixel): smoothed over about one of its pixels, the shadowed side's fill keeps
+    its level but loses the blocks, and a constant map stays constant up to the face's edge."""
+    n, face, truth, shading, photo, lit = _side_lit_sphere(2)
+    w = trusted_weight(photo, shading, lit, face, 2.0)
+    blocks = np.random.default_rng(3).uniform(0.45, 0.75, (40, 40))
+    coarse = np.where(face, np.kron(blocks, np.ones((3, 3))), np.nan)  # each model pixel 3 photo pixels
+    dark = ndimage.binary_erosion(face & (w == 0), iterations=3)
+    assert dark.sum() > 1000
+
+    def largest_step(albedo):
+        a = albedo[..., 0]
+        steps = [np.abs(np.diff(a, axis=k)) for k in (0, 1)]
+        return max(np.nanmax(np.where(dark[:-1] & dark[1:], steps[0], np.nan)),
+                   np.nanmax(np.where(dark[:, :-1] & dark[:, 1:], steps[1], np.nan)))
+
+    raw = photo_albedo(photo, shading, w, coarse, face, 6.0)
+    smooth = photo_albedo(photo, shading, w, smooth_coarse(coarse, face, 4.5), face, 6.0)
+    assert largest_step(raw) > 0.15 and largest_step(smooth) < 0.05, (largest_step(raw), largest_step(smooth))
+    assert abs(np.median(smooth[dark]) / np.median(raw[dark]) - 1) < 0.05  # the level is the same
+    flat = smooth_coarse(np.where(face, 0.6, np.nan), face, 4.5)
+    np.testing.assert_allclose(flat[face], 0.6, rtol=1e-5)
+    assert np.isnan(flat[~face]).all()
 
 
 def test_the_relit_face_goes_back_into_the_photo_without_a_seam():
@@ -129,3 +162,29 @@ def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
     out = clipped_floor(filled, photo, shading, new, 1.2, face)[..., 0]
     np.testing.assert_allclose(out, [[1.2, 0.6, 0.3, 0.0]], rtol=1e-6)
     assert clipped_floor(filled * 3, photo, shading, new, 1.2, face)[0, 0, 0] == pytest.approx(1.5)
+
+
+def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
+    """A face rendered 3x finer than the model grid, its shadowed side filled from the fit's albedo
+    map, here replaced by a checkerboard of the model grid's pixels (the worst blocks it could hold):
+    the photo's albedo there carries no checkerboard."""
+    from shadowflow.flow.chain import Chain
+    from shadowflow.flow.frame import Frame
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, PhotoRelightNode, method_nodes
+    from shadowflow.nodes.model.default_model import default_model
+
+    model, options = default_model(), MethodOptions()
+    path = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(0), light_from_angles(60),
+                               grid=(384, 384), source="ict")
+    frame = Chain([LoadNode(model, options), *method_nodes(model, options, with_views=False)]).process(Frame(0, str(path)))
+    assert frame.ok and frame.data["alignment"].scale == pytest.approx(3.0, rel=0.05)
+    rows, cols = np.indices(model.mask.shape)
+    frame.data["albedo"] = np.where(model.mask, np.where((rows + cols) % 2 == 0, 0.5, 0.9), np.nan).astype(np.float32)
+    albedo = PhotoRelightNode(model, options)(frame).data["photo_albedo"][..., 0]
+    image = frame.data["image"]
+    shadowed = ndimage.binary_erosion(np.isfinite(albedo) & (image < 0.02), iterations=4)
+    assert shadowed.sum() > 2000
+    steps = np.abs(np.diff(albedo, axis=1))[shadowed[:, :-1] & shadowed[:, 1:]]
+    assert np.percentile(steps, 99) < 0.02, np.percentile(steps, 99)  # unsmoothed: 0.16
