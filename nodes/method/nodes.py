@@ -52,7 +52,7 @@ PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocu
 PHOTO_FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
 # the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``). On
 # the five Yale B subjects (frontal relight, dB at +-25 / +-50 / +-70 / +-35+15): 24.50 / 21.89 / 19.18 / 22.14
-# unsmoothed, 24.66 / 22.01 / 19.28 / 22.27 at 1.0, 24.70 / 22.01 / 19.32 / 22.28 at 1.5, 24.69 / 21.92 / 19.34 /
+# unsmoothed, 24.66 / 22.01 / 19.28 / 22.27 at 1.0, 24.69 / 22.01 / 19.33 / 22.28 at 1.5, 24.69 / 21.92 / 19.34 /
 # 22.19 at 2.5; the staircase seams where its mirrored and measured parts meet are gone
 COARSE_SMOOTH = 1.5
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
