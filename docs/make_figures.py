@@ -49,8 +49,8 @@ def portrait_figure(folder: Path) -> np.ndarray:
     frame = np.dstack([0.25 + 0.3 * xx, 0.45 - 0.15 * yy, 0.35 + 0.15 * xx * yy])
     top, left = 40, 56
     region = frame[top:top + 128, left:left + 128]
-    _, on, _ = draw_face(np.random.default_rng(8), source="ict")  # the face write_shadowed_face drew: its shadows too
-    region[on] = (0.06 + 0.94 * grey[on])[:, None] * np.array([1.0, 0.78, 0.62])  # a little ambient light, as in a photo
+    _, on, _ = draw_face(np.random.default_rng(8), source="ict")  # the face write_shadowed_face drew, shadows too
+    region[on] = (0.06 + 0.94 * grey[on])[:, None] * np.array([1.0, 0.78, 0.62])  # a little ambient, as in a photo
     photo = folder / "portrait.png"
     cv2.imwrite(str(photo), _grey8(frame))
     side = json.loads(face_png.with_suffix(".json").read_text())
