@@ -15,6 +15,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .photo_relight import smoothstep
+
 # an eye's region: an ellipse of these semi-axes (interocular distances) along and across the eye
 # axis; its skin ring runs out to RING times that. Measured on Yale B: 0.24 x 0.11 covers the opening
 # and lids without the brow
@@ -120,8 +122,7 @@ class EyeDetail:
             if known.sum() < 30:
                 continue
             level = _quadratic_fit(np.nan_to_num(out[box]).astype(np.float64), known, r["u"], r["v"])
-            inside = np.clip((1.0 - r["e"]) / 0.35, 0.0, 1.0)
-            blend = ((inside * inside * (3.0 - 2.0 * inside)) * (1.0 - trust[box]))[..., None]
+            blend = (smoothstep(1.0 - r["e"], 0.0, 0.35) * (1.0 - trust[box]))[..., None]
             region = out[box]
             detail = blend * level * r["ratio"] + (1.0 - blend) * region
             out[box] = np.where(np.isfinite(region), detail, region).astype(np.float32)

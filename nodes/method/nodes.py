@@ -412,8 +412,7 @@ class PhotoRelightNode:
         # only eyes the detector found in the photo: given or guessed eyes may have no eye to show (a render
         # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
         placed = d.get("eyes_found") in ("detected", "one mirrored")
-        eyes = EyeDetail(photo, shading, lit, (al.matrix[:, :2] @ m.eyes.T).T + al.matrix[:, 2],
-                         self.options.eye_contrast) if placed else None
+        eyes = EyeDetail(photo, shading, lit, al.points_to_input(m.eyes), self.options.eye_contrast) if placed else None
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
             a = photo_albedo(photo, shading, trust, coarse, face, match_px)

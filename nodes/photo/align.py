@@ -40,6 +40,10 @@ class Alignment:
         u, _, vt = np.linalg.svd(lin)
         return u @ vt
 
+    def points_to_input(self, points: np.ndarray) -> np.ndarray:
+        """(M, 2) model-grid points ``(col, row)`` -> (M, 2) input pixels ``(x, y)``."""
+        return np.asarray(points, np.float64) @ self.matrix[:, :2].T + self.matrix[:, 2]
+
     def vector_to_input(self, v: np.ndarray) -> np.ndarray:
         """Rotate camera-frame vectors (..., 3) from the model's frame to the input's."""
         return _rotate_xy(v, self.rotation)
@@ -161,7 +165,7 @@ def face_box(mask: np.ndarray, al: Alignment, shape: tuple[int, int], margin: fl
     rows, cols = np.nonzero(mask)
     corners = np.array([[cols.min(), rows.min()], [cols.max(), rows.min()], [cols.min(), rows.max()],
                         [cols.max(), rows.max()]], np.float64)
-    mapped = corners @ al.matrix[:, :2].T + al.matrix[:, 2]
+    mapped = al.points_to_input(corners)
     lo, hi = mapped.min(axis=0) - margin - 1, mapped.max(axis=0) + margin + 2
     c0, r0 = int(max(0, np.floor(lo[0]))), int(max(0, np.floor(lo[1])))
     c1, r1 = int(min(shape[1], np.ceil(hi[0]))), int(min(shape[0], np.ceil(hi[1])))

@@ -112,8 +112,7 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
             frame = chain.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
             assert frame.data["eyes_found"] in ("detected", "one mirrored")
             relit = frame.data["photo_relit"][0][1][..., 0]
-            al = frame.data["alignment"]
-            eyes = (al.matrix[:, :2] @ model.eyes.T).T + al.matrix[:, 2]
+            eyes = frame.data["alignment"].points_to_input(model.eyes)
             iod = np.linalg.norm(eyes[1] - eyes[0])
             yy, xx = np.mgrid[0:relit.shape[0], 0:relit.shape[1]]
             for ex, ey in eyes:
