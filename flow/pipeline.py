@@ -81,7 +81,7 @@ def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
     thread.start()
     thread.join(timeout)
     if thread.is_alive():
-        work.cancelled = True
+        work.cancel()
         _abandoned.append(thread)
         raise TimeoutError(f"{frame.source}: timed out after {timeout:g} s in {name}")
     if "error" in box:
@@ -174,7 +174,7 @@ class Pipeline(Stoppable):
                     return
                 seq, frame = item
                 if self._stop.is_set():
-                    frame.cancelled = True  # stopped: unfinished frames leave without more work
+                    frame.cancel()  # stopped: unfinished frames leave without more work
                 try:
                     frame = run_node(stage.node, frame, self.frame_timeout)
                 except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
