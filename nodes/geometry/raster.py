@@ -1,6 +1,7 @@
-"""Orthographic z-buffer rasterisation of triangle meshes, vectorised over triangles."""
+"""Orthographic z-buffer rasterisation of triangle meshes, vectorised over triangles; polygons as masks."""
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .mask_cache import per_mask
@@ -181,3 +182,13 @@ def rasterize_row_edges(vertices: np.ndarray, edges: np.ndarray, shape: tuple[in
         tw = t[win][:, None]
         attr_img[pix[win]] = (1 - tw) * attributes[a[e[win]]] + tw * attributes[b[e[win]]]
     return depth.reshape(h, w), None if attr_img is None else attr_img.reshape(h, w, -1)
+
+
+def polygon_mask(points: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the pixels whose centres lie inside the polygon ``points`` (n, 2) ``(x, y)``
+    (column, row), vertices placed to 1/16 pixel."""
+    shift = 4
+    pts = np.round(np.asarray(points, np.float64) * (1 << shift)).astype(np.int32)
+    out = np.zeros(shape, np.uint8)
+    cv2.fillPoly(out, [pts], 1, lineType=cv2.LINE_8, shift=shift)
+    return out.astype(bool)

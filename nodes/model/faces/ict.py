@@ -34,6 +34,12 @@ UPSTREAM_VERTICES = 26719
 # the lips' parting line at the midline: Multi-PIE landmarks 62 and 66 (inner lips, upper and lower),
 # upstream vertex_indices.json "idx_to_landmark_verts"; both inside the face area
 STOMION = (5533, 5517)
+# the Multi-PIE 68 facial landmarks (0-based order: jaw 0-16, brows 17-26, nose 27-35, eyes 36-47, mouth 48-67),
+# upstream vertex_indices.json "idx_to_landmark_verts"; all inside the face area
+LANDMARKS = (1225, 1888, 1052, 367, 1719, 1722, 2199, 1447, 966, 3661, 4390, 3927, 3924, 2608, 3272, 4088, 3443,
+             268, 493, 1914, 2044, 1401, 3615, 4240, 4114, 2734, 2509, 978, 4527, 4942, 4857, 1140, 2075, 1147,
+             4269, 3360, 1507, 1542, 1537, 1528, 1518, 1511, 3742, 3751, 3756, 3721, 3725, 3732, 5708, 5695, 2081,
+             0, 4275, 6200, 6213, 6346, 6461, 5518, 5957, 5841, 5702, 5711, 5533, 6216, 6207, 6470, 5517, 5966)
 COMPACT_FORMAT = "shadowflow-ict-face-basis-1"
 SHIPPED = Path(__file__).resolve().parents[1] / "data" / "ict_face_basis.npz"
 

@@ -1,0 +1,150 @@
+"""Where each face of a photo sits on the model grid, and what its placement leaves in doubt.
+
+``place_faces`` is the policy: eyes given (a sidecar's, or ``--eyes``) place one face by the
+similarity that puts the model's eyes on them; otherwise every face the detector and face mesh
+find (``photo.faces.find_faces``) is placed by its landmarks (``photo.faces.place_on_grid``);
+with finding switched off the photo is taken as a frontal crop framed like the model grid.
+A placement's ``doubts`` are what the landmarks themselves say is wrong with the face (cut by the
+frame, turned too far for a frontal model, a mesh that does not fit a face); the fit's quality
+check adds them to its flags.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..model.shape_model import ShapeModel
+from .align import Alignment, centred_alignment, eyes_alignment, stretch_vertically
+from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
+
+# the frontal model's reach in yaw: turned further, a face is fitted but doubtful (docs/accuracy.md, "Pose")
+MAX_FRONTAL_YAW = 15.0
+# the landmarks' placement fit leaves at most this much (root-mean-square, in eye distances) on a face:
+# Yale B frontal to 70 deg 0.02-0.03, the smiling astronaut 0.07; concentric rings, which both nets take for a
+# face, 0.15
+MAX_PLACEMENT_RMS = 0.12
+# eyes closer than this share of the model grid's (36 px on the default 128^2 grid) leave the fit too few pixels:
+# the photo is then enlarged more than twice onto the grid
+MIN_FIT_IOD_SHARE = 0.45
+# a face's eyes, brows and lips may run past the frame by this share of their outline points: Yale B's tight
+# crops cut the brows' ends (0-2 %)
+MAX_CUT = 0.1
+
+
+@dataclass(frozen=True)
+class FacePlacement:
+    """One face of a photo. alignment: model pixel -> photo pixel; found: "detected" (by the detector
+    and the face mesh), "mesh only" (the face mesh, in the photo taken as one face's crop), "given"
+    (its eyes) or "centre asked"; eyes: (2, 2) photo pixels ``[[x, y], [x, y]]``,
+    image-left first; box: (4,) ``x0, y0, x1, y1`` photo pixels; pose: the head's rotation (found
+    faces); outlines: the parts' outlines in photo pixels (``FoundFace.outlines``; found faces);
+    doubts: one phrase per problem the placement sees; stretch: the face's length against the model's;
+    presence: the face mesh's score; plausible: whether the landmarks have a face's proportions."""
+
+    alignment: Alignment
+    found: str
+    eyes: np.ndarray
+    box: np.ndarray
+    pose: Pose | None = None
+    outlines: dict[str, list[np.ndarray]] | None = None
+    doubts: tuple[str, ...] = ()
+    stretch: float = 1.0
+    presence: float | None = None
+    plausible: bool = True
+
+    def record(self) -> dict:
+        """What ``summary.json`` says of the face: box, eyes and pose (rounded, photo pixels, degrees)."""
+        rec = {"box": [round(float(v), 1) for v in self.box], "eyes": np.round(self.eyes, 1).tolist(),
+               "found": self.found, "pose": None if self.pose is None else self.pose.record()}
+        if self.presence is not None:
+            rec["presence"] = round(self.presence, 3)
+        return rec
+
+    def grid_outline(self, name: str = "oval") -> list[np.ndarray]:
+        """The outlines of ``name`` on the model grid ``(col, row)`` (empty without landmarks)."""
+        if self.outlines is None:
+            return []
+        inv = cv2.invertAffineTransform(self.alignment.matrix)
+        return [np.asarray(o, np.float64) @ inv[:, :2].T + inv[:, 2] for o in self.outlines.get(name, [])]
+
+
+def small_face(iod: float, model: ShapeModel) -> list[str]:
+    """The doubt of a face whose eyes are ``iod`` photo pixels apart, if that is under
+    ``MIN_FIT_IOD_SHARE`` of the model grid's."""
+    least = MIN_FIT_IOD_SHARE * float(np.linalg.norm(model.eyes[1] - model.eyes[0]))
+    if iod >= least:
+        return []
+    return [f"the face is small (eyes {iod:.0f} px apart; the fit wants {least:.0f})"]
+
+
+def model_box(model: ShapeModel, al: Alignment, shape: tuple[int, int]) -> np.ndarray:
+    """(4,) ``x0, y0, x1, y1``: the pixels of a photo (H, W) the model's face covers under ``al``."""
+    rows, cols = np.nonzero(model.mask)
+    corners = np.array([[cols.min(), rows.min()], [cols.max(), rows.min()], [cols.min(), rows.max()],
+                        [cols.max(), rows.max()]], np.float64)
+    p = al.points_to_input(corners)
+    h, w = shape
+    return np.clip(np.concatenate([p.min(axis=0), p.max(axis=0)]), 0.0, [w - 1, h - 1, w - 1, h - 1])
+
+
+def place_given_eyes(model: ShapeModel, eyes: np.ndarray, how: str, face_length: str | float,
+                     shape: tuple[int, int]) -> FacePlacement:
+    """One face placed by its eyes (2, 2) photo pixels: the similarity that puts the model's eyes
+    on them, stretched by ``face_length`` when it is a number. Eyes given right-eye first are taken
+    in image order (the model's image-left eye goes on the image-left one)."""
+    eyes = np.asarray(eyes, np.float64)
+    if eyes[0, 0] > eyes[1, 0]:
+        eyes = eyes[::-1]
+    al = eyes_alignment(eyes, model.eyes, how)
+    if isinstance(face_length, (int, float)) and not isinstance(face_length, bool):
+        eye_row = float(np.mean(model.eyes[:, 1]))
+        al = stretch_vertically(al, float(face_length), eye_row, f"{al.how}; face length x{float(face_length):.3f} (given)")
+    iod = float(np.linalg.norm(eyes[1] - eyes[0]))
+    return FacePlacement(al, "given", eyes, model_box(model, al, shape), doubts=tuple(small_face(iod, model)))
+
+
+def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face_length: str | float) -> FacePlacement:
+    """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``); with
+    ``face_length`` "off" the stretch is 1, with a number it is that."""
+    mouth = model.mouth if face_length == "auto" else None
+    matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth)
+    how = f"landmarks; face length x{stretch:.3f}"
+    al = Alignment(matrix, how)
+    if isinstance(face_length, (int, float)) and not isinstance(face_length, bool):
+        eye_row = float(np.mean(model.eyes[:, 1]))
+        al = stretch_vertically(al, float(face_length), eye_row, f"landmarks; face length x{float(face_length):.3f} (given)")
+        stretch = float(face_length)
+    pose = head_pose(face)
+    doubts = []
+    core = np.vstack([o for name in ("eyes", "brows", "lips") for o in face.outlines()[name]])
+    h, w = shape
+    cut = np.mean((core[:, 0] < 0) | (core[:, 0] > w - 1) | (core[:, 1] < 0) | (core[:, 1] > h - 1))
+    if cut > MAX_CUT:
+        doubts.append(f"the face is cut by the frame ({100 * cut:.0f} % of its eyes, brows and lips outside)")
+    if abs(pose.yaw) > MAX_FRONTAL_YAW:
+        doubts.append(f"the head is turned {pose.yaw:+.0f} deg (yaw); the frontal model fits up to "
+                      f"{MAX_FRONTAL_YAW:.0f} deg")
+    if rms > MAX_PLACEMENT_RMS:
+        doubts.append(f"the landmarks do not fit a face's proportions (off by {rms:.2f} of the eye distance)")
+    doubts += small_face(face.iod, model)
+    box = np.clip(face.box, 0.0, [w - 1, h - 1, w - 1, h - 1])
+    found = "detected" if face.detected else "mesh only"
+    return FacePlacement(al, found, face.eyes, box, pose, face.outlines(), tuple(doubts), stretch, face.presence,
+                         rms <= MAX_PLACEMENT_RMS)
+
+
+def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | None = None, eyes_how: str = "given eyes",
+                find: bool = True, face_length: str | float = "auto") -> list[FacePlacement]:
+    """Every face of a photo (``photo_rgb`` (H, W, 3) uint8 RGB), largest first (module docstring):
+    one from ``eyes`` when given; else those found (none: an empty list) when ``find``; else the
+    centred crop."""
+    shape = photo_rgb.shape[:2]
+    if eyes is not None:
+        return [place_given_eyes(model, eyes, eyes_how, face_length, shape)]
+    if not find:
+        al = centred_alignment(shape, model.grid)
+        al = Alignment(al.matrix, "centred crop (asked)")
+        return [FacePlacement(al, "centre asked", al.points_to_input(model.eyes), model_box(model, al, shape))]
+    return [place_found(model, f, shape, face_length) for f in find_faces(photo_rgb)]
