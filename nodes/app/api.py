@@ -20,13 +20,13 @@ import numpy as np
 from ...flow.chain import Chain
 from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
-from ..method.nodes import LoadNode, MethodOptions, method_nodes
-from ..method.products import input_grid_products, photo_mesh
+from ..method.nodes import MethodOptions, photo_nodes
+from ..method.products import input_grid_products, photo_mesh, relit_photos
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, luminance
 from .inputs import expand_inputs
-from .outputs import OUTPUT_FILES, real_path, write_outputs
+from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
 from .runner import RunOptions, RunResult, run_stream
 
@@ -47,8 +47,13 @@ class Products:
     mask (H, W) bool face; novel_view (Hm, Wm) model grid, the surface turned about the vertical
     axis; light (3,) the light used (input camera frame); history: one dict of scalars per fit
     iteration (sigma, residual_mean, residual_median, downweighted_fraction, change_deg);
-    iterations, converged: how the fit ended; frame: everything on the model grid
-    (``method/keys.py``); model: the shape model used.
+    iterations, converged: how the fit ended; frame: the face's frame, everything on the model grid
+    (``method/keys.py``); model: the shape model used; faces: every face found, largest first, as
+    ``summary.json`` gives them (box, eyes, pose, status, quality, light); photo: the photo's frame
+    (its ``parts`` are the faces' frames).
+
+    Every array above is the largest face's (the first of ``faces`` that came through), but ``relit``
+    and ``relit_extra``, which are the whole photo with every face relit.
     """
 
     normals: np.ndarray
@@ -67,6 +72,8 @@ class Products:
     converged: bool
     frame: Frame
     model: ShapeModel
+    faces: list[dict]
+    photo: Frame
 
     @property
     def shadow(self) -> np.ndarray:
@@ -89,7 +96,7 @@ class Products:
             if clash:
                 raise ValueError(f"{folder / clash[0]}: is the input image; save somewhere else")
         folder.mkdir(parents=True, exist_ok=True)
-        return write_outputs(self.frame, self.model, folder)
+        return write_outputs(self.photo, self.model, folder)
 
 
 def _as_image(image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -154,15 +161,17 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
         frame = Frame(0, ARRAY_SOURCE, data={"image": grey} if colour is None else {"image": grey, "colour": colour})
     release_large_frees()
     with one_blas_thread():
-        frame = Chain([LoadNode(shape_model, opts), *method_nodes(shape_model, opts)]).process(frame)
-    if not frame.ok:
-        raise InputError(frame.status)
-    p = input_grid_products(frame, shape_model)
-    r = frame.data["fit"]
+        photo = Chain(photo_nodes(shape_model, opts)).process(frame)
+    if not photo.ok:
+        raise InputError(photo.status)
+    face = faces_of(photo)[0]
+    p = input_grid_products(face, shape_model, relit_photos(photo))
+    r = face.data["fit"]
     return Products(normals=p["normals"], depth=p["depth"], albedo=p["albedo"], weights=p["weights"], lit=p["lit"],
-                    relit=p["relit"], relit_extra=p["relit_extra"], quality=frame.meta["quality"], mask=p["mask"], novel_view=frame.data["novel_view"],
-                    light=np.asarray(frame.data["light"], np.float64), history=list(r.history),
-                    iterations=r.iterations, converged=r.converged, frame=frame, model=shape_model)
+                    relit=p["relit"], relit_extra=p["relit_extra"], quality=face.meta["quality"], mask=p["mask"],
+                    novel_view=face.data["novel_view"], light=np.asarray(face.data["light"], np.float64),
+                    history=list(r.history), iterations=r.iterations, converged=r.converged, frame=face,
+                    model=shape_model, faces=[face_record(f, None) for f in photo.parts], photo=photo)
 
 
 def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: ShapeModel | str | None = None,

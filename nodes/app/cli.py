@@ -58,8 +58,8 @@ MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan iden
 
 ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth albedo its shape implies and fit on, "
                       "N times (default 1; 0 is the paper's one albedo everywhere, see README)")
-FACE_LENGTH_HELP = ("auto (default): with detected eyes, also align the face's length by its mouth line; off: the "
-                    "eyes' similarity only; a number: stretch the model's face by it (eyes to mouth)")
+FACE_LENGTH_HELP = ("auto (default): a found face's length (eyes to mouth) from its landmarks; off: the model's; "
+                    "a number: stretch the model's face by it")
 CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 0.5; 1: the paper's "
                    "blend; 0: the model's normals; albedo and relighting always use the paper's blend)")
 
@@ -205,7 +205,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
                                             args.cone_trust),
                             integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
-                            detect_eyes=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
+                            find_faces=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
                             face_length=_face_length(args.face_length),
                             extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                             novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
@@ -429,8 +429,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="albedo under shadow: mirrored or interpolated, never brighter than the face's typical "
                         "measured albedo (default) or mirrored as measured (paper)")
     r.add_argument("--eyes", default="auto",
-                   help="auto (detect; default) | centre (a frontal crop framed like the model) | "
-                        "X1,Y1,X2,Y2 input eye centres, image-left eye first; a sidecar's eyes win")
+                   help="auto (default): find every face by its landmarks (MediaPipe's detector and face mesh); "
+                        "centre: take the image as one frontal face framed like the model grid; "
+                        "X1,Y1,X2,Y2: one face with these eye centres, in the image; a sidecar's eyes win")
     r.add_argument("--relight", action="append", metavar="X,Y,Z",
                    help="also relight toward this light (camera frame; repeatable): relit_A<az>E<el>.png per light, "
                         "beside relit.png (frontal)")

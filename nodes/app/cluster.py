@@ -20,7 +20,7 @@ from typing import Iterator
 from ...flow.cluster_host import local_cluster
 from ...flow.frame import Frame
 from ...flow.recording import McapSink, Recorder, RecordOptions
-from ..method.nodes import LoadNode, MethodOptions, method_nodes
+from ..method.nodes import MethodOptions, photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode, summary_record
 from .blueprint import rerun_sink
@@ -53,10 +53,8 @@ class WorkerChain:
         worker_setup()
         recorder, sinks = self._recorder() if self.record else (None, [])
         observer = FitRecorder(model, recorder) if recorder is not None else None
-        nodes = [LoadNode(model, self.options), *method_nodes(model, self.options, observer)]
-        if recorder is not None:
-            nodes.append(RecordNode(model, recorder))
-        nodes.append(WriteNode(model, self.out, set(self.protected)))
+        after = (RecordNode(model, recorder),) if recorder is not None else ()
+        nodes = [*photo_nodes(model, self.options, observer, after=after), WriteNode(model, self.out, set(self.protected))]
 
         def finish(frame: Frame) -> None:
             if recorder is not None:  # recorded before the client's journal says the frame is done
@@ -64,7 +62,7 @@ class WorkerChain:
                 if recorder.error is not None:
                     frame.meta["recording_error"] = f"recording failed: {recorder.error}"
             frame.meta["recording_parts"] = [p.name for sink in sinks for p in sink.paths]
-            frame.data = {}
+            frame.drop_data()
 
         return nodes, finish, (recorder.close if recorder is not None else None)
 

@@ -17,11 +17,13 @@ import numpy as np
 
 from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_chunks
 from ...flow.frame import Frame
-from ..method.products import input_grid_products, photo_mesh
+from ..method.products import squeeze_channels, input_grid_products, photo_mesh, relit_photos
 from ..model.shape_model import ShapeModel
 
-OUTPUT_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png",
-                "relit.png", "novel_view.png", "mesh.ply")
+# a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
+FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "novel_view.png",
+              "mesh.ply")
+OUTPUT_FILES = (*FACE_FILES, "relit.png")
 
 
 def real_path(path: str | Path) -> Path:
@@ -91,10 +93,41 @@ def light_name(light: np.ndarray) -> str:
     return f"A{int(round(az)):+04d}E{int(round(el)):+03d}"
 
 
+def face_folder(k: int) -> str:
+    """The output folder of a photo's k-th face (1 the largest), relative to the photo's: ``""`` or ``face-<k>``."""
+    return "" if k <= 1 else f"face-{k}"
+
+
+def faces_of(frame: Frame) -> list[Frame]:
+    """The face frames of a photo's frame that came through (its ``parts``; a frame of one face: itself)."""
+    if not frame.parts:
+        return [frame] if "fit" in frame.data else []
+    return [p for p in frame.parts if p.ok]
+
+
 def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
-    """Write every output file of one frame into ``folder``; returns name -> path. Each file is
-    encoded, written and let go before the next (a large photo's files are not all held at once)."""
-    p = input_grid_products(frame, model)
+    """Write every output file of one photo's frame into ``folder``: the photo relit with every face
+    (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
+    in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
+    let go before the next (a large photo's files are not all held at once)."""
+    relit = relit_photos(frame)
+    written = {}
+    for face in faces_of(frame):
+        sub = face_folder(int(face.meta.get("face", 1)))
+        for name, path in write_face(face, model, folder / sub if sub else folder, relit).items():
+            written[f"{sub}/{name}" if sub else name] = path
+    encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
+    for light, image in relit[1:]:
+        encoders[f"relit_{light_name(light)}.png"] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
+    for name, encode in encoders.items():
+        atomic_write_bytes(folder / name, encode())
+        written[name] = str(folder / name)
+    return written
+
+
+def write_face(face: Frame, model: ShapeModel, folder: Path, relit: list) -> dict[str, str]:
+    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path."""
+    p = input_grid_products(face, model, relit)
     mask = p.pop("mask")
     encoders = {
         "normals.npy": lambda: _npy_bytes(p.pop("normals")),
@@ -103,12 +136,10 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
         "depth.npy": lambda: _npy_bytes(p.pop("depth")),
         "albedo.png": lambda: _png_bytes(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
         "shadow.png": lambda: _png_bytes(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
-        "relit.png": lambda: _png_bytes(to_8bit(p.pop("relit"))),
-        "novel_view.png": lambda: _png_bytes(to_8bit(frame.data["novel_view"], frame.data["novel_view"] > 0)),
+        "novel_view.png": lambda: _png_bytes(to_8bit(face.data["novel_view"], face.data["novel_view"] > 0)),
+        "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face, model)),  # the fit's resolution, the photo's frame
     }
-    for light, relit in p.pop("relit_extra"):
-        encoders[f"relit_{light_name(light)}.png"] = lambda relit=relit: _png_bytes(to_8bit(relit))
-    encoders["mesh.ply"] = lambda: mesh_ply_bytes(photo_mesh(frame, model))  # the fit's resolution, the photo's frame
+    folder.mkdir(parents=True, exist_ok=True)
     written = {}
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
@@ -126,40 +157,63 @@ class WriteNode:
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
-        for path in (folder, *(folder / n for n in OUTPUT_FILES)):
+        targets = [folder / n for n in OUTPUT_FILES]
+        for face in faces_of(frame):
+            sub = face_folder(int(face.meta.get("face", 1)))
+            if sub:
+                targets += [folder / sub, *(folder / sub / n for n in FACE_FILES)]
+        for path in (folder, *targets):
             if path.is_symlink():  # would write outside --out, or over whatever the link names
                 raise ValueError(f"{frame.source}: {path} is a symbolic link; refusing to write through it")
-        clash = [n for n in OUTPUT_FILES if real_path(folder / n) in self.protected]
+        clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
-            raise ValueError(f"{frame.source}: writing {folder / clash[0]} would overwrite an input")
+            raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
         write_outputs(frame, self.model, folder)
         frame.meta["outputs"] = str(folder)
         return frame
 
 
+# what summary.json says of a face, from its frame's meta
+FACE_FIELDS = ("quality", "light", "light_source", "alignment", "iterations", "converged", "final_sigma")
+
+
+def face_status(face: Frame) -> str:
+    """``ok``, ``doubtful: <flags>`` (outputs written, to be looked at) or the reason it failed."""
+    flags = (face.meta.get("quality") or {}).get("flags")
+    return "doubtful: " + "; ".join(flags) if face.ok and flags else face.status
+
+
+def face_record(face: Frame, stem: str | None) -> dict:
+    """A face's entry in ``summary.json``'s ``faces``: where it is (box, eyes: photo pixels, image-left eye
+    first), its pose (degrees), status, quality, light and the folder of its outputs (relative to --out)."""
+    rec = dict(face.meta.get("placement") or {})
+    k = int(face.meta.get("face", 1))
+    q = face.meta.get("quality") or {}
+    rec.update(status=face_status(face), quality={"score": q.get("score"), "flags": q.get("flags", [])} if q else None,
+               light=face.meta.get("light"))
+    if face.ok and stem is not None:
+        rec["dir"] = stem if k <= 1 else f"{stem}/{face_folder(k)}"
+    return rec
+
+
 def summary_record(frame: Frame) -> dict:
-    """One ``summary.json`` record (conventions.md) for a finished or failed frame."""
+    """One ``summary.json`` record (conventions.md) for a finished or failed frame: the input's, with
+    its largest face's fields (quality, light, alignment, the fit), and ``faces``, one entry per face
+    found (``face_record``)."""
     m = frame.meta
+    first = frame.parts[0] if frame.parts else frame
     rec = {
         "source": frame.source,
         "stem": m.get("stem"),
-        "status": frame.status,
-        "quality": m.get("quality"),
-        "light": m.get("light"),
-        "light_source": m.get("light_source"),
-        "alignment": m.get("alignment"),
-        "iterations": m.get("iterations"),
-        "converged": m.get("converged"),
-        "final_sigma": m.get("final_sigma"),
+        "status": frame.status if not frame.ok else face_status(first),
+        **{k: first.meta.get(k) for k in FACE_FIELDS},
         "seconds": round(float(sum(m.get("timings", {}).values())), 4),
     }
+    rec["faces"] = [face_record(p, m.get("stem")) for p in frame.parts]
     if m.get("reduced"):
         rec["reduced"] = m["reduced"]
     if frame.failed_in:
         rec["failed_in"] = frame.failed_in
-    flags = (m.get("quality") or {}).get("flags")
-    if frame.ok and flags:  # outputs written, but the user should look before trusting them
-        rec["status"] = "doubtful: " + "; ".join(flags)
     return rec
 
 
@@ -168,3 +222,21 @@ def write_summary(out_dir: Path, records: Iterable[dict]) -> None:
     record by record (a run's records come from its store on disk, never all in memory)."""
     chunks = json_array_chunks(records, indent=2)
     atomic_write_chunks(out_dir / "summary.json", itertools.chain(chunks, [b"\n"]))
+
+
+def status_lines(rec: dict) -> list[str]:
+    """What the terminal says of a finished input (its ``summary_record``): nothing when every face is
+    ok, else one line per face (or for the input) that failed or is doubtful, naming its file."""
+    if rec.get("failed_in") or not rec.get("faces"):  # the input failed as a whole
+        return [] if rec["status"] == "ok" else [f"error: {rec['status']}"]
+    lines = []
+    for k, face in enumerate(rec["faces"], start=1):
+        status = face["status"]
+        if status == "ok":
+            continue
+        name = rec["source"] if k == 1 else f"{rec['source']} (face {k})"
+        if status.startswith("doubtful: "):
+            lines.append(f"doubtful: {name}: {status[len('doubtful: '):]}")
+        else:
+            lines.append(f"error: {status}")
+    return lines

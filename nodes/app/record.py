@@ -14,6 +14,7 @@ from ...flow.recording import Event, FrameRecording, Kind, OnMask, Recorder
 from ..method.nodes import (
     AlbedoNode,
     CombineNode,
+    FacesNode,
     IntegrateNode,
     LoadNode,
     PhotoRelightNode,
@@ -34,14 +35,22 @@ CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``
 CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
                       "residual_mean": "mean residual (radians)"}
 # the method's steps in the order they run: where two recordings split, for ``diff``
-STAGES = tuple(node.name for node in (LoadNode, RemapNode, SfsInitNode, RobustFitNode, CombineNode, IntegrateNode,
-                                     ShadowNode, AlbedoNode, QualityNode, RelightNode, PhotoRelightNode))
+STAGES = tuple(node.name for node in (LoadNode, FacesNode, RemapNode, SfsInitNode, RobustFitNode, CombineNode,
+                                     IntegrateNode, ShadowNode, AlbedoNode, QualityNode, RelightNode, PhotoRelightNode))
 
 
 def stage_rank(channel: str) -> int:
-    """The rank of the step that recorded ``channel`` (``<node>/<name>``); the frame record last."""
-    node = channel.split("/", 1)[0]
+    """The rank of the step that recorded ``channel`` (``[face<k>/]<node>/<name>``); the frame record last."""
+    parts = channel.split("/")
+    node = parts[1] if len(parts) > 2 and parts[0].startswith("face") else parts[0]
     return STAGES.index(node) if node in STAGES else len(STAGES)
+
+
+def channel(frame: Frame, path: str) -> str:
+    """Where a face's ``<node>/<name>`` is recorded: as it is for a photo's first (largest) face, under
+    ``face<k>/`` for its k-th (``meta["face"]``), so a photo of one face records what it always did."""
+    k = int(frame.meta.get("face", 1))
+    return path if k <= 1 else f"face{k}/{path}"
 
 
 DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
@@ -60,31 +69,32 @@ class FitRecorder:
     def iteration(self, frame: Frame, it: FitIteration) -> None:
         if it.iteration == 1:  # the frame's first events: say what it is called (its output name)
             self.recorder.name_frame(frame.id, frame.meta.get("stem"))
+        key = (frame.id, frame.meta.get("face", 1))
         if self.recorder.keep_iteration(it.iteration):
-            self._emit(frame.id, it)
-            self._held.pop(frame.id, None)
+            self._emit(frame, it)
+            self._held.pop(key, None)
         else:
-            self._held[frame.id] = it
+            self._held[key] = it
 
     def finish(self, frame: Frame) -> None:
         """Emit the last iteration if thinning held it back."""
-        it = self._held.pop(frame.id, None)
+        it = self._held.pop((frame.id, frame.meta.get("face", 1)), None)
         if it is not None:
-            self._emit(frame.id, it)
+            self._emit(frame, it)
 
-    def _emit(self, fid: int, it: FitIteration) -> None:
+    def _emit(self, frame: Frame, it: FitIteration) -> None:
         """Face-pixel copies only: the recorder's thread puts them on the grid (``OnMask``)."""
-        mask, r, k = self.model.mask, self.recorder, it.iteration
+        mask, r, k, fid = self.model.mask, self.recorder, it.iteration, frame.id
 
         def on_face(values: np.ndarray) -> OnMask:
             return OnMask(np.array(values, np.float32), mask)
 
-        r.emit(Event(fid, "robust_fit/normals", Kind.NORMALS, on_face(it.normals), k))
-        r.emit(Event(fid, "robust_fit/model_normals", Kind.NORMALS, on_face(it.model_normals), k))
-        r.emit(Event(fid, "robust_fit/weights", Kind.IMAGE, on_face(it.weights), k))
-        r.emit(Event(fid, "robust_fit/residuals", Kind.ARRAY, on_face(it.residuals), k))
-        r.emit(Event(fid, "robust_fit/b", Kind.ARRAY, np.array(it.b, np.float32), k))
-        r.emit(Event(fid, CONVERGENCE, Kind.SCALARS, it.scalars(), k))
+        r.emit(Event(fid, channel(frame, "robust_fit/normals"), Kind.NORMALS, on_face(it.normals), k))
+        r.emit(Event(fid, channel(frame, "robust_fit/model_normals"), Kind.NORMALS, on_face(it.model_normals), k))
+        r.emit(Event(fid, channel(frame, "robust_fit/weights"), Kind.IMAGE, on_face(it.weights), k))
+        r.emit(Event(fid, channel(frame, "robust_fit/residuals"), Kind.ARRAY, on_face(it.residuals), k))
+        r.emit(Event(fid, channel(frame, "robust_fit/b"), Kind.ARRAY, np.array(it.b, np.float32), k))
+        r.emit(Event(fid, channel(frame, CONVERGENCE), Kind.SCALARS, it.scalars(), k))
 
 
 class RecordNode:
@@ -97,20 +107,24 @@ class RecordNode:
         self.model, self.recorder = model, recorder
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m, fid, emit = frame.data, self.model, frame.id, self.recorder.emit
+        d, m, fid = frame.data, self.model, frame.id
         self.recorder.name_frame(fid, frame.meta.get("stem"))
-        emit(Event(fid, "load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32)))
-        emit(Event(fid, "remap/remapped", Kind.IMAGE, d["remapped"]))
-        emit(Event(fid, "sfs_init/normals", Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask)))
-        emit(Event(fid, "combine/normals", Kind.NORMALS, d["normals"]))
-        emit(Event(fid, "integrate/depth", Kind.DEPTH, d["depth"]))
-        emit(Event(fid, "shadow/cast", Kind.IMAGE, d["shadow"].cast.astype(np.float32)))
-        emit(Event(fid, "shadow/attached", Kind.IMAGE, d["shadow"].attached.astype(np.float32)))
-        emit(Event(fid, "albedo/albedo", Kind.IMAGE, d["albedo"]))
+
+        def emit(path: str, kind: Kind, value) -> None:
+            self.recorder.emit(Event(fid, channel(frame, path), kind, value))
+
+        emit("load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32))
+        emit("remap/remapped", Kind.IMAGE, d["remapped"])
+        emit("sfs_init/normals", Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask))
+        emit("combine/normals", Kind.NORMALS, d["normals"])
+        emit("integrate/depth", Kind.DEPTH, d["depth"])
+        emit("shadow/cast", Kind.IMAGE, d["shadow"].cast.astype(np.float32))
+        emit("shadow/attached", Kind.IMAGE, d["shadow"].attached.astype(np.float32))
+        emit("albedo/albedo", Kind.IMAGE, d["albedo"])
         if "relit" in d:
-            emit(Event(fid, "relight/relit", Kind.IMAGE, d["relit"]))
-            emit(Event(fid, "relight/novel_view", Kind.IMAGE, d["novel_view"]))
-        emit(Event(fid, "integrate/mesh", Kind.MESH, surface_mesh(d["depth"], d["albedo"])))
+            emit("relight/relit", Kind.IMAGE, d["relit"])
+            emit("relight/novel_view", Kind.IMAGE, d["novel_view"])
+        emit("integrate/mesh", Kind.MESH, surface_mesh(d["depth"], d["albedo"]))
         return frame
 
 

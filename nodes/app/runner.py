@@ -34,13 +34,14 @@ from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.recording.codec import jsonable
 from ...flow.recording.process import renewed_sink
-from ..method.nodes import LoadNode, MethodOptions, method_nodes
+from ..method.nodes import MethodOptions, photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import (
     OUTPUT_FILES,
     WriteNode,
     real_path,
     safe_stem,
+    status_lines,
     summary_record,
     write_summary,
 )
@@ -281,10 +282,8 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     # outputs must never land on an input: all of them when the list is known, else as they come
     protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
     if client is None:
-        nodes = [LoadNode(model, options), *method_nodes(model, options, observer)]
-        if recorder is not None:
-            nodes.append(RecordNode(model, recorder))
-        nodes.append(WriteNode(model, out, protected))
+        after = (RecordNode(model, recorder),) if recorder is not None else ()
+        nodes = [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected)]
         stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
 
     progress = Progress(total, not run.quiet)
@@ -391,7 +390,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
 
     def done(frame: Frame) -> None:
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
-            frame.data.clear()
+            frame.drop_data()
             return
         if frame.skipped:
             if not stored(frame.meta["stem"], frame.meta["previous"]):
@@ -401,14 +400,14 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             return
         if _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
             out_of_storage(frame.status)
-            frame.data.clear()
+            frame.drop_data()
             return
         if storage:  # finished after the run stopped taking data: not journaled, so --resume redoes it
-            frame.data.clear()  # and summary.json does not call it done
+            frame.drop_data()  # and summary.json does not call it done
             return
         rec = summary_record(frame)
         if not stored(frame.meta["stem"], rec):  # (taken again, as a watched file that changed: the newer record)
-            frame.data.clear()
+            frame.drop_data()
             return
         worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
         if worker_parts:
@@ -424,15 +423,15 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         if failed is not None:  # --resume redoes the frame: summary.json does not call it done
             out_of_storage(f"{out}: {failed}")
             drop_record(frame.meta["stem"])
-            frame.data.clear()
+            frame.drop_data()
             return
         if not storage:
             journal_entry(frame, rec)
         save_summary()
         progress.update(frame.ok)
-        if not frame.ok:
-            progress.write(f"error: {frame.status}")
-        frame.data.clear()  # the frame's arrays are on disk now: free them
+        for line in status_lines(rec):
+            progress.write(line)
+        frame.drop_data()  # the frame's arrays are on disk now: free them
         trim_heap()
 
     if client is None:

@@ -33,8 +33,8 @@ from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.normals import angle_deg
 from ..geometry.reflectance import lambertian, light_from_angles
-from ..method.nodes import LoadNode, MethodOptions, method_nodes
-from ..method.products import input_grid_products
+from ..method.nodes import MethodOptions, photo_nodes
+from ..method.products import input_grid_products, relit_photos
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment, normals_to_input, normals_to_model
 from .photometric_stereo import register_translation, render
@@ -118,11 +118,11 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
 def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: MethodOptions) -> dict:
     """The frontal photo relit frontally with its true light: how much of the photo survives (PSNR
     against itself, gain-corrected, over the face; and the share of its gradient energy kept)."""
-    chain = Chain([LoadNode(model, options), *method_nodes(model, options)])
+    chain = Chain(photo_nodes(model, options))
     frame = chain.process(Frame(0, str(subject.image_path(0, 0))))
     if not frame.ok:
         raise RuntimeError(frame.status)
-    out = input_grid_products(frame, model)
+    out = input_grid_products(frame.parts[0], model, relit_photos(frame))
     photo = frame.data["image"]
     region = out["mask"] & subject.stereo.valid
     relit = np.nan_to_num(out["relit"]).astype(np.float64)
@@ -152,18 +152,19 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
     """One row per input light (see module docstring); ``bounds``: also the model floor and
     the clean-render fit (one more fit per row)."""
     gt = subject.stereo
-    chain = Chain([LoadNode(model, options), *method_nodes(model, options)])
-    auto = Chain([LoadNode(model, dataclasses.replace(options, light="auto"))])
+    chain = Chain(photo_nodes(model, options))
+    auto = Chain(photo_nodes(model, dataclasses.replace(options, light="auto"))[:2])  # load, find faces
     frontal_shift = stereo_shift(subject, subject.frontal, light_from_angles(0, 0))  # once per subject
     rows = []
     for az, el in lights:
         path = subject.image_path(az, el)
         t0 = time.perf_counter()
-        frame = chain.process(Frame(0, str(path)))
-        if not frame.ok:
-            raise RuntimeError(frame.status)
+        photo = chain.process(Frame(0, str(path)))
+        if not photo.ok:
+            raise RuntimeError(photo.status)
         seconds = time.perf_counter() - t0
-        out = input_grid_products(frame, model)
+        frame = photo.parts[0]
+        out = input_grid_products(frame, model, relit_photos(photo))
         region = gt.valid & out["mask"] & np.isfinite(out["normals"][..., 0])
         mean_shape = normals_to_input(model.to_image(model.mean_normals.astype(np.float32)), model.mask,
                                       frame.data["alignment"], out["mask"].shape)
@@ -191,15 +192,16 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
             al = frame.data["alignment"]
             row["err_floor"] = _mean_error(model_floor_normals(gt.normals, gt.valid, model, al), gt.normals, region)
             clean_opts = dataclasses.replace(options, light=truth_light)
-            clean_chain = Chain([LoadNode(model, clean_opts), *method_nodes(model, clean_opts, with_views=False)])
+            clean_chain = Chain(photo_nodes(model, clean_opts, with_views=False))
             image = clean_render(subject, frame.data["image"], truth_light)
             clean = clean_chain.process(Frame(0, str(path), data={"image": image, "alignment": al}))
             if not clean.ok:
                 raise RuntimeError(clean.status)
+            clean = clean.parts[0]
             n_clean = normals_to_input(clean.data["normals"], model.mask, clean.data["alignment"], region.shape)
             row["err_clean"] = _mean_error(n_clean, gt.normals, region)
         if estimate_light:
-            est = auto.process(Frame(0, str(path), data={"image": frame.data["image"]}))
+            est = auto.process(Frame(0, str(path), data={"image": frame.data["image"]})).parts[0]
             row["light_err_deg"] = float(angle_deg(np.asarray(est.data["light"])[None], truth_light[None])[0])
         rows.append(row)
     return rows

@@ -8,14 +8,20 @@ from __future__ import annotations
 
 # frame.data: key -> (what it holds, the node that writes it)
 DATA: dict[str, tuple[str, str]] = {
-    "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given"),
-    "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given"),
-    "light": ("(3,) unit light, input camera frame", "load, or given"),
-    "alignment": ("``Alignment``: model pixel -> input pixel", "load, or given"),
-    "eyes_found": ("how the eyes were placed: detected | one mirrored | given | centre asked | none", "load"),
-    "grid_image": ("(Hm, Wm) the input resampled to the model grid", "load, or on_model_grid"),
-    "grid_valid": ("(Hm, Wm) bool, model pixels inside the photo (absent: all)", "load"),
-    "grid_light": ("(3,) the light in the model's camera frame", "load, or on_model_grid"),
+    # the photo's frame (its faces are its parts, ``Frame.parts``; a face's frame holds the entries below these)
+    "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given; faces (a face's, the photo's)"),
+    "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given; faces"),
+    "given_eyes": ("(2, 2) eye centres given for the photo, photo pixels (sidecar, --eyes)", "load"),
+    "light": ("(3,) unit light, input camera frame: known before the faces (photo), or the face's", "load, faces"),
+    "photo_relit": ("list of (light (3,), (H, W, C) photo relit by it, every face composed in): "
+                    "``relight_light``, ``extra_lights``", "compose"),
+    # a face's frame
+    "alignment": ("``Alignment``: model pixel -> input pixel", "faces, or given"),
+    "placement": ("``FacePlacement``: the face's alignment, eyes, box, pose, outlines and doubts", "faces"),
+    "eyes_found": ("how the face was placed: detected | mesh only | given | centre asked", "faces"),
+    "grid_image": ("(Hm, Wm) the input resampled to the model grid", "faces, or on_model_grid"),
+    "grid_valid": ("(Hm, Wm) bool, model pixels inside the photo and the face's outline (absent: all)", "faces"),
+    "grid_light": ("(3,) the light in the model's camera frame", "faces, or on_model_grid"),
     "saturated": ("(N,) bool, face pixels clipped by over-exposure", "remap"),
     "remapped": ("(Hm, Wm) brightness on the Lambertian scale", "remap"),
     "initial": ("(N, 3) starting normals", "sfs_init"),
@@ -28,12 +34,13 @@ DATA: dict[str, tuple[str, str]] = {
     "albedo_source": ("(Hm, Wm) uint8: 0 off-face, 1 measured, 2 mirrored, 3 filled", "albedo"),
     "relit": ("(Hm, Wm) the face under ``MethodOptions.relight_light``", "relight"),
     "novel_view": ("(Hm, Wm) the surface turned about the vertical axis", "relight"),
-    "photo_albedo": ("(H, W, C) albedo on the photo grid, C = 3 for a colour photo, NaN off the face",
+    "photo_box": ("(y0, y1, x0, x1) the photo pixels around the face the next three cover", "relight_photo"),
+    "photo_albedo": ("(h, w, C) albedo in the face's box of the photo grid, C = 3 for a colour photo, NaN off "
+                     "the face", "relight_photo"),
+    "photo_shadow": ("(h, w) bool, the face's cast and attached shadows in its box, at the photo's resolution",
                      "relight_photo"),
-    "photo_shadow": ("(H, W) bool, the face's cast and attached shadows at the photo's resolution",
+    "photo_layers": ("list of (light (3,), ``FaceLayer``): the face relit, to compose into the photo",
                      "relight_photo"),
-    "photo_relit": ("list of (light (3,), (H, W, C) photo relit by it): ``relight_light``, ``extra_lights``",
-                    "relight_photo"),
 }
 
 # frame.meta: key -> (what it holds, who writes it); all JSON-friendly, summarised in summary.json
@@ -44,9 +51,12 @@ META: dict[str, tuple[str, str]] = {
     "identity": ("(size, mtime_ns) of the input file when the run took it", "runner"),
     "sha256": ("the input file's content hash, for a later --resume", "runner"),
     "reduced": ("{from: [w, h], to: [w, h]}: the photo was read smaller (``max_pixels``)", "load"),
-    "light": ("[x, y, z] the light used, input camera frame", "load"),
-    "light_source": ("sidecar | given | yaleb name | estimated", "load"),
-    "alignment": ("how the photo was aligned (eyes, mouth line, centred crop)", "load"),
+    "eyes_source": ("where ``given_eyes`` came from: sidecar eyes | given eyes", "load"),
+    "face": ("which face of its photo a face's frame is (1 the largest)", "faces"),
+    "placement": ("the face's box, eyes, pose, presence (``FacePlacement.record``)", "faces"),
+    "light": ("[x, y, z] the light used, input camera frame", "faces"),
+    "light_source": ("sidecar | given | yaleb name | estimated", "load, faces"),
+    "alignment": ("how the face was aligned (landmarks, eyes, centred crop)", "faces"),
     "remap_scale": ("the brightness scale divided out", "remap"),
     "clipped_fraction": ("share of the seen face clipped (over-exposed photos)", "remap"),
     "iterations": ("fit iterations", "robust_fit"),

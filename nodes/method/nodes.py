@@ -11,37 +11,36 @@ from typing import Protocol
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
+from ...flow.parts import EachPart
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
+from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
 from ..photo.align import (
     IDENTITY,
     Alignment,
-    centred_alignment,
-    eyes_alignment,
     face_box,
     inside_input,
     mask_to_input,
     normals_to_input,
     scalar_to_input,
-    stretch_vertically,
     to_model_grid,
 )
-from ..photo.eyes import detect_eyes
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
-from ..photo.mouth import face_length_factor
+from ..photo.placement import FacePlacement, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST, EyeDetail
 from .light import estimate_light, expected_normals
 from .photo_relight import (
+    FaceLayer,
     clipped_floor,
-    composite,
-    exposure_gain,
     grow,
     lit_weight,
+    outside_gain,
     photo_albedo,
     shading_trust,
     smooth_coarse,
 )
+from .products import relit_photos
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -63,8 +62,9 @@ class MethodOptions:
     """Everything that changes what the method computes.
 
     light: "auto" | "yaleb" | a (3,) vector (input camera frame); a sidecar light wins.
-    eyes: (2, 2) input eye centres for every input, or None: a sidecar's, else detected
-    (``detect_eyes``, see ``photo.eyes``), else a centred frontal crop.
+    eyes: (2, 2) eye centres of the one face of every input, or None: a sidecar's, else every face
+    found (``find_faces``, see ``photo.placement``), else (``find_faces`` False) the photo is taken
+    as one frontal face framed like the model grid.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
@@ -76,10 +76,9 @@ class MethodOptions:
     albedo_fill: str = "ceiling"
     light: str | np.ndarray = "auto"
     eyes: np.ndarray | None = None
-    detect_eyes: bool = True
-    # the face's length (eye-to-mouth distance) against the model's: "auto" measures it from the mouth
-    # line (``photo.mouth``) when the eyes were detected and the model knows its mouth; "off" keeps the
-    # eyes' similarity; a number is the stretch itself
+    find_faces: bool = True
+    # the face's length (eye-to-mouth distance) against the model's: "auto" measures it from a found face's
+    # landmarks when the model knows its mouth; "off" keeps the model's; a number is the stretch itself
     face_length: str | float = "auto"
     relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
@@ -121,7 +120,10 @@ def shading_normals(frame: Frame) -> np.ndarray:
 
 
 class LoadNode:
-    """Reads the input file, finds its light and alignment, resamples it to the model grid."""
+    """Reads the input file (``read_photo``) and its sidecar; an image already in ``frame.data`` (an
+    array, a render) is taken as it is, without a sidecar. Writes the photo (``image``, ``colour``),
+    the light when it is known before any face is (``light``), and eyes given for the photo
+    (``given_eyes``, photo pixels)."""
 
     name = "load"
 
@@ -142,69 +144,75 @@ class LoadNode:
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
-        if "alignment" in frame.data:  # given: e.g. a render put in a photo's place
-            frame.data["eyes_found"] = "given"
-            al = eyes_al = frame.data["alignment"]
-            grid_image = eyes_grid = to_model_grid(image, al, self.model.grid)
-        else:
-            eyes_al, detected, frame.data["eyes_found"] = self._eyes_alignment(image, side, scale)
-            eyes_grid = to_model_grid(image, eyes_al, self.model.grid)
-            al = self._face_length(eyes_grid, eyes_al, detected)
-            grid_image = eyes_grid if al is eyes_al else to_model_grid(image, al, self.model.grid)
-        frame.data["grid_valid"] = inside_input(al, image.shape, self.model.grid)
-        if "light" not in frame.data:
-            # estimated on the eyes' alignment: the face-length stretch made the mean-face estimate worse
-            # on Yale B (8.8 / 8.5 / 7.7 -> 8.2 / 9.2 / 9.6 deg at +-25 / 50 / 70)
-            seen = frame.data["grid_valid"] if al is eyes_al else inside_input(eyes_al, image.shape, self.model.grid)
-            frame.data["light"], frame.meta["light_source"] = self._light(frame.source, side, eyes_grid, eyes_al,
-                                                                          seen[self.model.mask])
-        frame.data.update(alignment=al, grid_image=grid_image,
-                          grid_light=al.vector_to_model(frame.data["light"]))
-        frame.meta.update(alignment=al.how, light=[round(float(x), 6) for x in frame.data["light"]])
+        if side is not None and side.eyes is not None:
+            frame.data["given_eyes"], frame.meta["eyes_source"] = side.eyes * scale, "sidecar eyes"
+        elif self.options.eyes is not None:
+            frame.data["given_eyes"], frame.meta["eyes_source"] = np.asarray(self.options.eyes) * scale, "given eyes"
+        if "light" in frame.data:
+            frame.meta.setdefault("light_source", "given")
+        elif side is not None and side.light is not None:
+            frame.data["light"], frame.meta["light_source"] = side.light, "sidecar"
+        elif isinstance(self.options.light, np.ndarray):
+            frame.data["light"], frame.meta["light_source"] = self.options.light, "given"
+        elif self.options.light == "yaleb":
+            frame.data["light"], frame.meta["light_source"] = yaleb_light(frame.source), "yaleb name"
         return frame
 
-    def _eyes_alignment(self, image: np.ndarray, side, scale: float = 1.0) -> tuple[Alignment, bool, str]:
-        """The similarity from the eyes (sidecar, given or detected; else a centred crop), whether
-        they were detected, and how they were placed (``eyes_found``); scale: image pixels per
-        file pixel (given eyes are in file pixels)."""
-        if side is not None and side.eyes is not None:
-            return eyes_alignment(side.eyes * scale, self.model.eyes, "sidecar eyes"), False, "given"
-        if self.options.eyes is not None:
-            return eyes_alignment(self.options.eyes * scale, self.model.eyes, "given eyes"), False, "given"
-        why, found = "eye detection off", "centre asked"
-        if self.options.detect_eyes:
-            eyes, why = detect_eyes(image)
-            if eyes is not None:
-                found = "detected" if why == "eyes found" else "one mirrored"
-                return eyes_alignment(eyes, self.model.eyes, why), True, found
-            found = "none"
-        al = centred_alignment(image.shape, self.model.grid)
-        return Alignment(al.matrix, f"{al.how} ({why})"), False, found
 
-    def _face_length(self, eyes_grid: np.ndarray, al: Alignment, detected: bool) -> Alignment:
-        """``al`` stretched to the face's length (``MethodOptions.face_length``); eyes_grid: the
-        image on the model grid by ``al``."""
-        opt, mouth = self.options.face_length, self.model.mouth
-        eye_row = float(np.mean(self.model.eyes[:, 1]))
-        if isinstance(opt, (int, float)):
-            return stretch_vertically(al, float(opt), eye_row, f"{al.how}; face length x{float(opt):.3f} (given)")
-        if opt != "auto" or not detected or mouth is None:
-            return al
-        factor = face_length_factor(eyes_grid, mouth, eye_row)
-        return stretch_vertically(al, factor, eye_row, f"{al.how}; face length x{factor:.3f} (mouth line)")
+def photo_rgb8(frame: Frame) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of the frame's photo (a grey one in all three channels), for the face finder."""
+    img = frame.data["colour"] if "colour" in frame.data else frame.data["image"][..., None]
+    rgb = (np.clip(img, 0.0, 1.0) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
+    return np.ascontiguousarray(np.broadcast_to(rgb, img.shape[:2] + (3,)))
 
-    def _light(self, source: str, side, grid_image: np.ndarray, al: Alignment,
-               seen: np.ndarray) -> tuple[np.ndarray, str]:
-        opt = self.options.light
-        if side is not None and side.light is not None:
-            return side.light, "sidecar"
-        if isinstance(opt, np.ndarray):
-            return opt, "given"
-        if opt == "yaleb":
-            return yaleb_light(source), "yaleb name"
-        normals = expected_normals(self.model.mean_normals[seen], self.model.normal_variance[seen])
-        grid_light = estimate_light(grid_image[self.model.mask][seen], normals)
-        return al.vector_to_input(grid_light), "estimated"
+
+class FacesNode:
+    """Finds and places the photo's faces (``photo.placement.place_faces``) and makes each a part of
+    the frame (``Frame.parts``, largest first): a frame of its own on the model grid, with the
+    photo's arrays, its placement, its light (given, or estimated on its own pixels) and the model
+    pixels it shows. A photo with no face fails here: "no face found"."""
+
+    name = "faces"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+
+    def __call__(self, frame: Frame) -> Frame:
+        d, m = frame.data, self.model
+        image = d["image"]
+        if "alignment" in d:  # given: e.g. a render put in a photo's place
+            al = d["alignment"]
+            placements = [FacePlacement(al, "given", al.points_to_input(m.eyes), model_box(m, al, image.shape))]
+        else:
+            placements = place_faces(m, photo_rgb8(frame), d.get("given_eyes"), frame.meta.get("eyes_source", ""),
+                                     self.options.find_faces, self.options.face_length)
+        if not placements:
+            raise FrameFailed(f"{frame.source}: no face found")
+        frame.parts = [self._face(frame, k, p) for k, p in enumerate(placements)]
+        return frame
+
+    def _face(self, frame: Frame, k: int, placement: FacePlacement) -> Frame:
+        """Face ``k`` (0 the largest) of the photo as a frame of its own."""
+        d, m = frame.data, self.model
+        source = frame.source if k == 0 else f"{frame.source} (face {k + 1})"
+        face = Frame(frame.id, source, data={key: d[key] for key in ("image", "colour") if key in d},
+                     meta={"stem": frame.meta.get("stem"), "face": k + 1})
+        al = placement.alignment
+        grid_image = to_model_grid(d["image"], al, m.grid)
+        seen = inside_input(al, d["image"].shape, m.grid)
+        oval = placement.grid_outline("oval")
+        if oval:  # the face's own outline: beyond it (hair, background, a collar) is not the face
+            seen &= polygon_mask(oval[0], m.grid)
+        if "light" in d:
+            light, how = np.asarray(d["light"], np.float64), frame.meta.get("light_source", "given")
+        else:
+            normals = expected_normals(m.mean_normals[seen[m.mask]], m.normal_variance[seen[m.mask]])
+            light, how = al.vector_to_input(estimate_light(grid_image[m.mask][seen[m.mask]], normals)), "estimated"
+        face.data.update(alignment=al, placement=placement, eyes_found=placement.found, grid_image=grid_image,
+                         grid_valid=seen, light=light, grid_light=al.vector_to_model(light))
+        face.meta.update(alignment=al.how, light=[round(float(x), 6) for x in light], light_source=how,
+                         placement=placement.record())
+        return face
 
 
 class RemapNode:
@@ -376,9 +384,12 @@ class RelightNode:
 
 
 class PhotoRelightNode:
-    """The relit photo at its own resolution, in colour when the input is (``photo_relight``): the
-    photo-grid albedo, and the face under ``relight_light`` and each of ``extra_lights`` feathered
-    back into the photo."""
+    """The face relit at the photo's own resolution, in colour when the input is (``photo_relight``),
+    all of it in the box around the face (plus the feather): the albedo and shadows there
+    (``photo_albedo``, ``photo_shadow``, ``photo_box``), and one ``FaceLayer`` per light
+    (``relight_light``, then each of ``extra_lights``) for ``compose`` to put into the photo. The
+    face's own exposure is kept: the relit face is ``albedo x S'`` with the albedo measured on the
+    photo's own lit skin, and nothing beyond the face's feather changes."""
 
     name = "relight_photo"
 
@@ -392,12 +403,15 @@ class PhotoRelightNode:
         full_photo = d["colour"] if "colour" in d else d["image"][..., None]
         feather = PHOTO_FEATHER * self.iod * full.scale
         # everything happens in the box around the face (plus the feather): a large photo's background
-        # costs nothing; outside the box the relit photo is the photo times the exposure gain
+        # costs nothing, and the photo outside the box is not touched
         y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * feather + 4)
         al = Alignment(full.matrix - np.array([[0.0, 0.0, x0], [0.0, 0.0, y0]]), full.how)
         photo = full_photo[y0:y1, x0:x1]
         shape = photo.shape[:2]
         face = mask_to_input(m.mask, al, shape)
+        placement: FacePlacement | None = d.get("placement")
+        if placement is not None and placement.outlines:  # the face's own outline, at the photo's resolution
+            face &= polygon_mask(placement.outlines["oval"][0] - [x0, y0], shape)
         normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(np.float32)
         shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32: photo-sized arrays
         coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
@@ -409,9 +423,9 @@ class PhotoRelightNode:
         coarse = smooth_coarse(scalar_to_input(d["albedo"], m.mask, al, shape), face, COARSE_SMOOTH * px)
         measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
         match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
-        # only eyes the detector found in the photo: given or guessed eyes may have no eye to show (a render
+        # only eyes the face mesh found in the photo: given or guessed eyes may have no eye to show (a render
         # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
-        placed = d.get("eyes_found") in ("detected", "one mirrored")
+        placed = d.get("eyes_found") in ("detected", "mesh only")
         eyes = EyeDetail(photo, shading, lit, al.points_to_input(m.eyes), self.options.eye_contrast) if placed else None
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
@@ -419,26 +433,30 @@ class PhotoRelightNode:
             return a if eyes is None else eyes.apply(a, trust)
 
         albedo = albedo_for(measured * shading_trust(shading))
-        gain = exposure_gain(albedo, normals, face)  # the relit photo's exposure, whatever the input's light
-        gain = np.float32(gain)
-        exposed_photo, exposed = gain * full_photo, gain * photo
-        relit = []  # (light, image)
+        layers = []  # (light, FaceLayer)
         for light in (self.options.relight_light, *self.options.extra_lights):
             s = np.asarray(light, np.float64) / np.linalg.norm(light)
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
-            image = exposed_photo.copy()
             # the albedo this light can trust: I / S also where S is small but S' is no larger
             light_albedo = albedo_for(measured * shading_trust(shading, new_shading))
-            face_image = clipped_floor(gain * light_albedo * new_shading[..., None], photo, shading, new_shading, gain, face)
-            image[y0:y1, x0:x1] = composite(exposed, face_image, face, feather)
-            relit.append((np.asarray(light, np.float64), np.clip(image, 0.0, 1.0)))
-        full_albedo = np.full(full_photo.shape, np.nan, np.float32)
-        full_albedo[y0:y1, x0:x1] = albedo
-        full_shadow = np.zeros(full_photo.shape[:2], bool)
-        full_shadow[y0:y1, x0:x1] = shadow
-        d["photo_albedo"], d["photo_relit"], d["photo_shadow"] = full_albedo, relit, full_shadow
+            face_image = clipped_floor(light_albedo * new_shading[..., None], photo, shading, new_shading, 1.0, face)
+            layer = FaceLayer((y0, y1, x0, x1), face, np.clip(face_image, 0.0, 1.0),
+                              outside_gain(photo, face_image, face, feather))
+            layers.append((np.asarray(light, np.float64), layer))
+        d.update(photo_box=(y0, y1, x0, x1), photo_albedo=albedo, photo_shadow=shadow, photo_layers=layers)
+        return frame
+
+
+class ComposeNode:
+    """The photo relit: every face's layer for each light put into it (``compose``), as ``photo_relit``;
+    the photo is the same outside the faces' feathers, bit for bit."""
+
+    name = "compose"
+
+    def __call__(self, frame: Frame) -> Frame:
+        frame.data["photo_relit"] = relit_photos(frame)
         return frame
 
 
@@ -459,13 +477,14 @@ class QualityNode:
         shading = np.clip(r.model_normals @ np.asarray(d["grid_light"], np.float64), 0.0, None)
         saturated = d["saturated"]
         use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~saturated
-        al: Alignment = d["alignment"]
-        h, w = d["image"].shape[:2]
+        placement: FacePlacement | None = d.get("placement")
         q = assess(eyes=d.get("eyes_found", "given"),
                    explained=explained_variance(d["remapped"][m.mask], shading, use, r.weights),
                    downweighted=float(np.mean(r.weights[seen] < 0.5)) if seen.any() else 1.0,
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
-                   face_area=float(m.n_pixels * al.scale**2 / (h * w)), inside=float(np.mean(seen[self.core])))
+                   inside=float(np.mean(seen[self.core])),
+                   doubts=placement.doubts if placement is not None else (),
+                   plausible=placement.plausible if placement is not None else True)
         frame.meta["quality"] = q.record()
         if q.no_face:
             raise FrameFailed(f"{frame.source}: no face found ({'; '.join(q.flags)})")
@@ -490,3 +509,12 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
     if with_views:
         nodes += [RelightNode(options), PhotoRelightNode(model, options)]
     return nodes
+
+
+def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
+                with_views: bool = True, after: tuple = ()) -> list:
+    """The whole chain for a photo: load, find its faces, the method on each face (``method_nodes``,
+    then each of ``after``, e.g. recording), and (``with_views``) the photo relit with every face."""
+    per_face = [*method_nodes(model, options, observer, with_views), *after]
+    nodes = [LoadNode(model, options), FacesNode(model, options), *(EachPart(n) for n in per_face)]
+    return nodes + [ComposeNode()] if with_views else nodes

@@ -12,6 +12,8 @@ Everything here is on the photo's pixel grid (H, W); ``C`` is 1 (grey) or 3 (RGB
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -200,11 +202,25 @@ def exposure_gain(albedo: np.ndarray, normals: np.ndarray, face: np.ndarray, tar
     return target / have if have > 1e-6 else 1.0
 
 
-def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
-    """(H, W, C) the photo with the relit face put back: ``face_image`` (H, W, C) inside ``face``
-    (H, W) bool; outside it the photo is scaled by the face's relighting ratio (relit / photo,
-    averaged over the face's border) fading to 1 over ``feather_px``, so the change of light runs
-    on into the hair and neck without a seam; beyond that the photo is untouched."""
+@dataclass(frozen=True)
+class FaceLayer:
+    """One relit face, to be put into its photo (``compose``). box: ``(y0, y1, x0, x1)`` the photo
+    pixels it covers; inside: (h, w) bool the face; relit: (h, w, C) the relit face (used inside);
+    gain: (h, w, C) the factor the photo is multiplied by outside the face (exactly 1 beyond the
+    feather, so the photo there is untouched)."""
+
+    box: tuple[int, int, int, int]
+    inside: np.ndarray
+    relit: np.ndarray
+    gain: np.ndarray
+
+
+def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
+    """(H, W, C) the factor that carries a face's change of light into the photo around it: the
+    face's relighting ratio (relit / photo, averaged over the face's border, within
+    ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
+    into the hair and neck without a seam and the photo beyond is untouched. photo, face_image
+    (H, W, C); face (H, W) bool."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
@@ -214,5 +230,29 @@ def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feath
                     *RATIO_OUTSIDE)
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
-    outside = img * (1.0 + fade * (ratio - 1.0))
-    return np.clip(np.where(face[..., None], relit, outside), 0.0, 1.0).astype(np.float32)
+    return np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0)).astype(np.float32)
+
+
+def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
+    """(H, W, C) float32 ``photo`` with every face of ``layers`` put back: first each face's
+    ``gain`` on the photo around it (overlapping feathers multiply), then each face's own relit
+    pixels, which no other face's feather touches. Pixels no layer changes are the photo's, bit for bit."""
+    out = np.array(np.atleast_3d(photo), np.float32, copy=True)
+    for layer in layers:
+        y0, y1, x0, x1 = layer.box
+        region = out[y0:y1, x0:x1]
+        changed = np.any(layer.gain != 1.0, axis=-1) & ~layer.inside
+        region[changed] = np.clip(region[changed] * layer.gain[changed], 0.0, 1.0)
+    for layer in layers:
+        y0, y1, x0, x1 = layer.box
+        out[y0:y1, x0:x1][layer.inside] = np.clip(layer.relit[layer.inside], 0.0, 1.0)
+    return out
+
+
+def composite(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
+    """(H, W, C) the photo with one relit face put back (``compose`` of its one layer)."""
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    relit = np.atleast_3d(np.asarray(face_image, np.float32))
+    layer = FaceLayer((0, img.shape[0], 0, img.shape[1]), np.asarray(face, bool), relit,
+                      outside_gain(img, relit, face, feather_px))
+    return compose(img, [layer])

@@ -1,7 +1,8 @@
 """Is there a face, and did the fit work? Per-frame signals, a score and flags.
 
 Signals (all measured on what the method already computed):
-- ``eyes``: how the eyes were placed: detected (a pair, or one mirrored), given, or none found;
+- ``eyes``: how the face was placed: detected (by the face mesh's landmarks), given (its eyes, or
+  the placement itself), centre asked (taken as a frontal crop), or none;
 - ``explained``: the share of the face's brightness variation the fitted shape explains, ``1 -
   var(I - rho S) / var(I)`` over the lit face (``S`` the fitted model's shading, ``rho`` the
   median albedo), each pixel weighted by the fit's robust weight: faces give 0.5-0.99 under any
@@ -9,14 +10,14 @@ Signals (all measured on what the method already computed):
   the model's orientation give less;
 - ``downweighted``: the share of the face the robust fit did not trust (weight under 0.5);
 - ``clipped``: the share of the face clipped by over-exposure;
-- ``face_area``: the face's share of the frame; ``inside``: the share of the face's core (brows to
+- ``inside``: the share of the face's core (brows to
   mouth between the outer eye corners, ``core_face``) inside the frame: tight crops such as Yale B's
   keep all of it though the model's forehead and chin run past them.
 
 The score is ``explained`` scaled down by each problem, and halved by each flag; ``flags`` name
-the problems. A frame with
-no eyes found whose fit explains little has no face: it fails with that reason. A frame with a flag
-is doubtful: its outputs are written and its status says why.
+the problems, the placement's doubts (``photo.placement``) among them. A frame with no eyes whose
+fit explains little has no face: it fails with that reason. A frame with a flag is doubtful: its
+outputs are written and its status says why.
 """
 from __future__ import annotations
 
@@ -32,7 +33,6 @@ MIN_EXPLAINED = 0.3  # a face's shading explains at least this much of its brigh
 NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much to count as a face
 MAX_DOWNWEIGHTED = 0.7  # Yale B 0.28-0.48, rendered faces 0.35-0.54
 MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles (the 27 %-clipped face of tests/app/test_hostile.py fits)
-MIN_FACE_AREA = 0.08  # of the frame
 MIN_INSIDE = 0.75  # of the face's core inside the frame: Yale B crops keep 0.88-1, a face cut by the edge 0.32
 
 
@@ -85,12 +85,14 @@ def explained_variance(intensity: np.ndarray, shading: np.ndarray, use: np.ndarr
     return float(1.0 - np.sum(w * (I - rho * S) ** 2) / spread)
 
 
-def assess(eyes: str, explained: float, downweighted: float, clipped: float, face_area: float,
-           inside: float) -> Quality:
-    """The score and flags of one frame from its signals (module docstring)."""
+def assess(eyes: str, explained: float, downweighted: float, clipped: float, inside: float,
+           doubts: tuple[str, ...] = (), plausible: bool = True) -> Quality:
+    """The score and flags of one frame from its signals (module docstring); ``doubts``: what the
+    face's placement found wrong (``photo.placement``), each a flag; ``plausible``: whether its
+    landmarks have a face's proportions."""
     signals = {"eyes": eyes, "explained": explained, "downweighted": downweighted, "clipped": clipped,
-               "face_area": face_area, "inside": inside}
-    flags = []
+               "inside": inside}
+    flags = list(doubts)
     if eyes == "none":
         flags.append("no eyes found")
     if explained < MIN_EXPLAINED:
@@ -99,15 +101,18 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, fac
         flags.append(f"{100 * downweighted:.0f} % of the face down-weighted")
     if clipped > MAX_CLIPPED:
         flags.append(f"{100 * clipped:.0f} % of the face clipped")
-    if face_area < MIN_FACE_AREA:
-        flags.append(f"the face fills {100 * face_area:.1f} % of the frame")
     if inside < MIN_INSIDE:
         flags.append(f"{100 * (1 - inside):.0f} % of the face outside the frame")
     score = float(np.clip(explained, 0.0, 1.0))
     score *= 0.5 if eyes == "none" else 1.0
     score *= 1.0 - 0.5 * max(0.0, downweighted - 0.3)
     score *= 1.0 - max(0.0, clipped - 0.05)
-    score *= min(1.0, face_area / MIN_FACE_AREA) * min(1.0, inside / MIN_INSIDE) ** 4
+    score *= min(1.0, inside / MIN_INSIDE) ** 4
     score *= 0.5 ** len(flags)  # a doubtful frame never outscores a clean one of the same fit
-    no_face = eyes == "none" and explained < NO_FACE_EXPLAINED
+    # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
+    # mesh saw or whose placement is in doubt too, is none
+    unexplained = explained < MIN_EXPLAINED and (eyes == "mesh only" or bool(doubts))
+    # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
+    implausible = not plausible and explained < NO_FACE_EXPLAINED
+    no_face = (eyes == "none" and explained < NO_FACE_EXPLAINED) or unexplained or implausible
     return Quality(score, flags, signals, no_face)

@@ -39,7 +39,7 @@ class ShapeModel:
     modes: (2N, K) orthonormal columns, rows ordered (pixel, tangent axis);
     eigenvalues: (K,) variance of each mode (radians squared); source: provenance text;
     mouth: (2,) the mean face's mouth centre ``[x, y]`` (lips' parting line, pixels) if the training
-    source knows it (photos are then aligned by their mouth line too, ``photo.mouth``), else None.
+    source knows it (a found face's length is then measured against it, ``photo.faces``), else None.
     """
 
     grid: tuple[int, int]

@@ -29,19 +29,34 @@ def test_yaleb_ground_truth_explains_the_real_frontal_photo(yaleb_subject):
     assert psnr > 26.0 and ssim > 0.8
 
 
-def test_yaleb_eyes_are_found_under_side_light(yaleb_subject):
-    from shadowflow.nodes.photo.eyes import detect_eyes
-    from shadowflow.nodes.photo.loader import load_image
+def test_yaleb_faces_are_found_under_side_light():
+    """Every shared subject at (0, 0) to (+-70, 0): one face, found by the detector, its eyes where
+    the other lights put them (the database's crops keep them within a few pixels) and its
+    placement's proportions a face's. Measured: each eye within 1-8 % of the eyes' distance of the
+    subject's median, 11 % for subject 03's eye in deep shadow at -70."""
+    from shadowflow.nodes.photo.faces import find_faces, place_on_grid
+    from shadowflow.nodes.photo.loader import read_photo
+    from shadowflow.nodes.model.default_model import default_model
 
-    found = []
-    for az in (-70, -50, -25, 0, 25, 50, 70):
-        eyes, how = detect_eyes(load_image(yaleb_subject.image_path(az, 0)))
-        assert eyes is not None, (az, how)
-        found.append(eyes)
-    found = np.array(found)
-    spread = np.abs(found - np.median(found, axis=0)).max()
-    assert spread < 10.0  # the database's crops keep the eyes within a few pixels
-    assert 80 < np.median(found[:, 1, 0] - found[:, 0, 0]) < 110
+    subjects = sorted(YALEB.glob("yaleB*"))
+    if not subjects:
+        pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
+    model = default_model()
+    for folder in subjects:
+        found = []
+        for az in (-70, -50, -25, 0, 25, 50, 70):
+            grey = read_photo(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm").grey
+            faces = find_faces(np.repeat((grey[..., None] * 255 + 0.5).astype(np.uint8), 3, axis=-1))
+            assert len(faces) == 1, (folder.name, az, len(faces))
+            # the detector misses only subject 02's +25, whose scan lines are striped (the face mesh finds it)
+            assert faces[0].detected or (folder.name, az) == ("yaleB02", 25), (folder.name, az)
+            assert place_on_grid(faces[0], model.grid, model.eyes, model.mouth)[2] < 0.08  # measured 0.02-0.07
+            found.append(faces[0].eyes)
+        found = np.array(found)
+        iod = np.median(found[:, 1, 0] - found[:, 0, 0])
+        assert 80 < iod < 110, (folder.name, iod)
+        off = np.linalg.norm(found - np.median(found, axis=0), axis=-1).max(axis=1) / iod
+        assert off.max() < 0.13 and np.median(off) < 0.05, (folder.name, np.round(off, 3))
 
 
 def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb_subject):
@@ -61,8 +76,7 @@ def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb
     # the relit photo at its own resolution: 23.2-23.4 dB at +-50, 20.8-21.0 at +-70 against 9.2-12.1 for the input
     assert all(r["psnr"] > r["psnr_input"] + 8.0 for r in rows)
     assert np.mean([r["psnr"] for r in rows[:2]]) > 21.5
-    levels = [r["relit_level"] for r in rows]  # exposure: 1.08-1.09 of the frontal photo's level
-    assert max(levels) / min(levels) < 1.05, levels
+    # no auto-exposure: the relit face keeps the photo's own exposure (Yale B's lamps differ by up to 1.5x)
     assert min(r["shadow_iou"] for r in rows) > 0.55, [r["shadow_iou"] for r in rows]  # 0.65-0.88
     assert np.mean([r["light_err_deg"] for r in rows]) < 10.0  # --light auto: measured 7.5 (0.4-13.5)
 
@@ -71,19 +85,21 @@ def test_yaleb_light_auto_is_within_8_degrees_at_every_side_light():
     """``--light auto`` on every shared subject at (+-25, 0), (+-50, 0) and (+-70, 0): the mean
     error per azimuth is within 8 degrees (measured 6.7 / 6.2 / 7.1; on the mean face's normals
     with weights, the previous estimate, 6.8 / 6.1 / 8.5)."""
+    from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
     from shadowflow.nodes.geometry.normals import angle_deg
-    from shadowflow.nodes.method.nodes import LoadNode, MethodOptions
+    from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     subjects = sorted(YALEB.glob("yaleB*"))
     if not subjects:
         pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
-    load = LoadNode(default_model(), MethodOptions(light="auto"))
+    model, options = default_model(), MethodOptions(light="auto")
+    load = Chain([LoadNode(model, options), FacesNode(model, options)])
     errors = {}
     for folder in subjects:
         for az in (25, -25, 50, -50, 70, -70):
-            frame = load(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
+            frame = load.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm"))).parts[0]
             err = angle_deg(np.asarray(frame.data["light"])[None], light_from_angles(az, 0)[None])[0]
             errors.setdefault(abs(az), []).append(err)
     means = {az: float(np.mean(e)) for az, e in errors.items()}
@@ -97,7 +113,7 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
     smooth fill alone: 0.25-0.80)."""
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
-    from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, method_nodes
+    from shadowflow.nodes.method.nodes import MethodOptions, photo_nodes
     from shadowflow.nodes.model.default_model import default_model
 
     subjects = sorted(YALEB.glob("yaleB*"))
@@ -105,13 +121,14 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
         pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
     model = default_model()
     opts = MethodOptions(light="yaleb")
-    chain = Chain([LoadNode(model, opts), *method_nodes(model, opts)])
+    chain = Chain(photo_nodes(model, opts))
     darkest = []
     for folder in subjects:
         for az in (70, -70):
-            frame = chain.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
-            assert frame.data["eyes_found"] in ("detected", "one mirrored")
-            relit = frame.data["photo_relit"][0][1][..., 0]
+            photo = chain.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
+            frame = photo.parts[0]
+            assert frame.data["eyes_found"] == "detected"
+            relit = photo.data["photo_relit"][0][1][..., 0]
             eyes = frame.data["alignment"].points_to_input(model.eyes)
             iod = np.linalg.norm(eyes[1] - eyes[0])
             yy, xx = np.mgrid[0:relit.shape[0], 0:relit.shape[1]]

@@ -1,12 +1,12 @@
 """The frame contract (``nodes/method/keys.py``): every entry a node writes is in the table, under
-that node's name, and the two ways in (a photo through ``LoadNode``, an image already on the model
-grid through ``on_model_grid``) give the method the same entries."""
+that node's name, and the two ways in (a photo through ``LoadNode`` and ``FacesNode``, an image
+already on the model grid through ``on_model_grid``) give the method the same entries."""
 import numpy as np
 from shadowflow.flow.frame import Frame
 from shadowflow.nodes.evaluation.scenes import render_scene, write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method import keys
-from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, method_nodes, on_model_grid
+from shadowflow.nodes.method.nodes import ComposeNode, FacesNode, LoadNode, MethodOptions, method_nodes, on_model_grid
 from shadowflow.nodes.model.sources import procedural
 
 
@@ -34,14 +34,19 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     model = procedural_model
     options = MethodOptions()  # cone trust 0.5: both normals entries
     photo = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(3), light_from_angles(40))
-    frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(model, options), *method_nodes(model, options)])
+    photo_frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(model, options), FacesNode(model, options)])
     _check(added)
-    assert {"image", "grid_valid", "saturated", "shading_normals", "relit"} <= set(frame.data)
+    assert len(photo_frame.parts) == 1
+    frame, added = _run_node_by_node(photo_frame.parts[0], method_nodes(model, options))
+    _check(added)
+    assert {"image", "grid_valid", "saturated", "shading_normals", "relit", "photo_layers"} <= set(frame.data)
+    photo_frame, added = _run_node_by_node(photo_frame, [ComposeNode()])
+    _check(added)
 
     depth, _ = procedural(1, seed=5)
     s = light_from_angles(40)
     scene = render_scene(depth[0], 1.0, s, model.mask)
     grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), method_nodes(model, options))
     _check(grid_added)
-    # the render's way in gives the method every entry the photo's does, bar the photo's bounds and eyes
-    assert set(frame.data) - set(grid_frame.data) == {"grid_valid", "eyes_found"}
+    # the render's way in gives the method every entry the photo's does, bar the photo's bounds and placement
+    assert set(frame.data) - set(grid_frame.data) == {"grid_valid", "eyes_found", "placement"}

@@ -172,14 +172,14 @@ def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     from shadowflow.flow.frame import Frame
     from shadowflow.nodes.evaluation.scenes import write_shadowed_face
     from shadowflow.nodes.geometry.reflectance import light_from_angles
-    from shadowflow.nodes.method.nodes import LoadNode, MethodOptions, PhotoRelightNode, method_nodes
+    from shadowflow.nodes.method.nodes import MethodOptions, PhotoRelightNode, photo_nodes
     from shadowflow.nodes.model.default_model import default_model
 
     model, options = default_model(), MethodOptions()
     path = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(0), light_from_angles(60),
                                grid=(384, 384), source="ict")
-    fit = Chain([LoadNode(model, options), *method_nodes(model, options, with_views=False)])
-    frame = fit.process(Frame(0, str(path)))
+    fit = Chain(photo_nodes(model, options, with_views=False))
+    frame = fit.process(Frame(0, str(path))).parts[0]
     assert frame.ok and frame.data["alignment"].scale == pytest.approx(3.0, rel=0.05)
     rows, cols = np.indices(model.mask.shape)
     frame.data["albedo"] = np.where(model.mask, np.where((rows + cols) % 2 == 0, 0.5, 0.9), np.nan).astype(np.float32)

@@ -1,0 +1,178 @@
+"""Ordinary photos made from Yale B crops (``nodes/evaluation/composites.py``): each shared subject at
+(+-25, 0) and (+-50, 0) scaled to 8-60 % of a colour frame, turned up to 30 degrees, tinted like
+skin and saved as a JPEG, alone or two and three to a frame; and upside down or on its side.
+Every face must be found where the tight crop's own run finds it, relit as well as the tight crop
+is (scored on the same pixels against the same composite of the real frontal photo), and the photo
+beyond the faces must come back bit for bit. Skipped without ../shared; nothing is written outside
+the test's own temporary folder."""
+import cv2
+import numpy as np
+import pytest
+from conftest import SHARED
+
+YALEB = SHARED / "data" / "yaleb"
+FRAME = (900, 1200)  # a photo's height and width: the smallest faces (8 %) have their eyes about 55 px apart
+LUMA = np.array([0.299, 0.587, 0.114])
+
+
+@pytest.fixture(scope="module")
+def subjects():
+    if not YALEB.is_dir():
+        pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
+    from shadowflow.nodes.evaluation.yaleb import build_ground_truth
+
+    return [build_ground_truth(p) for p in sorted(YALEB.glob("yaleB*"))]
+
+
+@pytest.fixture(scope="module")
+def tight_runs(subjects):
+    """Each subject's crop at each light run as it is (Yale B light): (subject, az) -> Products."""
+    import shadowflow
+
+    return {(s.name, az): shadowflow.fit(str(s.image_path(az, 0)), light="yaleb")
+            for s in subjects for az in (25, -25, 50, -50)}
+
+
+def _turned_light(az: int, roll_deg: float) -> np.ndarray:
+    """The Yale B light of azimuth ``az`` in the frame of a crop turned by ``roll_deg`` (camera frame)."""
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    s, a = light_from_angles(az, 0), np.radians(roll_deg)
+    return np.array([s[0] * np.cos(a) - s[1] * np.sin(a), s[0] * np.sin(a) + s[1] * np.cos(a), s[2]])
+
+
+def _score(subject, tight, pasted, scene_relit, frontal_scene):
+    """(PSNR of the scene's relit face, PSNR of the tight crop's relit face carried into the scene
+    as the input was), both against the frontal composite, gain-corrected, on the tight run's face."""
+    from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
+
+    region = pasted.warp((subject.stereo.valid & tight.mask).astype(np.float32), FRAME) > 0.99
+    relit = np.nan_to_num(scene_relit) @ LUMA
+    carried = pasted.warp(np.nan_to_num(tight.relit), FRAME) * float(LUMA @ pasted.tint)
+    front = frontal_scene @ LUMA
+    return relight_scores(relit, front, region)[0], relight_scores(carried, front, region)[0]
+
+
+def _unchanged_beyond_faces(path, products, iods) -> bool:
+    """The relit photo equals the input, bit for bit, farther than half an eye distance from every face."""
+    photo = cv2.imread(str(path), cv2.IMREAD_COLOR)[..., ::-1]
+    relit = (np.clip(products.relit, 0, 1) * 255 + 0.5).astype(np.uint8)
+    faces = np.zeros(FRAME, bool)
+    for face in products.photo.parts:
+        from shadowflow.nodes.method.products import face_mask
+
+        faces |= face_mask(face, products.model, FRAME)
+    distance = cv2.distanceTransform((~faces).astype(np.uint8), cv2.DIST_L2, 5)
+    far = distance > 0.5 * max(iods)
+    return bool(far.sum() > 0.05 * far.size and np.array_equal(photo[far], relit[far]))
+
+
+@pytest.mark.slow
+def test_every_composited_face_is_found_and_relit_as_its_tight_crop_is(subjects, tight_runs, tmp_path):
+    import shadowflow
+    from shadowflow.nodes.evaluation.composites import SKIN_TINTS, background, encode, free_centre, paste, placement
+
+    rng = np.random.default_rng(7)
+    shares = (0.08, 0.15, 0.3, 0.45, 0.6)
+    rows = []
+    for i, (s, az) in enumerate((s, az) for s in subjects for az in (25, -25, 50, -50)):
+        tight = tight_runs[(s.name, az)]
+        share = shares[i % len(shares)]
+        roll = float(rng.uniform(-30, 30)) if share < 0.5 else float(rng.uniform(-5, 5))
+        centre = free_centre(s.frontal.shape, share, roll, FRAME, rng)
+        pasted = placement(s.frontal.shape, share, FRAME, centre, roll, SKIN_TINTS[i % len(SKIN_TINTS)])
+        back = background(FRAME, rng)
+        from shadowflow.nodes.photo.loader import read_photo
+
+        path = tmp_path / f"{s.name}_{az:+d}.jpg"
+        encode(paste(back, read_photo(s.image_path(az, 0)).grey, pasted), path, quality=90)
+        out = shadowflow.fit(str(path), light=_turned_light(az, roll))
+        truth = pasted.points(tight.faces[0]["eyes"])
+        iod = float(np.linalg.norm(truth[1] - truth[0]))
+        assert len(out.faces) == 1, (path.name, out.faces)
+        found = np.array(out.faces[0]["eyes"])
+        assert out.faces[0]["status"] == "ok", (path.name, out.faces[0]["status"])
+        assert np.linalg.norm(found - truth, axis=1).max() < 0.1 * iod, (path.name, found, truth)
+        assert _unchanged_beyond_faces(path, out, [iod]), path.name
+        scene, carried = _score(s, tight, pasted, out.relit, paste(back, s.frontal, pasted))
+        rows.append((path.name, share, round(roll), scene - carried))
+    deltas = np.array([r[3] for r in rows])
+    print("\n".join(f"{name} {share:.2f} roll {roll:+d}: {d:+.2f} dB" for name, share, roll, d in rows))
+    # measured: mean +0.8 dB, each -1.3..+5.1 dB (the smallest faces score higher in the scene than their crop's
+    # relit face carried down to their size): the face mesh places a face a few per cent of its eyes' distance
+    # differently in a scene than in its crop, and the fit answers 3 % with +-0.7 dB (eyes moved on the crops)
+    assert deltas.mean() > -0.5 and deltas.min() > -2.5, [(r[0], r[1], round(r[3], 2)) for r in rows]
+
+
+@pytest.mark.slow
+def test_two_and_three_faces_to_a_photo_are_each_found_and_relit(subjects, tight_runs, tmp_path):
+    """Three photos of two or three subjects, all lit from one side (one lamp): every face found at
+    its place, ``ok``, relit where it is, and the photo beyond the faces unchanged."""
+    import shadowflow
+    from shadowflow.nodes.evaluation.composites import SKIN_TINTS, background, encode, free_centre, paste, placement
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.photo.loader import read_photo
+
+    rng = np.random.default_rng(11)
+    for k, (group, az) in enumerate((((0, 1), 25), ((2, 3, 4), -50), ((4, 0, 2), 50))):
+        back, taken, truths = background(FRAME, rng), [], []
+        scene, front = back, back
+        for j, i in enumerate(group):
+            s, share = subjects[i], float(rng.uniform(0.12, 0.2))
+            centre = free_centre(s.frontal.shape, share, 0.0, FRAME, rng, taken)
+            pasted = placement(s.frontal.shape, share, FRAME, centre, 0.0, SKIN_TINTS[(k + j) % len(SKIN_TINTS)])
+            x, y = centre
+            half = 0.5 * share * FRAME[1] * np.array([1.0, s.frontal.shape[0] / s.frontal.shape[1]])
+            taken.append(np.array([x - half[0], y - half[1], x + half[0], y + half[1]]))
+            scene = paste(scene, read_photo(s.image_path(az, 0)).grey, pasted)
+            front = paste(front, s.frontal, pasted)
+            truths.append((s, pasted))
+        path = tmp_path / f"group-{k}.jpg"
+        encode(scene, path, quality=90)
+        out = shadowflow.fit(str(path), light=light_from_angles(az, 0))
+        assert len(out.faces) == len(group), (path.name, [f["eyes"] for f in out.faces])
+        iods = []
+        for s, pasted in truths:
+            tight = tight_runs[(s.name, az)]
+            truth = pasted.points(tight.faces[0]["eyes"])
+            iod = float(np.linalg.norm(truth[1] - truth[0]))
+            iods.append(iod)
+            match = [f for f in out.faces if np.linalg.norm(np.array(f["eyes"]) - truth, axis=1).max() < 0.1 * iod]
+            assert len(match) == 1 and match[0]["status"] == "ok", (path.name, s.name, out.faces)
+            relit, carried = _score(s, tight, pasted, out.relit, front)
+            assert relit > carried - 2.5, (path.name, s.name, relit, carried)
+        assert _unchanged_beyond_faces(path, out, iods), path.name
+
+
+@pytest.mark.slow
+def test_a_yaleb_face_upside_down_or_on_its_side_is_placed_right_or_not_ok(subjects, tight_runs, tmp_path):
+    """Each subject at (+-25, 0) turned 180 and 90 degrees (a photo saved the wrong way up): when the
+    run calls it ``ok``, its eyes are within 10 % of their distance of where the upright run found them,
+    turned with it. Measured: 18 of the 20 turned upright and placed, the other two doubtful (one
+    meshed upside down, one whose fit explains 23 % of the photo)."""
+    import shadowflow
+
+    placed = 0
+    for s in subjects:
+        for az in (25, -25):
+            tight = tight_runs[(s.name, az)]
+            eyes = np.array(tight.faces[0]["eyes"])
+            img = cv2.imread(str(s.image_path(az, 0)), cv2.IMREAD_GRAYSCALE)
+            h, w = img.shape
+            for turn, turned, truth in (
+                    ("180", img[::-1, ::-1], np.column_stack([w - 1 - eyes[:, 0], h - 1 - eyes[:, 1]])),
+                    ("90", np.rot90(img), np.column_stack([eyes[:, 1], w - 1 - eyes[:, 0]]))):
+                path = tmp_path / f"{s.name}_{az:+d}_{turn}.png"
+                cv2.imwrite(str(path), np.ascontiguousarray(turned))
+                try:
+                    out = shadowflow.fit(str(path), light="auto")
+                except ValueError:
+                    continue  # refused: allowed
+                if out.faces[0]["status"] != "ok":
+                    continue
+                found = np.array(out.faces[0]["eyes"])
+                iod = float(np.linalg.norm(truth[1] - truth[0]))
+                off = min(np.linalg.norm(found - truth, axis=1).max(), np.linalg.norm(found[::-1] - truth, axis=1).max())
+                assert off < 0.1 * iod, (path.name, found, truth)
+                placed += 1
+    assert placed >= 14  # most are turned upright and placed, not refused
