@@ -237,11 +237,11 @@ def head_pose(face: FoundFace) -> Pose:
     mesh_idx, template = _pairs()
     src = _template_3d()[template]  # camera frame, the model's units
     dst = face.mesh[mesh_idx] * np.array([1.0, -1.0, 1.0])  # y up
-    r = _rotation(src, dst)
-    yaw = np.degrees(np.arctan2(r[0, 2], r[2, 2]))
-    pitch = np.degrees(np.arcsin(np.clip(r[1, 2], -1.0, 1.0)))
-    roll = np.degrees(np.arctan2(r[1, 0], r[0, 0]))
-    return Pose(float(yaw), float(pitch), float(roll))
+    from scipy.spatial.transform import Rotation
+
+    # R = Ry(yaw) Rx(-pitch) Rz(roll): turned about the vertical, then tilted, then rolled in its own plane
+    yaw, minus_pitch, roll = Rotation.from_matrix(_rotation(src, dst)).as_euler("YXZ", degrees=True)
+    return Pose(float(yaw), float(-minus_pitch), float(roll))
 
 
 def _rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

@@ -1,0 +1,187 @@
+"""Faces in a photo (``nodes/photo/mediapipe.py``, ``faces.py``, ``placement.py``): the shipped models,
+the detector's decoding, crops and turns, the landmark placement and pose with synthetic ground
+truth, and scikit-image's public-domain ``astronaut`` (NASA): her face found where the photo shows
+her eyes, and nothing else of the photo touched."""
+import hashlib
+
+import cv2
+import numpy as np
+import pytest
+from shadowflow.nodes.photo import faces as F
+from shadowflow.nodes.photo import mediapipe as M
+
+# where the astronaut's eyes are (looked at, 12x enlarged: the middle of each eye's opening and iris), photo pixels
+ASTRONAUT_EYES = np.array([[203.5, 100.5], [246.0, 103.0]])
+
+
+@pytest.fixture(scope="module")
+def astronaut() -> np.ndarray:
+    data = pytest.importorskip("skimage.data")
+    return np.ascontiguousarray(data.astronaut())
+
+
+def test_the_shipped_models_are_mediapipes_unchanged():
+    expected = {"face_detection_short_range.tflite": "bbff11cebd1eb27a1e004cae0b0e63ec8c551cbf34a4451148b4908b8db3eca8",
+                "face_landmark.tflite": "1055cb9d4a9ca8b8c688902a3a5194311138ba256bcc94e336d8373a5f30c814"}
+    for name, digest in expected.items():
+        assert hashlib.sha256((M.DATA / name).read_bytes()).hexdigest() == digest
+    assert "Apache License" in (M.DATA / "LICENSE-MediaPipe.txt").read_text()
+    assert "MediaPipe" in (M.DATA / "NOTICE").read_text()
+
+
+def test_anchors_tile_the_detectors_input_as_its_two_layers_do():
+    a = M.ANCHORS
+    assert a.shape == (896, 2)
+    assert np.allclose(a[:2], [[1 / 32, 1 / 32]] * 2)  # 16 x 16 cells of stride 8, two anchors each
+    assert np.allclose(a[512:518], [[1 / 16, 1 / 16]] * 6)  # then 8 x 8 cells of stride 16, six each
+    assert np.allclose(a[-1], [15 / 16, 15 / 16])
+
+
+def test_weighted_nms_merges_one_faces_boxes_and_keeps_two_faces_apart():
+    kp = np.zeros((6, 2))
+    one = [M.Detection(np.array([10.0, 10, 50, 50]), kp, 0.9), M.Detection(np.array([12.0, 10, 52, 50]), kp + 2, 0.6)]
+    other = M.Detection(np.array([100.0, 10, 130, 40]), kp, 0.8)
+    out = M.weighted_nms(one + [other])
+    assert len(out) == 2 and out[0].box[2] - out[0].box[0] > out[1].box[2] - out[1].box[0]  # largest first
+    assert np.allclose(out[0].box, [10 + 2 * 0.4, 10, 50 + 2 * 0.4, 50])  # the score-weighted mean
+    assert out[0].score == 0.9
+
+
+def test_the_views_reach_faces_of_the_smallest_size_asked_for_and_cover_the_photo():
+    shape = (866, 1155)
+    views = M._views(shape, 30.0)
+    finest = max(128.0, 30.0 * M.BOX_PER_IOD / M.MIN_BOX_SHARE)
+    tiles = [v for v in views if abs(M.DETECTOR_SIZE / v[0] - finest) < 1e-6]
+    assert tiles, "no tile of the finest size"
+    # every point of the photo lies in a finest tile with a margin of a face's box (0.28 of the tile) around it
+    ys, xs = np.mgrid[0:shape[0]:37, 0:shape[1]:37]
+    for x, y in zip(xs.ravel(), ys.ravel()):
+        assert any(x0 - 1 <= x <= x0 + finest + 1 and y0 - 1 <= y <= y0 + finest + 1 for _, x0, y0 in tiles)
+    assert len(M._views((192, 168), 30.0)) == 2  # a small crop is seen whole only
+
+
+def test_a_crop_maps_its_pixels_to_the_photo_turned_and_scaled():
+    roi = M.Roi(np.array([100.0, 50.0]), 96.0, np.radians(30.0))
+    m = roi.to_photo(192)
+    assert np.allclose(m @ [96.0, 96.0, 1.0], [100.0, 50.0])  # the crop's centre
+    right = m @ [192.0, 96.0, 1.0] - m @ [96.0, 96.0, 1.0]  # half the crop along its own x
+    assert np.allclose(right, 48.0 * np.array([np.cos(np.radians(30)), np.sin(np.radians(30))]))
+
+
+def test_a_face_found_in_a_turned_photo_maps_back_to_the_photo():
+    h, w = 40, 60
+    pts = np.array([[5.0, 7.0, 1.0], [50.0, 30.0, 2.0]])
+    for quarter in (1, 2, 3):
+        img = np.zeros((h, w), np.uint8)
+        for x, y, _ in pts.astype(int):
+            img[y, x] = 255
+        turned = np.rot90(img, quarter)
+        ys, xs = np.nonzero(turned)
+        found = np.column_stack([xs, ys, [0, 0]]).astype(float)
+        back = F._turned_back(F.FoundFace(found, 1.0, 1.0), quarter, (h, w)).mesh[:, :2]
+        assert sorted(map(tuple, back)) == sorted(map(tuple, pts[:, :2])), quarter
+
+
+def test_placement_recovers_a_similarity_and_a_face_length():
+    rng = np.random.default_rng(0)
+    grid = rng.uniform(20, 100, (12, 2))
+    k, about = 0.9, 48.0
+    stretched = grid.copy()
+    stretched[:, 1] = about + k * (grid[:, 1] - about)
+    a = 2.5 * np.array([[np.cos(0.3), -np.sin(0.3)], [np.sin(0.3), np.cos(0.3)]])
+    photo = stretched @ a.T + [300.0, 200.0]
+    matrix, found_k, rms = F.fit_placement(grid, photo, np.ones(12), about)
+    assert abs(found_k - k) < 1e-3 and rms < 1e-2
+    assert np.allclose(grid @ matrix[:, :2].T + matrix[:, 2], photo, atol=0.02)
+
+
+def test_pose_reads_a_turned_template_back():
+    mesh_idx, template = F._pairs()
+    src = F._template_3d()[template]
+    yaw, pitch, roll = np.radians([20.0, -10.0, 5.0])
+
+    def about(axis, a):
+        c, s = np.cos(a), np.sin(a)
+        return {"x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]), "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+                "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
+
+    # turned toward the image's right, tilted down (its forward axis's y falls), rolled counter-clockwise
+    r = about("y", yaw) @ about("x", -pitch) @ about("z", roll)
+    assert r[1, 2] < 0 and r[0, 2] > 0
+    turned = src @ r.T * 9.0 + [400.0, -300.0, 0.0]
+    mesh = np.zeros((468, 3))
+    mesh[mesh_idx] = turned * [1.0, -1.0, 1.0]  # photo pixels: y down
+    pose = F.head_pose(F.FoundFace(mesh, 1.0, 1.0))
+    assert pose.yaw == pytest.approx(20.0, abs=0.5) and pose.pitch == pytest.approx(-10.0, abs=0.5)
+    assert pose.roll == pytest.approx(5.0, abs=0.5)
+
+
+def test_the_astronaut_is_found_where_her_eyes_are(astronaut):
+    faces = F.find_faces(astronaut)
+    assert len(faces) == 1
+    iod = np.linalg.norm(ASTRONAUT_EYES[1] - ASTRONAUT_EYES[0])
+    assert np.linalg.norm(faces[0].eyes - ASTRONAUT_EYES, axis=1).max() < 0.1 * iod  # measured 0.04
+    pose = F.head_pose(faces[0])
+    assert abs(pose.yaw) < 8 and abs(pose.roll) < 8  # a frontal portrait, the head a little down and tilted
+
+
+def test_the_astronaut_relit_is_ok_and_the_photo_beyond_her_face_is_hers_bit_for_bit(astronaut, tmp_path):
+    """The whole run: one face, ``ok``, eyes where the photo shows them; the relit photo differs from
+    hers only within her face's feather (before: the suit, the helmet and the flag were smeared)."""
+    import shadowflow
+
+    path = tmp_path / "astronaut.png"
+    cv2.imwrite(str(path), astronaut[..., ::-1])
+    out = shadowflow.fit(str(path))
+    assert len(out.faces) == 1 and out.faces[0]["status"] == "ok", out.faces
+    iod = np.linalg.norm(ASTRONAUT_EYES[1] - ASTRONAUT_EYES[0])
+    assert np.linalg.norm(np.array(out.faces[0]["eyes"]) - ASTRONAUT_EYES, axis=1).max() < 0.1 * iod
+    relit = (np.clip(out.relit, 0, 1) * 255 + 0.5).astype(np.uint8)
+    changed = np.any(relit != astronaut, axis=-1)
+    distance = cv2.distanceTransform((~out.mask).astype(np.uint8), cv2.DIST_L2, 5)
+    assert changed.any() and not changed[distance > 0.5 * iod].any()
+    assert changed.sum() < 0.1 * changed.size  # her face, not the photo
+
+
+def test_a_photo_of_three_people_gives_three_faces_each_with_its_folder(astronaut, tmp_path):
+    """Three copies of her head in one frame: three fits, the whole photo relit with all three,
+    each face's files in its folder, ``summary.json``'s ``faces`` and the recordings naming each."""
+    import json
+    import subprocess
+    import sys
+
+    from shadowflow.flow.replay import open_frames
+
+    head = cv2.resize(astronaut[40:240, 130:330], None, fx=0.7, fy=0.7, interpolation=cv2.INTER_AREA)
+    frame = np.full((300, 600, 3), (90, 120, 150), np.uint8)
+    for k, x in enumerate((20, 220, 430)):
+        small = cv2.resize(head, None, fx=1.0 - 0.1 * k, fy=1.0 - 0.1 * k, interpolation=cv2.INTER_AREA)
+        frame[40:40 + small.shape[0], x:x + small.shape[1]] = small
+    src = tmp_path / "in"
+    src.mkdir()
+    cv2.imwrite(str(src / "group.png"), frame[..., ::-1])
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(src), "--out", str(out),
+                           "--record", "mcap"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    rec = json.loads((out / "summary.json").read_text())[0]
+    assert rec["status"] == "ok" and len(rec["faces"]) == 3, rec["faces"]
+    assert [f["dir"] for f in rec["faces"]] == ["group", "group/face-2", "group/face-3"]
+    xs = sorted(f["eyes"][0][0] for f in rec["faces"])
+    assert xs[0] < 200 < xs[1] < 420 < xs[2]  # one face per head
+    sizes = [f["box"][2] - f["box"][0] for f in rec["faces"]]
+    assert sizes == sorted(sizes, reverse=True)  # largest first
+    for f in rec["faces"]:
+        mask = cv2.imread(str(out / f["dir"] / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+        x0, y0, x1, y1 = f["box"]
+        inside = mask[int(y0):int(y1) + 1, int(x0):int(x1) + 1].sum()
+        assert inside > 0.9 * mask.sum()  # each face's files hold that face
+        assert (out / f["dir"] / "normals.npy").is_file() and (out / f["dir"] / "mesh.ply").is_file()
+    assert not (out / "group" / "face-2" / "relit.png").exists()  # the relit photo is the photo's: one
+    relit = cv2.imread(str(out / "group" / "relit.png"))[..., ::-1]
+    changed = np.any(relit != frame, axis=-1)
+    for f in rec["faces"]:  # every face relit
+        x0, y0, x1, y1 = (int(v) for v in f["box"])
+        assert changed[y0:y1, x0:x1].mean() > 0.3
+    fr = next(iter(open_frames(out / "run.mcap")))
+    assert {"robust_fit/normals", "face2/robust_fit/normals", "face3/robust_fit/normals"} <= set(fr.arrays)
