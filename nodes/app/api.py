@@ -24,6 +24,7 @@ from ..method.nodes import MethodOptions, photo_nodes
 from ..method.products import input_grid_products, photo_mesh, relit_photos
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
+from ..photo.encoding import linear_luminance, resolve, srgb_to_linear
 from ..photo.loader import InputError, luminance
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
@@ -99,10 +100,11 @@ class Products:
         return write_outputs(self.photo, self.model, folder)
 
 
-def _as_image(image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """An array as the loader gives a file: ``(grey (H, W) float32 in [0, 1], colour (H, W, 3)
-    float32 RGB or None)``. Accepts (H, W) or (H, W, 3) RGB (or (H, W, 4) RGBA), uint8, uint16 or
-    floats in [0, 1]."""
+def _as_image(image: np.ndarray, encoding: str = "auto") -> dict[str, np.ndarray]:
+    """An array as the loader gives a file: the frame's ``image`` (H, W) float32 in [0, 1], and
+    ``colour`` (H, W, 3) float32 RGB and ``rgb8`` for a colour one, in linear light (``encoding``:
+    "auto" takes colour as sRGB and grey, or grey in three equal channels, as linear, as for files). Accepts (H, W) or (H, W, 3) RGB (or
+    (H, W, 4) RGBA), uint8, uint16 or floats in [0, 1]."""
     a = np.asarray(image)
     if a.ndim == 3 and a.shape[2] in (3, 4):
         a = a[..., :3]
@@ -118,11 +120,19 @@ def _as_image(image: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
             raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
     else:
         raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
-    colour = np.clip(f, 0.0, 1.0) if f.ndim == 3 else None
-    grey = np.clip(luminance(f), 0.0, 1.0)
-    if float(grey.max() - grey.min()) < 1.0 / 255.0:
+    f = np.clip(f, 0.0, 1.0)
+    if float(f.max() - f.min()) < 1.0 / 255.0:
         raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
-    return grey, colour
+    grey_in_colour = f.ndim == 3 and np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2])
+    if resolve(encoding, 3 if f.ndim == 3 and not grey_in_colour else 1) == "srgb":
+        rgb8 = (f * 255.0 + 0.5).astype(np.uint8)
+        linear = srgb_to_linear(f)
+        rgb8 = rgb8 if rgb8.ndim == 3 else np.repeat(rgb8[..., None], 3, axis=-1)
+        if linear.ndim == 2:
+            return {"image": linear, "rgb8": rgb8}
+        return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}
+    grey = np.clip(luminance(f), 0.0, 1.0)
+    return {"image": grey} if f.ndim == 2 else {"image": grey, "colour": f}
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
@@ -157,8 +167,8 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     if isinstance(image, (str, os.PathLike)):
         frame = Frame(0, str(image))
     else:
-        grey, colour = _as_image(image)
-        frame = Frame(0, ARRAY_SOURCE, data={"image": grey} if colour is None else {"image": grey, "colour": colour})
+        data = _as_image(image, opts.encoding)
+        frame = Frame(0, ARRAY_SOURCE, data=data, meta={"encoding": "srgb" if "rgb8" in data else "linear"})
     release_large_frees()
     with one_blas_thread():
         photo = Chain(photo_nodes(shape_model, opts)).process(frame)

@@ -36,6 +36,7 @@ from ..method.robust_fit import FitConfig
 from ..model.default_model import resolve_model, train_from_recipe
 from ..model.shape_model import save_model
 from ..model.sources import SOURCES_HELP, load_source
+from ..photo.encoding import ENCODINGS
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from .blueprint import default_blueprint
 from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
@@ -209,7 +210,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                             face_length=_face_length(args.face_length),
                             extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                             novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
-                            eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels))
+                            eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
+                            encoding=args.encoding)
     run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
                      frame_timeout=args.frame_timeout, dask=args.dask)
@@ -443,6 +445,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
                    help="novel_view.png's height and width in pixels (default: the model grid's)")
+    r.add_argument("--encoding", choices=list(ENCODINGS), default="auto",
+                   help="how the photos' values relate to light: auto (default; colour photos are sRGB, grey ones "
+                        "linear), srgb or linear; the method works in linear light, outputs keep the photo's encoding")
     r.add_argument("--max-megapixels", type=float, default=MAX_WORK_PIXELS / 1e6, metavar="MP",
                    help="read larger photos reduced to this size, outputs at that size (default 4; 0: full size, "
                         "memory grows with the photo, see README)")

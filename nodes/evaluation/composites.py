@@ -1,7 +1,8 @@
 """Ordinary-photo scenes made from face crops: each crop scaled, turned, tinted and pasted into a
 larger colour frame, so that a crop with ground truth (a Yale B photo and its frontal twin) can be
-scored where it sits in a photo as it is scored alone. Nothing here is stored: scenes are made
-when a test or benchmark asks for them.
+scored where it sits in a photo as it is scored alone. Scenes are made in linear light (Yale B's
+crops are) and saved sRGB-encoded, as a camera saves a photo. Nothing here is stored: scenes are
+made when a test or benchmark asks for them.
 """
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from ..photo.encoding import linear_to_srgb
 
 SKIN_TINTS = ((1.0, 0.78, 0.62), (0.92, 0.72, 0.58), (0.75, 0.55, 0.42), (1.0, 0.85, 0.75))  # RGB gains
 
@@ -102,8 +105,9 @@ def paste(scene: np.ndarray, crop: np.ndarray, where: Pasted, edge_px: float = 3
 
 
 def encode(scene: np.ndarray, path, quality: int | None = 92) -> None:
-    """Write an RGB scene in [0, 1]: JPEG at ``quality`` (None: PNG)."""
-    bgr = (np.clip(scene, 0, 1)[..., ::-1] * 255 + 0.5).astype(np.uint8)
+    """Write an RGB scene of linear light in [0, 1] as a camera would: sRGB-encoded, JPEG at
+    ``quality`` (None: PNG)."""
+    bgr = (linear_to_srgb(scene)[..., ::-1] * 255 + 0.5).astype(np.uint8)
     params = [cv2.IMWRITE_JPEG_QUALITY, quality] if quality is not None else []
     if not cv2.imwrite(str(path), bgr, params):
         raise OSError(f"{path}: cannot be written")

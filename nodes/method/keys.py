@@ -12,6 +12,8 @@ DATA: dict[str, tuple[str, str]] = {
     "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given; faces (a face's, the photo's)"),
     "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given; faces"),
     "given_eyes": ("(2, 2) eye centres given for the photo, photo pixels (sidecar, --eyes)", "load"),
+    "rgb8": ("(H, W, 3) uint8 RGB, the file's own values, when it was decoded from sRGB (``image`` and ``colour`` "
+             "are linear light)", "load, or given; faces"),
     "light": ("(3,) unit light, input camera frame: known before the faces (photo), or the face's", "load, faces"),
     "photo_relit": ("list of (light (3,), (H, W, C) photo relit by it, every face composed in): "
                     "``relight_light``, ``extra_lights``", "compose"),
@@ -52,6 +54,7 @@ META: dict[str, tuple[str, str]] = {
     "sha256": ("the input file's content hash, for a later --resume", "runner"),
     "reduced": ("{from: [w, h], to: [w, h]}: the photo was read smaller (``max_pixels``)", "load"),
     "eyes_source": ("where ``given_eyes`` came from: sidecar eyes | given eyes", "load"),
+    "encoding": ("the photo's encoding: srgb (decoded to linear light, outputs encoded back) | linear", "load, faces"),
     "face": ("which face of its photo a face's frame is (1 the largest)", "faces"),
     "placement": ("the face's box, eyes, pose, presence (``FacePlacement.record``)", "faces"),
     "light": ("[x, y, z] the light used, input camera frame", "faces"),

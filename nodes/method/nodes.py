@@ -25,7 +25,8 @@ from ..photo.align import (
     scalar_to_input,
     to_model_grid,
 )
-from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, luminance, read_photo, read_sidecar, yaleb_light
+from ..photo.encoding import linear_to_srgb
+from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar, yaleb_light
 from ..photo.placement import FacePlacement, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST, EyeDetail
@@ -38,6 +39,8 @@ from .photo_relight import (
     outside_gain,
     photo_albedo,
     shading_trust,
+    skin,
+    skin_exposure,
     smooth_coarse,
 )
 from .products import relit_photos
@@ -49,6 +52,7 @@ from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, 
 
 PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocular distances
 PHOTO_FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
+LIT_SHADING = 0.3  # skin with at least this shading (n . s) is lit: the relit face's exposure is matched on it
 # the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``). On
 # the five Yale B subjects (frontal relight, dB at +-25 / +-50 / +-70 / +-35+15): 24.50 / 21.89 / 19.18 / 22.14
 # unsmoothed, 24.66 / 22.01 / 19.28 / 22.27 at 1.0, 24.69 / 22.01 / 19.33 / 22.28 at 1.5, 24.69 / 21.92 / 19.34 /
@@ -88,6 +92,9 @@ class MethodOptions:
     eye_contrast: float = EYE_CONTRAST
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
+    # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
+    # "linear"; the method works on linear light and writes images back in the photo's encoding
+    encoding: str = "auto"
 
 
 class FitObserver(Protocol):
@@ -134,10 +141,13 @@ class LoadNode:
         from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
         scale = 1.0  # the image's pixels per pixel of the file: eyes given in file pixels follow it
         if from_file:
-            photo = read_photo(frame.source, self.options.max_pixels)
+            photo = read_photo(frame.source, self.options.max_pixels, self.options.encoding)
             frame.data["image"], scale = photo.grey, photo.scale
             if photo.colour is not None:
                 frame.data["colour"] = photo.colour
+            if photo.rgb8 is not None:  # decoded from sRGB: the file's own values, for the face finder and outputs
+                frame.data["rgb8"] = photo.rgb8
+            frame.meta["encoding"] = photo.encoding
             if scale != 1.0:
                 frame.meta["reduced"] = {"from": list(photo.size), "to": [photo.grey.shape[1], photo.grey.shape[0]]}
         image = frame.data["image"]
@@ -160,9 +170,14 @@ class LoadNode:
 
 
 def photo_rgb8(frame: Frame) -> np.ndarray:
-    """(H, W, 3) uint8 RGB of the frame's photo (a grey one in all three channels), for the face finder."""
+    """(H, W, 3) uint8 RGB of the frame's photo as its file has it (a grey one in all three channels),
+    for the face finder, whose nets learnt from photos as cameras encode them."""
+    if "rgb8" in frame.data:
+        return frame.data["rgb8"]
     img = frame.data["colour"] if "colour" in frame.data else frame.data["image"][..., None]
-    rgb = (np.clip(img, 0.0, 1.0) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
+    # a linear photo (Yale B's PGMs) is shown to the nets as a camera would have encoded it: the same face
+    # given linear in grey and sRGB in colour is then found at the same place
+    rgb = (linear_to_srgb(img) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
     return np.ascontiguousarray(np.broadcast_to(rgb, img.shape[:2] + (3,)))
 
 
@@ -195,8 +210,9 @@ class FacesNode:
         """Face ``k`` (0 the largest) of the photo as a frame of its own."""
         d, m = frame.data, self.model
         source = frame.source if k == 0 else f"{frame.source} (face {k + 1})"
-        face = Frame(frame.id, source, data={key: d[key] for key in ("image", "colour") if key in d},
-                     meta={"stem": frame.meta.get("stem"), "face": k + 1})
+        face = Frame(frame.id, source, data={key: d[key] for key in ("image", "colour", "rgb8") if key in d},
+                     meta={"stem": frame.meta.get("stem"), "face": k + 1,
+                           "encoding": frame.meta.get("encoding", "linear")})
         al = placement.alignment
         grid_image = to_model_grid(d["image"], al, m.grid)
         seen = inside_input(al, d["image"].shape, m.grid)
@@ -206,8 +222,13 @@ class FacesNode:
         if "light" in d:
             light, how = np.asarray(d["light"], np.float64), frame.meta.get("light_source", "given")
         else:
-            normals = expected_normals(m.mean_normals[seen[m.mask]], m.normal_variance[seen[m.mask]])
-            light, how = al.vector_to_input(estimate_light(grid_image[m.mask][seen[m.mask]], normals)), "estimated"
+            use = seen.copy()
+            if "colour" in d:  # the skin only: hair over the forehead, brows and eyes are dark but not shaded
+                grid_colour = np.stack([to_model_grid(d["colour"][..., c], al, m.grid) for c in range(3)], axis=-1)
+                use &= skin(grid_colour, use & m.mask)
+            u = use[m.mask]
+            normals = expected_normals(m.mean_normals[u], m.normal_variance[u])
+            light, how = al.vector_to_input(estimate_light(grid_image[m.mask][u], normals)), "estimated"
         face.data.update(alignment=al, placement=placement, eyes_found=placement.found, grid_image=grid_image,
                          grid_valid=seen, light=light, grid_light=al.vector_to_model(light))
         face.meta.update(alignment=al.how, light=[round(float(x), 6) for x in light], light_source=how,
@@ -415,21 +436,27 @@ class PhotoRelightNode:
         normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(np.float32)
         shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32: photo-sized arrays
         coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
-        shadow = photo_shadows(luminance(photo[..., 0] if photo.shape[-1] == 1 else photo), shading,
-                               face & ~coarse_lit, face)
+        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
+        shadow = photo_shadows(d["image"][y0:y1, x0:x1], shading, face & ~coarse_lit, skin(photo, face))
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         # a shadow's soft edge (penumbra) is not lit skin either
         lit = face & ~grow(shadow, 1.5 * px)
         coarse = smooth_coarse(scalar_to_input(d["albedo"], m.mask, al, shape), face, COARSE_SMOOTH * px)
         measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
+        skin_only = skin(photo, face & lit)
+        lit_skin = skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
         match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
         # only eyes the face mesh found in the photo: given or guessed eyes may have no eye to show (a render
         # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
         placed = d.get("eyes_found") in ("detected", "mesh only")
-        eyes = EyeDetail(photo, shading, lit, al.points_to_input(m.eyes), self.options.eye_contrast) if placed else None
+        # the eyes' openings as the face mesh found them (the model's eye points are only where the placement
+        # put its iris centres)
+        eye_centres = placement.eyes - [x0, y0] if placement is not None and placement.outlines else \
+            al.points_to_input(m.eyes)
+        eyes = EyeDetail(photo, shading, lit, eye_centres, self.options.eye_contrast) if placed else None
 
         def albedo_for(trust: np.ndarray) -> np.ndarray:
-            a = photo_albedo(photo, shading, trust, coarse, face, match_px)
+            a = photo_albedo(photo, shading, trust, coarse, face, match_px, skin_only)
             return a if eyes is None else eyes.apply(a, trust)
 
         albedo = albedo_for(measured * shading_trust(shading))
@@ -441,7 +468,9 @@ class PhotoRelightNode:
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             # the albedo this light can trust: I / S also where S is small but S' is no larger
             light_albedo = albedo_for(measured * shading_trust(shading, new_shading))
-            face_image = clipped_floor(light_albedo * new_shading[..., None], photo, shading, new_shading, 1.0, face)
+            unexposed = light_albedo * new_shading[..., None]
+            gain = skin_exposure(photo, unexposed, lit_skin, skin_only & (new_shading >= LIT_SHADING))
+            face_image = clipped_floor(np.float32(gain) * unexposed, photo, shading, new_shading, gain, face)
             layer = FaceLayer((y0, y1, x0, x1), face, np.clip(face_image, 0.0, 1.0),
                               outside_gain(photo, face_image, face, feather))
             layers.append((np.asarray(light, np.float64), layer))

@@ -30,11 +30,6 @@ MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
 # brightened 5x would otherwise light its dark background up as a halo)
 RATIO_OUTSIDE = (0.5, 1.6)
-# the relit face's mean brightness, seen frontally (``exposure_gain``). 0.5 leaves the highlights room: on the
-# five Yale B subjects (+-25..70, 0 and frontal inputs) 0.1 % of the relit face is clipped at the top of the
-# range (at most 0.9 % in one photo), against 1.8 % (at most 4.6 %) at 0.6, and a frontal photo relit by its
-# own light keeps 98.9-100 % of its gradient energy, against 92.3-98.0 % at 0.6
-EXPOSURE_TARGET = 0.5
 
 
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -85,21 +80,31 @@ def trusted_weight(photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, face
 
 
 def lit_weight(photo: np.ndarray, lit: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
-    """(H, W) in [0, 1], whatever the light: zero off the face, in cast or attached shadow (``lit``
-    False), where any channel is clipped and where a colour photo is not the face's skin colour;
-    feathered over ``feather_px`` so the blend has no edge."""
+    """(H, W) in [0, 1], whatever the light: how far the photo's own ``I / S`` is kept: zero off the
+    face, in cast or attached shadow (``lit`` False) and where any channel is clipped; feathered
+    over ``feather_px`` so the blend has no edge. Whatever the photo shows there is kept, skin or not
+    (eyes, teeth, lips, brows, hair over the forehead, glasses): the relighting is a ratio of
+    shadings on its own pixels, and only what is in shadow is filled."""
     img = np.atleast_3d(photo)
     clipped = np.any(img >= CLIPPED, axis=-1)
     hard = face & lit
-    if img.shape[-1] == 3 and (hard & ~clipped).sum() > 50:  # not skin-coloured (hair, background inside the model's face)
-        chroma = img / np.maximum(img.sum(axis=-1, keepdims=True), 1e-6)
-        skin = np.median(chroma[hard & ~clipped], axis=0)
-        hard &= (np.linalg.norm(chroma - skin, axis=-1) < MAX_CHROMA_DISTANCE) | clipped
     soft = blur(hard.astype(np.float32), feather_px)
     # feather inward only, from the shadows and the face's edge; clipped pixels (specks of shine, mostly)
     # are cut out without a feather of their own (measured: no change on Yale B to the printed digits)
     soft = np.where(hard & ~clipped, soft, 0.0)
     return np.clip(2.0 * soft - 0.5, 0.0, 1.0)
+
+
+def skin(photo: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """(H, W) bool: ``where`` the photo has the face's skin colour (a chromaticity within
+    ``MAX_CHROMA_DISTANCE`` of the median over ``where``); all of ``where`` for a grey photo. The fill's
+    level and colour are matched on skin only: eyes, lips, brows and hair would tint it."""
+    img = np.atleast_3d(photo)
+    if img.shape[-1] != 3 or where.sum() <= 50:
+        return where
+    chroma = img / np.maximum(img.sum(axis=-1, keepdims=True), 1e-6)
+    median = np.median(chroma[where], axis=0)
+    return where & (np.linalg.norm(chroma - median, axis=-1) < MAX_CHROMA_DISTANCE)
 
 
 def shading_trust(shading: np.ndarray, new_shading: np.ndarray | None = None) -> np.ndarray:
@@ -135,7 +140,7 @@ def smooth_coarse(coarse: np.ndarray, face: np.ndarray, sigma_px: float) -> np.n
 
 
 def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coarse: np.ndarray,
-                 face: np.ndarray, sigma_px: float) -> np.ndarray:
+                 face: np.ndarray, sigma_px: float, skin_only: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) albedo at the photo's resolution.
 
     photo (H, W, C) in [0, 1]; shading (H, W) the fitted ``n . s``; weight (H, W) from
@@ -144,7 +149,7 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     coarse map is matched to the measured albedo's level and colour (a fraction of the face).
     ``albedo = w I / S + (1 - w) coarse g``, with ``g`` (H, W, C) the local ratio of measured to
     coarse albedo over trusted pixels (wider averages where the shadow is large, the face's median
-    where nothing near is trusted).
+    where nothing near is trusted), of those only the ``skin_only`` (H, W) bool ones when given.
     """
     img = np.atleast_3d(np.asarray(photo, np.float32))  # float32 throughout: a large photo's arrays are many
     measured = img / np.maximum(np.asarray(shading, np.float32), np.float32(1e-3))[..., None]
@@ -152,13 +157,14 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     fill = float(np.nanmedian(coarse[face])) if face.any() else 1.0
     base = np.maximum(np.nan_to_num(np.asarray(coarse, np.float32), nan=fill), np.float32(1e-3))
     ratio = measured / base[..., None]
-    trusted = w > 0.5
+    wg = w if skin_only is None else np.where(skin_only, w, np.float32(0.0))  # what the fill is matched on
+    trusted = wg > 0.5
     if trusted.sum() < 20:
         gain = np.ones_like(ratio)
     else:
         gain = np.broadcast_to(np.median(ratio[trusted], axis=0), ratio.shape).copy()
         for s in (4.0 * sigma_px, sigma_px):  # coarse to fine: each scale overrides where it has support
-            g, support = weighted_blur(ratio, w, s)
+            g, support = weighted_blur(ratio, wg, s)
             k = smoothstep(support, 0.02, 0.1)[..., None]
             gain = k * g + (1.0 - k) * gain
     filled = base[..., None] * gain
@@ -185,21 +191,18 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
-def exposure_gain(albedo: np.ndarray, normals: np.ndarray, face: np.ndarray, target: float = EXPOSURE_TARGET) -> float:
-    """The factor that exposes a relit photo the same whatever the input light: the face seen
-    frontally (``rho x n . z``) gets its mean brightness at ``target``. A photo alone cannot say how
-    strong its lamp was (Yale B's lamps differ by up to 1.5x between positions, and the fitted
-    brightness scale drifts with the light's angle), so the relit photo is auto-exposed on the face,
-    as a camera's face metering does; the rest of the photo gets the same gain. The mean, not the
-    median: how much of the face is filled changes with the input light, and with it the albedo's
-    distribution, so the median held the relit face's mean level within 6 % across (+-25..70, 0)
-    (Yale B, B05), the mean within 1 %."""
-    frontal = np.atleast_3d(albedo).mean(axis=-1) * np.clip(normals[..., 2], 0.0, None)
-    ok = face & np.isfinite(frontal)
-    if ok.sum() < 50:
+def skin_exposure(photo: np.ndarray, relit: np.ndarray, lit_skin: np.ndarray, relit_skin: np.ndarray) -> float:
+    """The factor that gives a relit face the exposure of the photo's own lit skin: the median
+    brightness of the skin the photo shows lit (``lit_skin``) over the median of the relit face's lit
+    skin (``relit_skin``). Relit by the photo's own light it is 1 (the photo comes back as it was);
+    a face lit from 70 deg relit frontally would otherwise be three times as bright as the skin the
+    photo shows, the lamp being the same. photo, relit (H, W, C); lit_skin, relit_skin (H, W) bool;
+    1 when either is nearly empty."""
+    if lit_skin.sum() < 50 or relit_skin.sum() < 50:
         return 1.0
-    have = float(np.mean(frontal[ok]))
-    return target / have if have > 1e-6 else 1.0
+    have = float(np.median(np.atleast_3d(relit).mean(axis=-1)[relit_skin]))
+    want = float(np.median(np.atleast_3d(photo).mean(axis=-1)[lit_skin]))
+    return want / have if have > 1e-6 else 1.0
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,8 @@ from ...flow.frame import Frame
 from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
 from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
-from .photo_relight import compose
+from ..photo.encoding import linear_to_srgb
+from .photo_relight import FaceLayer, compose
 from .relight import surface_mesh
 
 
@@ -27,8 +28,8 @@ def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.nda
 def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = None) -> dict[str, np.ndarray]:
     """One face's results on the INPUT image's pixel grid (see ``conventions.md``): mask,
     normals, weights, depth (input pixels), lit (H, W); albedo (H, W) or (H, W, 3) for a colour
-    photo, NaN off the face; relit: the photo relit by ``relight_light`` (H, W[, 3]), the face
-    feathered into the untouched photo; relit_extra: ``(light, image)`` for each of ``extra_lights``.
+    photo, NaN off the face, in the photo's encoding; relit: the photo relit by ``relight_light`` (H,
+    W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)`` for each of ``extra_lights``.
     frame: the face's frame; relit: the photo's relit images with every face (``relit_photos`` of
     the photo's frame), default this face's alone."""
     d = frame.data
@@ -50,7 +51,7 @@ def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = No
         "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
         "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
         "depth": np.where(mask, depth, np.nan).astype(np.float32),
-        "albedo": squeeze_channels(np.where(mask[..., None], albedo, np.nan)),
+        "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, np.nan))),
         "lit": mask & ~shadow,
         "relit": squeeze_channels(relit[0][1]),
         "relit_extra": [(light, squeeze_channels(r)) for light, r in relit[1:]],
@@ -59,14 +60,39 @@ def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = No
 
 def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(light, (H, W, C) photo)`` per light: the frame's photo with the layers of its faces that came
-    through (its parts' ``photo_layers``; a frame of one face without parts: its own) composed in."""
+    through (its parts' ``photo_layers``; a frame of one face without parts: its own) composed in,
+    float32 in [0, 1] in the photo's own encoding (``meta["encoding"]``): the relighting is done in
+    linear light, and an sRGB photo's pixels no face changes keep the file's values exactly."""
     if "photo_relit" in frame.data:
         return frame.data["photo_relit"]
     d = frame.data
     photo = d["colour"] if "colour" in d else d["image"][..., None]
     faces = [p for p in frame.parts if p.ok and "photo_layers" in p.data] or [frame]
     lights = [light for light, _ in faces[0].data["photo_layers"]]
-    return [(light, compose(photo, [f.data["photo_layers"][i][1] for f in faces])) for i, light in enumerate(lights)]
+    encoding = frame.meta.get("encoding", "linear")
+    out = []
+    for i, light in enumerate(lights):
+        layers = [f.data["photo_layers"][i][1] for f in faces]
+        if encoding != "srgb":
+            out.append((light, compose(photo, layers)))
+            continue
+        # only the faces' boxes are composed and encoded; the rest is the file's values (8 bits)
+        y0, x0 = min(layer.box[0] for layer in layers), min(layer.box[2] for layer in layers)
+        y1, x1 = max(layer.box[1] for layer in layers), max(layer.box[3] for layer in layers)
+        shifted = [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
+                   for layer in layers for b in [layer.box]]
+        image = (d["rgb8"] if d["rgb8"].shape[-1] == photo.shape[-1] else d["rgb8"][..., :1]).astype(np.float32)
+        image /= np.float32(255.0)
+        image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], shifted))
+        out.append((light, image))
+    return out
+
+
+def in_encoding(frame: Frame, linear: np.ndarray) -> np.ndarray:
+    """Linear values of the frame's photo (e.g. its albedo) in the photo's own encoding; NaN stays NaN."""
+    if frame.meta.get("encoding", "linear") != "srgb":
+        return linear
+    return np.where(np.isfinite(linear), linear_to_srgb(np.nan_to_num(linear)), np.nan).astype(np.float32)
 
 
 def squeeze_channels(image: np.ndarray) -> np.ndarray:

@@ -29,8 +29,11 @@ import numpy as np
 # hostile corpus of tests/method/test_quality.py (bad); see README, "Quality"
 # explained: 213 Yale B photos with eyes found (lights up to 70 deg azimuth, 45 elevation) 0.50-0.91,
 # rendered faces 0.67-0.99; non-faces -54-0.69 (a landscape 0.69), a face upside down 0.57, turned 90 -0.75
-MIN_EXPLAINED = 0.3  # a face's shading explains at least this much of its brightness
+MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness (an upside-down face fitted upright: 0.31)
 NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much to count as a face
+# a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a face,
+# 0.2; a real face 0.5-0.91 on Yale B, an upside-down one meshed upright 0.31); under MIN_EXPLAINED, doubtful
+LEAST_EXPLAINED = 0.25
 MAX_DOWNWEIGHTED = 0.7  # Yale B 0.28-0.48, rendered faces 0.35-0.54
 MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles (the 27 %-clipped face of tests/app/test_hostile.py fits)
 MIN_INSIDE = 0.75  # of the face's core inside the frame: Yale B crops keep 0.88-1, a face cut by the edge 0.32
@@ -111,7 +114,7 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     score *= 0.5 ** len(flags)  # a doubtful frame never outscores a clean one of the same fit
     # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
     # mesh saw or whose placement is in doubt too, is none
-    unexplained = explained < MIN_EXPLAINED and (eyes == "mesh only" or bool(doubts))
+    unexplained = explained < (MIN_EXPLAINED if eyes == "mesh only" or doubts else LEAST_EXPLAINED)
     # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
     implausible = not plausible and explained < NO_FACE_EXPLAINED
     no_face = (eyes == "none" and explained < NO_FACE_EXPLAINED) or unexplained or implausible

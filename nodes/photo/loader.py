@@ -16,6 +16,7 @@ import numpy as np
 from PIL import Image
 
 from ..geometry.reflectance import light_from_angles
+from .encoding import decode_samples, linear_luminance, resolve
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".npy"}
 _YALEB = re.compile(r"_P\d+A([+-]\d{3})E([+-]\d{2})")
@@ -144,18 +145,22 @@ def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
 class Photo:
     """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1], or None
     for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
-    ``max_pixels``); size: the file's (width, height)."""
+    ``max_pixels``); size: the file's (width, height); encoding: "linear" (the values are the file's)
+    or "srgb" (the file's values decoded to linear light, ``photo.encoding``); rgb8: (H, W, 3) uint8
+    RGB, the file's own (encoded) values at 8 bits, when it was decoded from sRGB."""
 
     grey: np.ndarray
     colour: np.ndarray | None
     scale: float
     size: tuple[int, int]
+    encoding: str = "linear"
+    rgb8: np.ndarray | None = None
 
 
 TIFF_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
 
 
-def read_photo(path: str | os.PathLike, max_pixels: int | None = None) -> Photo:
+def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding: str = "linear") -> Photo:
     """Read an image (``Photo``), reduced to at most ``max_pixels`` pixels (area-averaged; a JPEG is
     decoded at 1/2, 1/4 or 1/8 scale first, so a large one never exists at full size in memory).
 
@@ -227,14 +232,24 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None) -> Photo:
         raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
     full = _sample_range(raw if colour_raw is None else colour_raw)
     raw, colour_raw = _shrunk(raw, max_pixels), None if colour_raw is None else _shrunk(colour_raw, max_pixels)
+    lo, hi = float(raw.min()) / full, float(raw.max()) / full
+    if hi - lo < 1.0 / 255.0:
+        raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
+    scale = max(raw.shape) / max(width, height)  # EXIF may turn it
+    if resolve(encoding, 1 if colour_raw is None else 3) == "srgb":
+        encoded = raw if colour_raw is None else colour_raw
+        rgb8 = encoded if encoded.dtype == np.uint8 and full == 255.0 else \
+            (np.clip(encoded.astype(np.float32) / np.float32(full), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        linear = decode_samples(encoded, full)
+        del raw, colour_raw
+        if linear.ndim == 2:
+            return Photo(linear, None, scale, (width, height), "srgb", np.repeat(rgb8[..., None], 3, axis=-1))
+        return Photo(linear_luminance(linear), linear, scale, (width, height), "srgb", np.ascontiguousarray(rgb8))
     img = np.clip(raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     if colour_raw is not None:
         colour = np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     del raw, colour_raw
-    lo, hi = float(img.min()), float(img.max())
-    if hi - lo < 1.0 / 255.0:
-        raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
-    return Photo(img, colour, max(img.shape) / max(width, height), (width, height))  # EXIF may turn it
+    return Photo(img, colour, scale, (width, height))
 
 
 def _grey(bgr: np.ndarray) -> np.ndarray:

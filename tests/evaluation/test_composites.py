@@ -46,15 +46,18 @@ def _score(subject, tight, pasted, scene_relit, frontal_scene):
     as the input was), both against the frontal composite, gain-corrected, on the tight run's face."""
     from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
 
+    from shadowflow.nodes.photo.encoding import srgb_to_linear
+
     region = pasted.warp((subject.stereo.valid & tight.mask).astype(np.float32), FRAME) > 0.99
-    relit = np.nan_to_num(scene_relit) @ LUMA
+    relit = srgb_to_linear(np.nan_to_num(scene_relit)) @ LUMA  # the scene's relit photo is sRGB, as it came in
     carried = pasted.warp(np.nan_to_num(tight.relit), FRAME) * float(LUMA @ pasted.tint)
     front = frontal_scene @ LUMA
     return relight_scores(relit, front, region)[0], relight_scores(carried, front, region)[0]
 
 
 def _unchanged_beyond_faces(path, products, iods) -> bool:
-    """The relit photo equals the input, bit for bit, farther than half an eye distance from every face."""
+    """The relit photo (sRGB, as the input) equals the input, bit for bit, farther than half an eye
+    distance from every face."""
     photo = cv2.imread(str(path), cv2.IMREAD_COLOR)[..., ::-1]
     relit = (np.clip(products.relit, 0, 1) * 255 + 0.5).astype(np.uint8)
     faces = np.zeros(FRAME, bool)

@@ -1,0 +1,66 @@
+"""A photo's encoding (``nodes/photo/encoding.py``): colour photos are decoded from sRGB to linear
+light before the fit and encoded back after, grey ones are taken as linear; what no face changes
+comes back as the file had it."""
+import cv2
+import numpy as np
+import pytest
+from shadowflow.nodes.photo.encoding import decode_samples, linear_to_srgb, resolve, srgb_to_linear
+from shadowflow.nodes.photo.loader import read_photo
+
+
+def test_srgb_decodes_as_the_standard_says_and_every_8_and_16_bit_value_comes_back():
+    # IEC 61966-2-1: 0.5 encoded is 0.214 linear; the linear segment below 0.04045
+    assert srgb_to_linear(np.float32(0.5)) == pytest.approx(0.21404, abs=1e-5)
+    assert srgb_to_linear(np.float32(0.02)) == pytest.approx(0.02 / 12.92)
+    for levels, dtype in ((256, np.uint8), (65536, np.uint16)):
+        v = np.arange(levels, dtype=dtype)
+        back = np.round(linear_to_srgb(decode_samples(v, float(levels - 1))) * (levels - 1)).astype(np.int64)
+        assert np.array_equal(back, v.astype(np.int64)), levels
+
+
+def test_colour_is_srgb_and_grey_is_linear_unless_told(tmp_path):
+    rgb = np.zeros((64, 64, 3), np.uint8)
+    rgb[..., 0], rgb[..., 1], rgb[..., 2] = 200, np.arange(64)[None, :] * 2, 90
+    cv2.imwrite(str(tmp_path / "c.png"), rgb[..., ::-1])
+    cv2.imwrite(str(tmp_path / "g.png"), rgb[..., 1])
+    colour = read_photo(tmp_path / "c.png", encoding="auto")
+    assert colour.encoding == "srgb" and np.array_equal(colour.rgb8, rgb)
+    assert colour.colour[0, 0, 0] == pytest.approx(srgb_to_linear(np.float32(200 / 255)), abs=1e-6)
+    grey = read_photo(tmp_path / "g.png", encoding="auto")
+    assert grey.encoding == "linear" and grey.grey[0, 10] == pytest.approx(20 / 255)
+    told = read_photo(tmp_path / "g.png", encoding="srgb")
+    assert told.encoding == "srgb" and told.grey[0, 10] == pytest.approx(srgb_to_linear(np.float32(20 / 255)))
+    assert resolve("linear", 3) == "linear"
+    with pytest.raises(ValueError, match="encoding"):
+        resolve("gamma", 3)
+
+
+def test_a_colour_portrait_comes_back_srgb_its_surroundings_as_they_were(tmp_path):
+    """A rendered face tinted like skin, saved sRGB-encoded as a camera would in a coloured frame, eyes
+    and light given: the relit photo is sRGB too, the frame's pixels the file's own, and the face
+    relit in linear light: its lit side, relit by the same light, keeps the photo's values."""
+    import json
+
+    import shadowflow
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    light = light_from_angles(40)
+    face_png = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(9), light, source="ict")
+    linear = cv2.imread(str(face_png), cv2.IMREAD_GRAYSCALE) / 255.0  # the render: linear light
+    frame = np.dstack([np.full((180, 240), v) for v in (0.2, 0.35, 0.5)])
+    on = linear > 0
+    frame[20:148, 60:188][on] = linear[on][:, None] * np.array([1.0, 0.78, 0.62])
+    photo = tmp_path / "portrait.png"
+    cv2.imwrite(str(photo), (linear_to_srgb(frame)[..., ::-1] * 255 + 0.5).astype(np.uint8))
+    side = json.loads(face_png.with_suffix(".json").read_text())
+    photo.with_suffix(".json").write_text(json.dumps({"light": side["light"],
+                                                      "eyes": (np.array(side["eyes"]) + [60, 20]).tolist()}))
+    out = shadowflow.fit(str(photo), options=shadowflow.MethodOptions(relight_light=light))
+    assert out.photo.meta["encoding"] == "srgb"
+    given = cv2.imread(str(photo))[..., ::-1]
+    relit8 = (out.relit * 255 + 0.5).astype(np.uint8)
+    assert np.array_equal(relit8[:, :40], given[:, :40]) and np.array_equal(relit8[160:], given[160:])
+    lit = out.mask & out.lit & (out.weights > 0.9)
+    diff = np.abs(relit8[lit].astype(int) - given[lit].astype(int))
+    assert np.median(diff) <= 1  # relit by its own light, the lit face is itself
