@@ -290,7 +290,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
         report = evaluate_yaleb(args.data, model, options, mapper=mapper)
     cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
             ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
-            ("psnr_unmoved", "unmoved dB"), ("relit_level", "relit level"), ("shadow_iou", "shadow IoU"),
+            ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("relit_level", "relit level"),
+            ("shadow_iou", "shadow IoU"),
             ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
             ("light_err_deg", "auto light"), ("iterations", "iterations")]
     print("per subject and light (errors in degrees):")

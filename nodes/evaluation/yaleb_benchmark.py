@@ -61,6 +61,32 @@ def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> 
     return 10.0 * np.log10(1.0 / max(mse, 1e-12)), float(np.mean(smap[region]))
 
 
+SEAM_BAND = 0.06  # of the face's width, each side of its vertical midline
+
+
+def seam(relit: np.ndarray, photo: np.ndarray, region: np.ndarray, eyes: np.ndarray) -> float:
+    """How much a relit face's brightness steps where its halves meet: in a band along the face's
+    vertical midline (``SEAM_BAND`` of its width each side; the midline through the eyes' midpoint,
+    square to their line), ``mean |grad(g relit) - grad(photo)| / mean |grad(photo)|`` over the
+    ``region`` (H, W) bool, ``g`` the least-squares gain. A relit half that is softer, brighter or
+    offset shows as a gradient the real photo does not have. relit, photo (H, W); eyes (2, 2)."""
+    r = np.nan_to_num(np.asarray(relit, np.float64))
+    p = np.asarray(photo, np.float64)
+    g = float(np.sum(p[region] * r[region]) / max(np.sum(r[region] ** 2), 1e-12))
+    gy_r, gx_r = np.gradient(g * r)
+    gy_p, gx_p = np.gradient(p)
+    e = np.asarray(eyes, np.float64)
+    mid, along = e.mean(axis=0), (e[1] - e[0]) / max(np.linalg.norm(e[1] - e[0]), 1e-9)
+    cols = np.nonzero(region.any(axis=0))[0]
+    width = float(cols.max() - cols.min() + 1) if cols.size else 1.0
+    yy, xx = np.mgrid[0:p.shape[0], 0:p.shape[1]]
+    band = region & (np.abs((xx - mid[0]) * along[0] + (yy - mid[1]) * along[1]) <= SEAM_BAND * width)
+    band = ndimage.binary_erosion(band, iterations=1) if band.sum() > 50 else band
+    diff = np.hypot(gx_r - gx_p, gy_r - gy_p)[band]
+    base = np.hypot(gx_p, gy_p)[band]
+    return float(np.mean(diff) / max(np.mean(base), 1e-12)) if band.any() else float("nan")
+
+
 def _mean_error(a: np.ndarray, b: np.ndarray, region: np.ndarray) -> float:
     return float(np.mean(angle_deg(a[region].astype(np.float64), b[region].astype(np.float64))))
 
@@ -182,6 +208,7 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         shift = camera_shift(subject, frame.data["image"], truth_light, frontal_shift)
         row["psnr"], row["ssim"] = relight_scores(translate(out["relit"], shift), subject.frontal, region)
         row["psnr_unmoved"], _ = relight_scores(out["relit"], subject.frontal, region)
+        row["seam"] = seam(translate(out["relit"], shift), subject.frontal, region, frame.data["placement"].eyes)
         # exposure: the relit face's mean level against the real frontal photo's (no gain): the same
         # face relit from every input light should come out alike
         row["relit_level"] = float(np.mean(np.nan_to_num(out["relit"])[region]) / np.mean(subject.frontal[region]))
@@ -249,7 +276,8 @@ def evaluate_one_subject(shared: tuple, item: tuple) -> tuple[list[dict], dict]:
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Means over subjects per input light, and over (+-A, E) pairs."""
-    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_unmoved", "relit_level", "shadow_iou", "psnr_input", "ssim",
+    keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_unmoved", "seam",
+            "relit_level", "shadow_iou", "psnr_input", "ssim",
             "ssim_input", "light_err_deg", "iterations", "seconds"]
     groups: dict[str, list[dict]] = {}
     for r in rows:

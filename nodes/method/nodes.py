@@ -35,6 +35,7 @@ from .photo_relight import (
     FaceLayer,
     clipped_floor,
     grow,
+    inner_alpha,
     lit_weight,
     outside_gain,
     photo_albedo,
@@ -461,6 +462,7 @@ class PhotoRelightNode:
 
         albedo = albedo_for(measured * shading_trust(shading))
         layers = []  # (light, FaceLayer)
+        alpha = inner_alpha(face, feather)
         for light in (self.options.relight_light, *self.options.extra_lights):
             s = np.asarray(light, np.float64) / np.linalg.norm(light)
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
@@ -472,7 +474,7 @@ class PhotoRelightNode:
             gain = skin_exposure(photo, unexposed, lit_skin, skin_only & (new_shading >= LIT_SHADING))
             face_image = clipped_floor(np.float32(gain) * unexposed, photo, shading, new_shading, gain, face)
             layer = FaceLayer((y0, y1, x0, x1), face, np.clip(face_image, 0.0, 1.0),
-                              outside_gain(photo, face_image, face, feather))
+                              outside_gain(photo, face_image, face, feather), alpha)
             layers.append((np.asarray(light, np.float64), layer))
         d.update(photo_box=(y0, y1, x0, x1), photo_albedo=albedo, photo_shadow=shadow, photo_layers=layers)
         return frame

@@ -27,6 +27,9 @@ MAX_AMPLIFICATION = (1.1, 1.5)
 MIN_SHADING = (0.08, 0.15)
 CLIPPED = 0.995  # brightness at or above this in any channel: the skin's value is unknown
 MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
+# the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): on the
+# five Yale B subjects 0.12 costs 0.07 dB at +-50 and +-70 against none, 0.35 costs 0.4
+INNER_FEATHER = 0.12
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
 # brightened 5x would otherwise light its dark background up as a halo)
 RATIO_OUTSIDE = (0.5, 1.6)
@@ -216,14 +219,25 @@ class FaceLayer:
     inside: np.ndarray
     relit: np.ndarray
     gain: np.ndarray
+    alpha: np.ndarray | None = None
+
+
+def inner_alpha(face: np.ndarray, feather_px: float) -> np.ndarray:
+    """(H, W) float32: how much of the relit face a face pixel shows, 1 beyond ``INNER_FEATHER`` x
+    ``feather_px`` from the face's border and falling smoothly to 0 at it; the rest is the photo
+    times the face's change of light there (``outside_gain``). A face relit far brighter than its
+    shadowed border in the photo (the jaw at +-70) fades into it instead of ending on a cut."""
+    inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return smoothstep(inside, 0.0, max(INNER_FEATHER * feather_px, 1.0))
 
 
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
     face's relighting ratio (relit / photo, averaged over the face's border, within
     ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
-    into the hair and neck without a seam and the photo beyond is untouched. photo, face_image
-    (H, W, C); face (H, W) bool."""
+    into the hair and neck without a seam and the photo beyond is untouched; inside the face, the
+    ratio itself (what ``inner_alpha`` blends toward at the border). photo, face_image (H, W, C);
+    face (H, W) bool."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
@@ -233,14 +247,16 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
                     *RATIO_OUTSIDE)
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
-    return np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0)).astype(np.float32)
+    return np.where(face[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
+                    ).astype(np.float32)
 
 
 def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
     """(H, W, C) float32 ``photo`` with every face of ``layers`` put back: first each face's
     ``gain`` on the photo around it (overlapping feathers multiply), then each face's own relit
     pixels, which no other face's feather touches. Pixels no layer changes are the photo's, bit for bit."""
-    out = np.array(np.atleast_3d(photo), np.float32, copy=True)
+    source = np.atleast_3d(photo)
+    out = np.array(source, np.float32, copy=True)
     for layer in layers:
         y0, y1, x0, x1 = layer.box
         region = out[y0:y1, x0:x1]
@@ -248,7 +264,11 @@ def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
         region[changed] = np.clip(region[changed] * layer.gain[changed], 0.0, 1.0)
     for layer in layers:
         y0, y1, x0, x1 = layer.box
-        out[y0:y1, x0:x1][layer.inside] = np.clip(layer.relit[layer.inside], 0.0, 1.0)
+        relit = layer.relit
+        if layer.alpha is not None:  # the face's border fades into the photo, its light changed as around it
+            a = layer.alpha[..., None]
+            relit = a * relit + (1.0 - a) * source[y0:y1, x0:x1] * layer.gain
+        out[y0:y1, x0:x1][layer.inside] = np.clip(relit[layer.inside], 0.0, 1.0)
     return out
 
 

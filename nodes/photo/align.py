@@ -122,18 +122,30 @@ def _to_input(values: np.ndarray, al: Alignment, shape: tuple[int, int], interp:
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
 
 
+# a mask is smoothed over this many model pixels before it is brought to the photo: its border is then a curve,
+# not a staircase of model pixels (2-3 photo pixels each on a Yale B crop, a jagged jaw line in the relit photo)
+MASK_SMOOTH = 1.0
+# a field is brought to the photo wherever this much of the nearby model pixels are in its mask (renormalised
+# there): a little beyond the smoothed mask, so that mask never reaches a photo pixel the field leaves unknown
+FIELD_REACH = 0.2
+
+
 def mask_to_input(mask: np.ndarray, al: Alignment, shape: tuple[int, int]) -> np.ndarray:
-    """Model-grid mask (Hm, Wm) bool -> input-grid mask (H, W) bool."""
-    return _to_input(mask.astype(np.float32), al, shape, cv2.INTER_LINEAR) >= 0.5
+    """Model-grid mask (Hm, Wm) bool -> input-grid mask (H, W) bool, its border smoothed over
+    ``MASK_SMOOTH`` model pixels."""
+    soft = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), MASK_SMOOTH)
+    return _to_input(soft, al, shape, cv2.INTER_LINEAR) >= 0.5
 
 
 def scalar_to_input(values: np.ndarray, mask: np.ndarray, al: Alignment, shape: tuple[int, int],
                     nearest: bool = False) -> np.ndarray:
-    """Model-grid field (Hm, Wm), NaN off ``mask`` -> input grid (H, W), NaN off the warped mask."""
+    """Model-grid field (Hm, Wm), NaN off ``mask`` -> input grid (H, W), known wherever ``FIELD_REACH``
+    of the nearby model pixels are in ``mask`` (renormalised: a little beyond ``mask_to_input``'s border),
+    NaN elsewhere."""
     v = np.where(mask, np.nan_to_num(values), 0.0)
     out = _to_input(v, al, shape, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR)
     wts = _to_input(mask.astype(np.float32), al, shape, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR)
-    inside = wts >= 0.5
+    inside = wts >= (0.5 if nearest else FIELD_REACH)
     out = np.where(inside, out / np.maximum(wts, 1e-6), np.nan)  # renormalise at the edge
     return out.astype(np.float32)
 

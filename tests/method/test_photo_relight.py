@@ -1,5 +1,6 @@
 """Relighting on the photo's grid: albedo measured where lit and filled without a seam, the face put
 back into the photo, exposure independent of the lamp, shadows found on the photo."""
+import cv2
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -196,3 +197,23 @@ def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     assert shadowed.sum() > 2000
     steps = np.abs(np.diff(albedo, axis=1))[shadowed[:, :-1] & shadowed[:, 1:]]
     assert np.percentile(steps, 99) < 0.02, np.percentile(steps, 99)  # unsmoothed: 0.16
+
+
+def test_a_face_relit_far_brighter_than_its_border_fades_into_the_photo_there():
+    """A face relit 5x brighter than the photo (its shadowed side lit): beyond the inner feather the
+    relit face is itself; at the face's border it is the photo times the change of light around it,
+    so the jaw on the shadow side ends on no cut."""
+    from shadowflow.nodes.method.photo_relight import FaceLayer, compose, inner_alpha, outside_gain
+
+    yy, xx = np.mgrid[0:80, 0:80]
+    face = (xx - 40) ** 2 + (yy - 40) ** 2 < 30**2
+    photo = np.full((80, 80, 1), 0.1, np.float32)
+    relit = np.where(face[..., None], np.float32(0.5), np.float32(0.0))
+    alpha = inner_alpha(face, 20.0)
+    gain = outside_gain(photo, relit, face, 20.0)
+    out = compose(photo, [FaceLayer((0, 80, 0, 80), face, relit, gain, alpha)])[..., 0]
+    inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, 5)
+    assert np.allclose(out[inside > 0.12 * 20 + 1], 0.5)  # the relit face, whole, beyond the inner feather
+    border = face & (inside <= 1)
+    assert out[border].max() < 0.3  # its rim fades to the photo's level times the gain (1.6 at most)
+    assert alpha[~face].max() == 0 and alpha[inside > 3].min() == 1.0
