@@ -20,7 +20,7 @@ from itertools import chain
 from pathlib import Path
 
 from .files import atomic_write_chunks, json_array_chunks
-from .recording.codec import jsonable
+from .jsonsafe import jsonable
 
 MANIFEST_NAME = "manifest.json"
 JOURNAL_NAME = ".journal.jsonl"

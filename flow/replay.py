@@ -137,7 +137,7 @@ def format_table(rows: list[ConvergenceRow]) -> str:
     for r in rows:
         trend = f"{f(r.residual_first)} -> {f(r.residual_last)}"
         conv = "-" if r.converged is None else ("yes" if r.converged else "no")
-        what = r.source if r.status == "ok" else r.status
+        what = one_line(r.source if r.status == "ok" else r.status)
         lines.append(f"{r.frame:>5} {r.iterations:>5} {f(r.final_sigma):>9} {trend:>24} {conv:>9}  {what}")
     return "\n".join(lines)
 
@@ -154,6 +154,19 @@ def printable(text: str) -> str:
     """``text`` as a font can draw it: bytes of a file name that were not UTF-8 (lone surrogates)
     become U+FFFD."""
     return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line of a terminal: control characters (tab, newline, escape) and bytes
+    that were not UTF-8 written as Python escapes, so a file name cannot break a table's rows."""
+    return "".join(c if c.isprintable() or c == " " else c.encode("unicode_escape", "backslashreplace").decode("ascii")
+                   for c in text)
+
+
+def plot_label(text: str) -> str:
+    """``text`` as matplotlib draws it literally: ``printable``, one line, and ``$`` escaped (two of
+    them would start mathtext, and a lone one fails the drawing)."""
+    return one_line(printable(text)).replace("$", r"\$")
 
 
 def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str, ...],
@@ -182,6 +195,8 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
     axes = fig.subplots(1, len(keys), squeeze=False)[0]
     many = len(series) > legend_max
     cmap = colormaps["viridis"] if many else colormaps["tab10"]
+    handles = {}  # frame -> its first line: the legend's entries, given explicitly (a label starting
+    # with "_" would otherwise be left out of it)
     for ax, key in zip(axes, keys):
         plotted = []
         for k, (label, s) in enumerate(series):
@@ -189,8 +204,9 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
             pts = np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
             if len(pts):
                 colour = cmap(k / max(len(series) - 1, 1)) if many else cmap(k % 10)
-                ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7, label=printable(str(label)),
-                        marker="." if len(pts) < 3 else None)
+                line, = ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7,
+                                marker="." if len(pts) < 3 else None)
+                handles.setdefault(k, (line, plot_label(str(label))))
                 plotted.append(pts[:, 1])
         if plotted and all((v > 0).all() for v in plotted):
             ax.set_yscale("log")
@@ -203,8 +219,10 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
     if series and many:
         bar = fig.add_axes((1 - 0.8 / width, 0.14, 0.15 / width, 0.76))
         fig.colorbar(ScalarMappable(Normalize(0, len(series) - 1), cmap), cax=bar, label="frame (in order)")
-    elif series:
-        axes[-1].legend(loc="upper left", bbox_to_anchor=(1.02, 1), fontsize=8, title="frame", frameon=False)
+    elif handles:
+        entries = [handles[k] for k in sorted(handles)]
+        axes[-1].legend([h for h, _ in entries], [t for _, t in entries], loc="upper left", bbox_to_anchor=(1.02, 1),
+                        fontsize=8, title="frame", frameon=False)
     return fig
 
 
@@ -258,7 +276,8 @@ class DiffReport:
 
 def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol: float = 0.0, rtol: float = 0.0,
                  key: Callable[[FrameRecording], object] | None = None,
-                 stage: Callable[[str], int] | None = None) -> DiffReport:
+                 stage: Callable[[str], int] | None = None,
+                 fallback: Callable[[FrameRecording], object] | None = None) -> DiffReport:
     """Channel-by-channel, iteration-by-iteration comparison of two streams of frames, holding only
     the frames one stream has reached and the other not yet (one each when both run in the same
     order). Frames pair up by ``key(frame)`` (default: the frame id); a frame, channel or
@@ -266,7 +285,11 @@ def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol:
     ``|a - b| <= atol + rtol |b|`` everywhere (NaN equals NaN). The differences come in the order
     the runs split: by frame, then by ``stage(channel)`` (the rank of the step that made the
     channel; default: all one stage), then iteration (per-frame products of a stage first), then
-    channel."""
+    channel. ``fallback``: a second key that pairs, in order, the frames ``key`` left alone once both
+    streams have ended (e.g. inputs read from other folders, paired by file name). Tolerances must be
+    finite and not negative (``ValueError``)."""
+    if not (np.isfinite(atol) and np.isfinite(rtol) and atol >= 0 and rtol >= 0):
+        raise ValueError(f"tolerances must be finite and not negative, not atol={atol!r} rtol={rtol!r}")
     key = key or (lambda fr: fr.frame)
     stage = stage or (lambda channel: 0)
     pending: tuple[dict, dict] = ({}, {})
@@ -292,6 +315,25 @@ def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol:
             iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
                                if i is not None})
             out += [((fa.frame, stage(d.channel)) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
+    if fallback is not None:  # what the key left: paired by the fallback, in the order they came
+        left = [[fr for frs in pending[side].values() for fr in frs] for side in (0, 1)]
+        pending = ({}, {})
+        by_b: dict = {}
+        for fr in left[1]:
+            by_b.setdefault(fallback(fr), []).append(fr)
+        for fa in left[0]:
+            k = fallback(fa)
+            if by_b.get(k):
+                fb = by_b[k].pop(0)
+                compared += 1
+                iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
+                                   if i is not None})
+                out += [((fa.frame, stage(d.channel)) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
+            else:
+                pending[0].setdefault(key(fa), []).append(fa)
+        for frs in by_b.values():
+            for fr in frs:
+                pending[1].setdefault(key(fr), []).append(fr)
     for side, label in ((0, "A"), (1, "B")):
         for k, frs in pending[side].items():
             for fr in frs:

@@ -21,7 +21,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from .manifest import InputEntry
-from .recording.codec import jsonable
+from .jsonsafe import jsonable
 
 STORE_NAME = ".run.sqlite"
 _PAGE = 512  # rows read at a time when streaming

@@ -7,6 +7,7 @@ import struct
 
 import numpy as np
 
+
 from .events import OnMask
 
 ARRAY_MAGIC = b"SFA1"
@@ -90,14 +91,6 @@ def decode_array(data: bytes, check_only: bool = False) -> tuple[dict, np.ndarra
     values = np.frombuffer(payload[nbits:], dtype=dtype).reshape((-1, *shape[2:]))
     fill = np.nan if np.dtype(dtype).kind == "f" else 0
     return header, OnMask(values, mask).grid(fill)
-
-
-def jsonable(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    return str(x)
 
 
 JSON_SCHEMAS: dict[str, dict] = {

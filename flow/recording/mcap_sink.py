@@ -12,9 +12,9 @@ from .codec import (
     ARRAY_SCHEMA_TEXT,
     JSON_SCHEMAS,
     encode_array,
-    jsonable,
     log_time_ns,
 )
+from ..jsonsafe import jsonable
 from .events import Event, Kind, OnMask, Sink
 from .rerun_sink import display
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .codec import jsonable
+from ..jsonsafe import jsonable
 from .events import Event, Kind, OnMask, Sink, value_nbytes
 
 

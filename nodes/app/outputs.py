@@ -17,6 +17,8 @@ import numpy as np
 
 from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_chunks
 from ...flow.frame import Frame
+from ...flow.jsonsafe import json_safe
+from ..geometry.reflectance import light_tag
 from ..method.products import squeeze_channels, input_grid_products, photo_mesh, relit_photos
 from ..model.shape_model import ShapeModel
 
@@ -34,19 +36,34 @@ def real_path(path: str | Path) -> Path:
         return Path(os.path.abspath(path))
 
 
+# what a run writes beside the output folders: a folder may not take one of these names
+RUN_FILES = ("summary.json", "manifest.json", "report.html", "run.mcap", "run.rrd", ".journal.jsonl", ".run.sqlite",
+             ".lock")
+_RUN_PART = re.compile(r"run(\.[a-z0-9_-]+)*\.(mcap|rrd)")  # run.part2.mcap, run.s3.rrd, run.worker-0.mcap
+
+
+def reserved(name: str) -> bool:
+    """Whether an output folder may not be called ``name``: one of the run's own files (``RUN_FILES``,
+    a recording part)."""
+    low = name.lower()
+    return low in RUN_FILES or _RUN_PART.fullmatch(low) is not None
+
+
 def safe_stem(path: str, taken: MutableSet[str]) -> str:
     """A file-system-safe, unique output folder name for an input path.
 
-    Keeps letters, digits, ``.``, ``_`` and ``-`` (after Unicode NFKD folding), never starts
-    with ``.`` or ``-``, and appends ``-2``, ``-3``... when the name is already in ``taken``
-    (lower-case names, a set or one on disk; the name then joins it).
+    Keeps letters, digits, ``.``, ``_``, ``+`` and ``-`` (after Unicode NFKD folding: a +50 and a
+    -50 photo of one face stay a pair), never starts with ``.``, ``+`` or ``-``, and appends ``-2``,
+    ``-3``... when the name is already in ``taken`` (lower-case names, a set or one on disk; the name
+    then joins it) or is one of the run's own files (``reserved``: an input called
+    ``summary.json.png`` gets ``summary.json-2``).
     """
     stem = Path(path).stem
     stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", stem).lstrip(".-_") or "input"
+    stem = re.sub(r"[^A-Za-z0-9._+-]+", "_", stem).lstrip(".-_+") or "input"
     stem = stem[:120]
     name, k = stem, 2
-    while name.lower() in taken:
+    while name.lower() in taken or reserved(name):
         name, k = f"{stem}-{k}", k + 1
     taken.add(name.lower())
     return name
@@ -84,15 +101,6 @@ def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     return (v if mask is None else np.where(mask, v, 0)).astype(np.uint8)
 
 
-def light_name(light: np.ndarray) -> str:
-    """A light's file-name tag, Yale B style: ``A+030E-10`` (azimuth, elevation in whole degrees;
-    azimuth positive toward the image's left, as ``light_from_angles``)."""
-    s = np.asarray(light, np.float64) / np.linalg.norm(light)
-    el = np.degrees(np.arcsin(np.clip(s[1], -1, 1)))
-    az = np.degrees(np.arctan2(-s[0], s[2]))
-    return f"A{int(round(az)):+04d}E{int(round(el)):+03d}"
-
-
 def face_folder(k: int) -> str:
     """The output folder of a photo's k-th face (1 the largest), relative to the photo's: ``""`` or ``face-<k>``."""
     return "" if k <= 1 else f"face-{k}"
@@ -103,6 +111,11 @@ def faces_of(frame: Frame) -> list[Frame]:
     if not frame.parts:
         return [frame] if "fit" in frame.data else []
     return [p for p in frame.parts if p.ok]
+
+
+def relit_name(light: np.ndarray) -> str:
+    """The file of the photo relit by a ``--relight`` light: ``relit_A<az>E<el>.png`` (``light_tag``)."""
+    return f"relit_{light_tag(light)}.png"
 
 
 def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
@@ -118,7 +131,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
             written[f"{sub}/{name}" if sub else name] = path
     encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
     for light, image in relit[1:]:
-        encoders[f"relit_{light_name(light)}.png"] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
+        encoders[relit_name(light)] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
         written[name] = str(folder / name)
@@ -157,7 +170,7 @@ class WriteNode:
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
-        targets = [folder / n for n in OUTPUT_FILES]
+        targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light, _ in relit_photos(frame)[1:]))]
         for face in faces_of(frame):
             sub = face_folder(int(face.meta.get("face", 1)))
             if sub:
@@ -214,7 +227,7 @@ def summary_record(frame: Frame) -> dict:
         rec["reduced"] = m["reduced"]
     if frame.failed_in:
         rec["failed_in"] = frame.failed_in
-    return rec
+    return json_safe(rec)  # a NaN (a fit's sigma, a signal) is null, not bare NaN that no JSON reader takes
 
 
 def write_summary(out_dir: Path, records: Iterable[dict]) -> None:

@@ -128,6 +128,13 @@ class RecordNode:
         return frame
 
 
+def frame_source(fr: FrameRecording) -> str:
+    """A recorded frame's input as the run was given it (its path), else ``#<frame id>``: ``diff``
+    pairs frames by it first, then by ``frame_name``."""
+    source = (fr.record or {}).get("source")
+    return source if isinstance(source, str) and source else f"#{fr.frame}"
+
+
 def frame_name(fr: FrameRecording) -> str:
     """What a recorded frame is called across runs: its input's file name once it finished (output
     names and frame ids depend on what else a run was given), else ``#<frame id>``. ``diff`` pairs

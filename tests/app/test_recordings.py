@@ -129,8 +129,11 @@ def test_rerun_opens_both_recordings(demo):
     rc = pytest.importorskip("rerun.chunk")
     summary = str(rc.RrdReader(demo / "run.rrd").store().summary())
     stems = [r["stem"] for r in json.loads((demo / "summary.json").read_text())]
-    assert f"/robust_fit/weights/{stems[2]}" in summary and "iteration" in summary  # named by input
-    assert f"/integrate/mesh/{stems[0]}" in summary and "Mesh3D" in summary
+    import rerun as rr
+
+    part = rr.escape_entity_path_part(stems[2])  # a stem keeps "+": the entity path escapes it
+    assert f"/robust_fit/weights/{part}" in summary and "iteration" in summary  # named by input
+    assert f"/integrate/mesh/{rr.escape_entity_path_part(stems[0])}" in summary and "Mesh3D" in summary
     assert "/00000" not in summary
     info = rc.McapReader(demo / "run.mcap").info()
     topics = {c.topic for c in info.channels}
@@ -147,10 +150,13 @@ def test_rerun_holds_every_iteration_as_the_mcap_records_it(demo):
     fr = rec.finished_frames()[1]
     its = fr.iterations("robust_fit/weights")
     stem = fr.record["stem"]
-    weights = rrd_rows(demo / "run.rrd", f"/robust_fit/weights/{stem}", "Image:buffer")
-    normals = rrd_rows(demo / "run.rrd", f"/robust_fit/normals/{stem}", "Image:buffer")
-    b = rrd_rows(demo / "run.rrd", f"/robust_fit/b/{stem}", "BarChart:values")
-    sigma = rrd_rows(demo / "run.rrd", f"/robust_fit/convergence/sigma/{stem}", "Scalars:scalars")
+    import rerun as rr
+
+    part = rr.escape_entity_path_part(stem)  # a stem keeps "+": the entity path escapes it
+    weights = rrd_rows(demo / "run.rrd", f"/robust_fit/weights/{part}", "Image:buffer")
+    normals = rrd_rows(demo / "run.rrd", f"/robust_fit/normals/{part}", "Image:buffer")
+    b = rrd_rows(demo / "run.rrd", f"/robust_fit/b/{part}", "BarChart:values")
+    sigma = rrd_rows(demo / "run.rrd", f"/robust_fit/convergence/sigma/{part}", "Scalars:scalars")
     assert sorted(weights) == sorted(normals) == sorted(sigma) == its and len(its) >= 3
     assert sorted(b) == [its[-1]]  # the coefficients: the frame's last iteration (every one is in the MCAP)
     for it in its:

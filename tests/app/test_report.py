@@ -3,6 +3,7 @@ convergence plot; hostile names escaped; and a real browser renders it (skipped 
 import re
 import shutil
 import subprocess
+from urllib.parse import quote, unquote
 
 import cv2
 import numpy as np
@@ -27,7 +28,7 @@ def test_the_report_shows_every_frame_and_says_why_one_failed(run_with_a_failure
     assert len(stems) == 3
     for stem in stems:  # a row per frame, its pictures linked where they are
         for name in ("relit.png", "shadow.png", "novel_view.png", "albedo.png"):
-            assert f'src="{stem}/{name}"' in page and (out / stem / name).is_file()
+            assert f'src="{quote(stem)}/{name}"' in page and (out / stem / name).is_file()
     assert page.count('alt="input" src="data:image/jpeg;base64,') == 3
     assert page.count('alt="weights" src="data:image/jpeg;base64,') == 3
     assert "4 frames: 3 ok, 0 doubtful" in page and "1 failed" in page
@@ -36,7 +37,8 @@ def test_the_report_shows_every_frame_and_says_why_one_failed(run_with_a_failure
     assert 'alt="convergence of the fit" src="data:image/png;base64,' in page
     for src in re.findall(r'src="([^"]+)"', page):  # every relative link resolves inside --out
         if not src.startswith("data:"):
-            assert (out / src).resolve().is_relative_to(out.resolve()) and (out / src).is_file()
+            path = out / unquote(src)  # a URL: "+" in a name is %2B there
+            assert path.resolve().is_relative_to(out.resolve()) and path.is_file()
 
 
 def test_without_a_recording_the_report_says_there_is_nothing_to_plot(tmp_path):

@@ -1,0 +1,113 @@
+"""Hostile use of the recordings' commands (``replay``, ``diff``): nothing read is written over, two
+equal runs are equal whatever the order and folders of their inputs, and a tolerance means what it
+says. Each case failed as described before its fix."""
+import json
+import shutil
+
+import numpy as np
+import pytest
+from shadowflow.nodes.app.cli import main
+
+
+@pytest.fixture(scope="module")
+def two_folders(tmp_path_factory):
+    """Two faces with the same file name in two folders, run in one order and then the other."""
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    root = tmp_path_factory.mktemp("twins")
+    for folder, seed, az in (("a", 1, 30), ("b", 2, -40)):
+        (root / folder).mkdir()
+        write_shadowed_face(root / folder / "face.png", np.random.default_rng(seed), light_from_angles(az))
+    runs = {}
+    for name, order in (("ab", ["a", "b"]), ("ba", ["b", "a"])):
+        out = root / f"out-{name}"
+        args = [str(root / f / "face.png") for f in order]
+        assert main(["run", *args, "--out", str(out), "--quiet", "--record", "mcap"]) == 0
+        runs[name] = out
+    return root, runs
+
+
+def test_replay_will_not_write_its_rerun_file_over_the_recording_it_reads(two_folders, capsys):
+    """``replay RUN.mcap --rrd RUN.mcap`` wrote over the recording it was reading."""
+    _, runs = two_folders
+    rec = runs["ab"] / "run.mcap"
+    before = rec.read_bytes()
+    assert main(["replay", str(rec), "--rrd", str(rec)]) == 2
+    assert "is the recording being read" in capsys.readouterr().err
+    assert main(["replay", str(runs["ab"]), "--rrd", str(runs["ab"] / "run.mcap")]) == 2  # a file of its run
+    assert rec.read_bytes() == before
+
+
+def test_diff_pairs_inputs_that_share_a_file_name_by_their_path(two_folders, capsys):
+    """a/face.png and b/face.png run in one order and then the other: "differ" when frames paired by
+    file name; the same runs are the same."""
+    _, runs = two_folders
+    assert main(["diff", str(runs["ab"]), str(runs["ba"]), "--atol", "1e-6"]) == 0, capsys.readouterr().out
+    assert "same: 2 frames" in capsys.readouterr().out
+
+
+def test_diff_pairs_copies_of_the_inputs_elsewhere_by_file_name(two_folders, tmp_path, capsys):
+    """A run over copies of the inputs in another folder still pairs its frames with the first run's."""
+    root, runs = two_folders
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    for f in ("face.png", "face.json"):
+        shutil.copy(root / "a" / f, copy / f)
+    out = tmp_path / "out"
+    assert main(["run", str(copy / "face.png"), "--out", str(out), "--quiet", "--record", "mcap"]) == 0
+    single = tmp_path / "single"
+    assert main(["run", str(root / "a" / "face.png"), "--out", str(single), "--quiet", "--record", "mcap"]) == 0
+    capsys.readouterr()
+    assert main(["diff", str(single), str(out), "--atol", "1e-6"]) == 0, capsys.readouterr().out
+
+
+@pytest.mark.parametrize("tolerance", [["--atol", "nan"], ["--rtol", "nan"], ["--atol", "-1"], ["--rtol", "-0.1"],
+                                       ["--atol", "inf"]])
+def test_diff_refuses_a_tolerance_that_cannot_tell_runs_apart(two_folders, tolerance, capsys):
+    """``diff --atol nan`` said "same" for different recordings; negative tolerances were taken."""
+    root, runs = two_folders
+    assert main(["diff", str(runs["ab"] / "run.mcap"), str(runs["ab"] / "run.mcap"), *tolerance]) == 2
+    assert "tolerance" in capsys.readouterr().err
+    records = json.loads((runs["ab"] / "summary.json").read_text())
+    assert len(records) == 2
+
+
+def test_convergence_table_keeps_one_row_per_frame_whatever_the_file_name():
+    """A tab, a newline or a terminal escape in a file name broke the replay table's rows."""
+    from shadowflow.flow.replay import ConvergenceRow, format_table
+
+    rows = [ConvergenceRow(frame=k, source=name, status="ok", iterations=3, final_sigma=0.1, residual_first=1.0,
+                           residual_last=0.5, converged=True)
+            for k, name in enumerate(["a\tb.png", "two\nlines.png", "\x1b[31mred.png", "plain.png"])]
+    lines = format_table(rows).splitlines()
+    assert len(lines) == 1 + len(rows)
+    assert "\x1b" not in format_table(rows) and "a\\tb.png" in lines[1] and "two\\nlines.png" in lines[2]
+
+
+def test_convergence_figure_draws_names_with_dollars_and_underscores():
+    """Two ``$`` in a file name were read as mathtext (a lone one failed the drawing), and a name
+    starting with ``_`` was left out of the legend."""
+    from shadowflow.flow.replay import convergence_figure
+
+    series = [(name, {0: {"sigma": 1.0}, 1: {"sigma": 0.5}, 2: {"sigma": 0.4}})
+              for name in ["$5 $x$.png", "cost$.png", "_hidden.png"]]
+    fig = convergence_figure(series, ("sigma",))
+    fig.canvas.draw()  # raised ValueError on the lone "$"
+    legend = fig.axes[-1].get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == [r"\$5 \$x\$.png", r"cost\$.png", "_hidden.png"]
+
+
+def test_summary_record_writes_a_nan_as_null(tmp_path):
+    """A NaN in a face's fields (a fit's sigma) went into summary.json as bare NaN, which strict JSON
+    readers refuse."""
+    from shadowflow.flow.frame import Frame
+    from shadowflow.nodes.app.outputs import summary_record, write_summary
+
+    frame = Frame(id=0, source="x.png", meta={"stem": "x", "final_sigma": float("nan"), "light": [float("inf"), 0, 1]})
+    rec = summary_record(frame)
+    write_summary(tmp_path, [rec])
+    text = (tmp_path / "summary.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    loaded = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in summary.json"))
+    assert loaded[0]["light"][0] is None
