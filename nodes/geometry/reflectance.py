@@ -74,6 +74,15 @@ def light_from_angles(azimuth_deg: float, elevation_deg: float = 0.0) -> np.ndar
     return normalize(np.array([-np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)]))
 
 
+def light_tag(light: np.ndarray) -> str:
+    """A light's name, Yale B style: ``A+030E-10`` (azimuth, elevation in whole degrees; azimuth positive
+    toward the image's left, as ``light_from_angles``)."""
+    s = np.asarray(light, np.float64) / np.linalg.norm(light)
+    el = np.degrees(np.arcsin(np.clip(s[1], -1, 1)))
+    az = np.degrees(np.arctan2(-s[0], s[2]))
+    return f"A{int(round(az)):+04d}E{int(round(el)):+03d}"
+
+
 def irradiance_constraint(
     normals: np.ndarray,
     light: np.ndarray,

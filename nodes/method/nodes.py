@@ -25,7 +25,8 @@ from ..photo.align import (
     scalar_to_input,
     to_model_grid,
 )
-from ..photo.encoding import linear_to_srgb
+from ..geometry.reflectance import light_tag
+from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar, yaleb_light
 from ..photo.placement import FacePlacement, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
@@ -38,11 +39,13 @@ from .photo_relight import (
     inner_alpha,
     lit_weight,
     outside_gain,
+    photo_ambient,
     photo_albedo,
     shading_trust,
     skin,
     skin_exposure,
     smooth_coarse,
+    with_ambient,
 )
 from .products import relit_photos
 from .quality import assess, core_face, explained_variance
@@ -96,6 +99,35 @@ class MethodOptions:
     # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
     # "linear"; the method works on linear light and writes images back in the photo's encoding
     encoding: str = "auto"
+
+    def __post_init__(self) -> None:
+        """Every choice checked where it is defined: a bad one raises ``ValueError`` naming it, from the
+        API as from the command line."""
+        choices = {"integrator": (self.integrator, tuple(INTEGRATORS)), "remap": (self.remap, ("ratio", "peak")),
+                   "shadows": (self.shadows, ("confirmed", "geometric")),
+                   "albedo_fill": (self.albedo_fill, ("ceiling", "mirror")), "encoding": (self.encoding, ENCODINGS)}
+        for name, (value, allowed) in choices.items():
+            if value not in allowed:
+                raise ValueError(f"{name} {value!r}: choose from {', '.join(allowed)}")
+        if not 0.0 <= self.eye_contrast <= 1.0:
+            raise ValueError(f"eye_contrast is between 0 (off) and 1, not {self.eye_contrast!r}")
+        if not -90.0 <= self.novel_yaw_deg <= 90.0:
+            raise ValueError(f"novel_yaw_deg turns the face by -90 to 90 degrees, not {self.novel_yaw_deg!r}")
+        if self.novel_size is not None and not 32 <= self.novel_size <= 4096:
+            raise ValueError(f"novel_size is a side of 32 to 4096 pixels, not {self.novel_size!r}")
+        if self.max_pixels is not None and not 100_000 <= self.max_pixels <= 40_000_000:
+            raise ValueError(f"max_pixels is None (never reduce) or 0.1 to 40 megapixels, not {self.max_pixels!r}")
+        if isinstance(self.face_length, str) and self.face_length not in ("auto", "off"):
+            raise ValueError(f"face_length is auto, off or a factor, not {self.face_length!r}")
+        if not isinstance(self.face_length, str) and not 0.5 <= float(self.face_length) <= 2.0:
+            raise ValueError(f"face_length is a factor between 0.5 and 2, not {self.face_length!r}")
+        if isinstance(self.light, str) and self.light not in ("auto", "yaleb"):
+            raise ValueError(f"light {self.light!r}: auto, yaleb, two angles or a vector")
+        tags = [light_tag(light) for light in self.extra_lights]
+        for tag in set(tags):
+            if tags.count(tag) > 1:
+                raise ValueError(f"two relight lights are both {tag} (whole degrees): each writes relit_{tag}.png; "
+                                 "give them a degree apart")
 
 
 class FitObserver(Protocol):
@@ -159,6 +191,8 @@ class LoadNode:
             frame.data["given_eyes"], frame.meta["eyes_source"] = side.eyes * scale, "sidecar eyes"
         elif self.options.eyes is not None:
             frame.data["given_eyes"], frame.meta["eyes_source"] = np.asarray(self.options.eyes) * scale, "given eyes"
+        if "given_eyes" in frame.data:
+            check_eyes(frame.source, frame.data["given_eyes"], image.shape, frame.meta["eyes_source"])
         if "light" in frame.data:
             frame.meta.setdefault("light_source", "given")
         elif side is not None and side.light is not None:
@@ -168,6 +202,19 @@ class LoadNode:
         elif self.options.light == "yaleb":
             frame.data["light"], frame.meta["light_source"] = yaleb_light(frame.source), "yaleb name"
         return frame
+
+
+def check_eyes(source: str, eyes: np.ndarray, shape: tuple[int, int], what: str) -> None:
+    """``InputError`` naming ``source`` when given eyes (2, 2) cannot place a face in a photo (H, W):
+    not finite, one on the other, or outside the photo (by more than its size)."""
+    e = np.asarray(eyes, np.float64)
+    h, w = shape[:2]
+    if e.shape != (2, 2) or not np.all(np.isfinite(e)):
+        raise InputError(f"{source}: {what} must be four finite numbers [[x1, y1], [x2, y2]]")
+    if np.linalg.norm(e[1] - e[0]) < 2.0:
+        raise InputError(f"{source}: {what} are one on the other ({e.tolist()})")
+    if np.any(e[:, 0] < -w) or np.any(e[:, 0] > 2 * w) or np.any(e[:, 1] < -h) or np.any(e[:, 1] > 2 * h):
+        raise InputError(f"{source}: {what} {np.round(e, 1).tolist()} lie far outside the {w}x{h} photo")
 
 
 def photo_rgb8(frame: Frame) -> np.ndarray:
@@ -456,11 +503,24 @@ class PhotoRelightNode:
             al.points_to_input(m.eyes)
         eyes = EyeDetail(photo, shading, lit, eye_centres, self.options.eye_contrast) if placed else None
 
+        # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
+        ambient = photo_ambient(d["image"][y0:y1, x0:x1], coarse, shading, face)
+        lighting = with_ambient(shading, ambient)
+
         def albedo_for(trust: np.ndarray) -> np.ndarray:
-            a = photo_albedo(photo, shading, trust, coarse, face, match_px, skin_only)
+            a = photo_albedo(photo, lighting, trust, coarse, face, match_px, skin_only)
             return a if eyes is None else eyes.apply(a, trust)
 
-        albedo = albedo_for(measured * shading_trust(shading))
+        # how far I / lighting is trusted: the lighting with the room's light in it is never darker than the
+        # ambient, so a photo with fill light (the astronaut) keeps its own pixels further round the face
+        # what is not skin (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the
+        # fitted shading says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
+        not_skin = lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(lit)
+
+        def trust_for(new: np.ndarray | None = None) -> np.ndarray:
+            return measured * np.where(not_skin, np.float32(1.0), shading_trust(lighting, new))
+
+        albedo = albedo_for(trust_for())
         layers = []  # (light, FaceLayer)
         alpha = inner_alpha(face, feather)
         for light in (self.options.relight_light, *self.options.extra_lights):
@@ -469,10 +529,13 @@ class PhotoRelightNode:
             cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
             new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
             # the albedo this light can trust: I / S also where S is small but S' is no larger
-            light_albedo = albedo_for(measured * shading_trust(shading, new_shading))
-            unexposed = light_albedo * new_shading[..., None]
+            light_albedo = albedo_for(trust_for(with_ambient(new_shading, ambient)))
+            # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
+            # a side light leaves the shadowed side dim, not black
+            unexposed = light_albedo * with_ambient(new_shading, ambient)[..., None]
             gain = skin_exposure(photo, unexposed, lit_skin, skin_only & (new_shading >= LIT_SHADING))
-            face_image = clipped_floor(np.float32(gain) * unexposed, photo, shading, new_shading, gain, face)
+            face_image = clipped_floor(np.float32(gain) * unexposed, photo, lighting, with_ambient(new_shading, ambient),
+                                       gain, face)
             layer = FaceLayer((y0, y1, x0, x1), face, np.clip(face_image, 0.0, 1.0),
                               outside_gain(photo, face_image, face, feather), alpha)
             layers.append((np.asarray(light, np.float64), layer))

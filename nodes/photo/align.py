@@ -134,7 +134,9 @@ def mask_to_input(mask: np.ndarray, al: Alignment, shape: tuple[int, int]) -> np
     """Model-grid mask (Hm, Wm) bool -> input-grid mask (H, W) bool, its border smoothed over
     ``MASK_SMOOTH`` model pixels."""
     soft = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), MASK_SMOOTH)
-    return _to_input(soft, al, shape, cv2.INTER_LINEAR) >= 0.5
+    # where a field of the mask is known (``scalar_to_input``): the smoothed border never runs past it
+    known = _to_input(mask.astype(np.float32), al, shape, cv2.INTER_LINEAR) >= FIELD_REACH
+    return (_to_input(soft, al, shape, cv2.INTER_LINEAR) >= 0.5) & known
 
 
 def scalar_to_input(values: np.ndarray, mask: np.ndarray, al: Alignment, shape: tuple[int, int],
