@@ -24,8 +24,8 @@ from ..method.nodes import MethodOptions, photo_nodes
 from ..method.products import input_grid_products, photo_mesh, relit_photos
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
-from ..photo.encoding import linear_luminance, resolve, srgb_to_linear
-from ..photo.loader import InputError, luminance
+from ..photo.encoding import decode_samples, linear_luminance, resolve, srgb_to_linear
+from ..photo.loader import InputError, check_size, checked_light, luminance, parse_light, sample_range, shrunk
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
@@ -100,39 +100,50 @@ class Products:
         return write_outputs(self.photo, self.model, folder)
 
 
-def _as_image(image: np.ndarray, encoding: str = "auto") -> dict[str, np.ndarray]:
-    """An array as the loader gives a file: the frame's ``image`` (H, W) float32 in [0, 1], and
-    ``colour`` (H, W, 3) float32 RGB and ``rgb8`` for a colour one, in linear light (``encoding``:
-    "auto" takes colour as sRGB and grey, or grey in three equal channels, as linear, as for files). Accepts (H, W) or (H, W, 3) RGB (or
-    (H, W, 4) RGBA), uint8, uint16 or floats in [0, 1]."""
+def _as_image(image: np.ndarray, encoding: str = "auto", max_pixels: int | None = None) -> tuple[dict, float]:
+    """An array as the loader gives a file: ``(frame data, scale)``: the frame's ``image`` (H, W)
+    float32 in [0, 1], and ``colour`` (H, W, 3) float32 RGB and ``rgb8`` for a colour one, in linear
+    light (``encoding``: "auto" takes colour as sRGB and grey, or grey in three equal channels, as
+    linear, as for files); scale: its pixels per pixel of the array (under 1 when it was reduced to
+    ``max_pixels``, as a file is). Accepts (H, W) or (H, W, 3) RGB (or (H, W, 4) RGBA), uint8,
+    uint16 or floats (on [0, 1], or larger ones on their own range, as a file's). Its size is checked
+    as a file's header is (``InputError``)."""
     a = np.asarray(image)
     if a.ndim == 3 and a.shape[2] in (3, 4):
         a = a[..., :3]
     elif a.ndim != 2:
         raise InputError(f"{ARRAY_SOURCE}: shape {a.shape} is not (H, W) or (H, W, 3)")
+    check_size(Path(ARRAY_SOURCE), a.shape[1], a.shape[0])
+    if a.dtype.kind not in "uif" and a.dtype != bool:
+        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
+    if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+        raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    small = shrunk(a, max_pixels)
+    scale = small.shape[0] / a.shape[0]
+    a = small
     if a.dtype == np.uint8:
         f = a.astype(np.float32) / 255.0
     elif a.dtype == np.uint16:
         f = a.astype(np.float32) / 65535.0
-    elif np.issubdtype(a.dtype, np.floating) or a.dtype == bool:
-        f = a.astype(np.float32)
-        if not np.all(np.isfinite(f)):
-            raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
-    else:
-        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
+    else:  # floats on [0, 1], or anything else on its own range (a 0-255 float array), as a file's samples
+        f = a.astype(np.float32) / np.float32(sample_range(a))
     f = np.clip(f, 0.0, 1.0)
     if float(f.max() - f.min()) < 1.0 / 255.0:
         raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
     grey_in_colour = f.ndim == 3 and np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2])
     if resolve(encoding, 3 if f.ndim == 3 and not grey_in_colour else 1) == "srgb":
-        rgb8 = (f * 255.0 + 0.5).astype(np.uint8)
-        linear = srgb_to_linear(f)
+        # decoded as a file of the same samples is (by a table for 8 and 16 bits): fit(array) is fit(path)
+        rgb8 = a if a.dtype == np.uint8 else (f * 255.0 + 0.5).astype(np.uint8)
+        full = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(a.dtype)
+        linear = decode_samples(a, full) if full else srgb_to_linear(f)
         rgb8 = rgb8 if rgb8.ndim == 3 else np.repeat(rgb8[..., None], 3, axis=-1)
         if linear.ndim == 2:
-            return {"image": linear, "rgb8": rgb8}
-        return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}
+            return {"image": linear, "rgb8": rgb8}, scale
+        return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}, scale
     grey = np.clip(luminance(f), 0.0, 1.0)
-    return {"image": grey} if f.ndim == 2 else {"image": grey, "colour": f}
+    return ({"image": grey} if f.ndim == 2 else {"image": grey, "colour": f}), scale
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
@@ -142,8 +153,12 @@ def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
 def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     opts = options or MethodOptions()
     changes = {}
-    if light is not None:
-        changes["light"] = light if isinstance(light, str) else np.asarray(light, np.float64)
+    if isinstance(light, str) and light.strip().lower() in ("auto", "yaleb"):
+        changes["light"] = light.strip().lower()
+    elif isinstance(light, str):  # "0,0,1", "30,10": as the command line reads it
+        changes["light"] = parse_light(light)
+    elif light is not None:
+        changes["light"] = checked_light(light, "light")
     if eyes is not None:
         changes["eyes"] = np.asarray(eyes, np.float64).reshape(2, 2)
     return dataclasses.replace(opts, **changes) if changes else opts
@@ -156,7 +171,8 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
 
     image: a file (any format ``shadowflow run`` reads; a sidecar ``<stem>.json`` beside it is
     used) or an array (``_as_image``). light: None (a sidecar's, else estimated), "auto", "yaleb"
-    (from an Extended Yale B file name) or (3,) toward the light, camera frame. eyes: None
+    (from an Extended Yale B file name), (3,) toward the light, camera frame, or (2,) its azimuth and
+    elevation in degrees (azimuth > 0 toward the image's left, as Yale B's). eyes: None
     (detected, else a centred crop) or (2, 2) eye centres ``[[x, y], [x, y]]`` in input pixels,
     image-left first. model: None (the built-in ICT model), "ict", "procedural", a model ``.npz``
     or a ``ShapeModel``. options: every other choice (``MethodOptions``; ``light`` and ``eyes``
@@ -167,8 +183,14 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     if isinstance(image, (str, os.PathLike)):
         frame = Frame(0, str(image))
     else:
-        data = _as_image(image, opts.encoding)
-        frame = Frame(0, ARRAY_SOURCE, data=data, meta={"encoding": "srgb" if "rgb8" in data else "linear"})
+        data, scale = _as_image(image, opts.encoding, opts.max_pixels)
+        meta = {"encoding": "srgb" if "rgb8" in data else "linear"}
+        if scale != 1.0:  # reduced as a file would be: its given eyes with it
+            h, w = np.asarray(image).shape[:2]
+            meta["reduced"] = {"from": [w, h], "to": [data["image"].shape[1], data["image"].shape[0]]}
+            if opts.eyes is not None:
+                opts = dataclasses.replace(opts, eyes=np.asarray(opts.eyes) * scale)
+        frame = Frame(0, ARRAY_SOURCE, data=data, meta=meta)
     release_large_frees()
     with one_blas_thread():
         photo = Chain(photo_nodes(shape_model, opts)).process(frame)

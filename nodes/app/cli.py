@@ -48,8 +48,10 @@ from .record import (
     CONVERGENCE_PLOTS,
     DISPLAY_KINDS,
     frame_name,
+    frame_source,
     stage_rank,
 )
+from .outputs import real_path
 from .runner import RunOptions, check_writable, run_stream, tool_version
 
 FITS = ["gauss-newton", "irls", "paper"]
@@ -356,8 +358,21 @@ def cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_overwriting_the_recording(target: Path, recording: Path) -> None:
+    """``ValueError`` when ``replay --rrd`` would write over the recording it reads: the file given, or
+    in a run's folder, any file of it."""
+    real = real_path(target)
+    sources = {real_path(recording)}
+    if recording.is_dir():
+        sources |= {real_path(p) for p in recording.iterdir()}
+    if real in sources:
+        raise ValueError(f"--rrd {target}: is the recording being read (or a file of its run); write it elsewhere")
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
 
+    if args.rrd:
+        _refuse_overwriting_the_recording(Path(args.rrd), Path(args.recording))
     stream = open_frames(args.recording, arrays=bool(args.rrd))  # one frame in memory at a time
     rows, series = [], []
 
@@ -385,8 +400,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_diff(args: argparse.Namespace) -> int:
 
-    report = diff_streams(open_frames(args.a), open_frames(args.b), args.atol, args.rtol, key=frame_name,
-                          stage=stage_rank)
+    # frames pair by their input's path (two inputs may share a file name), then by its file name (a run over
+    # copies of the inputs elsewhere)
+    report = diff_streams(open_frames(args.a), open_frames(args.b), args.atol, args.rtol, key=frame_source,
+                          stage=stage_rank, fallback=frame_name)
     if not report.differences:
         print(f"same: {report.frames} frames, {report.iterations} iterations within atol={args.atol:g} "
               f"rtol={args.rtol:g}")
@@ -412,7 +429,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output folder (OUT/<stem>/..., OUT/summary.json)")
     r.add_argument("--demo", action="store_true", help="also run on built-in synthetic shadowed faces")
     r.add_argument("--model", help=MODEL_HELP)
-    r.add_argument("--light", default="auto", help="auto | yaleb | X,Y,Z (camera frame); a sidecar light wins")
+    r.add_argument("--light", default="auto",
+                   help="auto | yaleb | A,E (azimuth, elevation in degrees: azimuth > 0 toward the image's left, "
+                        "elevation > 0 up, as Yale B's) | X,Y,Z (a vector toward the light, camera frame); write "
+                        "--light=-30,10 for a negative first number; a sidecar light wins")
     r.add_argument("--fit", choices=FITS, default="gauss-newton",
                    help="gauss-newton (default) or irls: the same robust fit, reached by Gauss-Newton steps "
                         "or by the paper's alternation; paper: the paper's one-step formula throughout")
@@ -435,9 +455,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="auto (default): find every face by its landmarks (MediaPipe's detector and face mesh); "
                         "centre: take the image as one frontal face framed like the model grid; "
                         "X1,Y1,X2,Y2: one face with these eye centres, in the image; a sidecar's eyes win")
-    r.add_argument("--relight", action="append", metavar="X,Y,Z",
-                   help="also relight toward this light (camera frame; repeatable): relit_A<az>E<el>.png per light, "
-                        "beside relit.png (frontal)")
+    r.add_argument("--relight", action="append", metavar="A,E|X,Y,Z",
+                   help="also relight toward this light (angles in degrees or a vector, as --light; repeatable): "
+                        "relit_A<az>E<el>.png per light, beside relit.png (frontal)")
     r.add_argument("--eye-contrast", type=float, default=EYE_CONTRAST, metavar="C",
                    help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
                         f"lids) at this contrast (default {EYE_CONTRAST:g}; 0: off, the eye stays the smooth fill; "

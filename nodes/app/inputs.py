@@ -47,8 +47,9 @@ class FolderWatch:
     A file is taken once its size and mtime have stayed the same for ``settle`` seconds (or its
     mtime is already that old), so a file still being copied in is not read half-written. A
     file taken before is taken again when it changes (replaced, or completed after a stalled
-    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new (None: never,
-    until Ctrl-C), or when the folder goes away: ``error`` then says why (one line)."""
+    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new handed on and
+    nothing waiting to settle (None: never, until Ctrl-C), or when the folder goes away: ``error``
+    then says why (one line)."""
 
     def __init__(self, folder: Path, suffixes: set[str], idle_exit: float | None, poll: float = 0.5,
                  settle: float = 1.0):
@@ -83,6 +84,7 @@ class FolderWatch:
             if listing is None:
                 return
             now, wall = time.monotonic(), time.time()
+            waiting = False  # a file seen but not yet taken (being copied in): not idle
             for f, (size, mtime_ns, mtime) in listing.items():
                 ident = (size, mtime_ns)
                 if taken.get(f) == ident:
@@ -92,8 +94,11 @@ class FolderWatch:
                 settled = now - since[f][1] >= self.settle or wall - mtime >= self.settle
                 if size > 0 and settled:
                     taken[f] = ident
-                    last_new = now
                     yield str(f)
-            if self.idle_exit is not None and time.monotonic() - last_new > self.idle_exit:
+                    # the idle clock starts when a file is handed on: the run may take its time over a burst
+                    last_new = time.monotonic()
+                elif not settled:  # (an empty file that stays empty is nothing to wait for)
+                    waiting = True
+            if self.idle_exit is not None and not waiting and time.monotonic() - last_new > self.idle_exit:
                 return
             time.sleep(self.poll)

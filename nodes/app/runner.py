@@ -32,12 +32,13 @@ from ...flow.manifest import (
 from ...flow.pipeline import Pipeline, Stage
 from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
-from ...flow.recording.codec import jsonable
+from ...flow.jsonsafe import jsonable
 from ...flow.recording.process import renewed_sink
 from ..method.nodes import MethodOptions, photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import (
     OUTPUT_FILES,
+    RUN_FILES,
     WriteNode,
     real_path,
     safe_stem,
@@ -198,6 +199,21 @@ def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
     return out
 
 
+def run_file_clash(path: str, out: Path) -> str | None:
+    """Why an input cannot be run into ``out``: it, or its sidecar, is one of the files the run writes
+    beside its output folders (``summary.json`` would overwrite the sidecar of ``summary.png``, and
+    ``manifest.png`` would read the run's manifest as its own); None when nothing clashes."""
+    run_files = {real_path(out / name) for name in RUN_FILES}
+    p = Path(path)
+    if real_path(p) in run_files:
+        return f"{p}: is a file the run writes in --out; choose another --out"
+    side = p.with_suffix(".json")
+    if real_path(side) in run_files:
+        return (f"{p}: its sidecar {side.name} is the run's own {side.name} in --out; rename the photo or choose "
+                "another --out")
+    return None
+
+
 def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
                run: RunOptions, total: int | None = None) -> RunResult:
     """Process ``paths`` (any iterable, e.g. a folder watcher); see ``RunResult``.
@@ -206,6 +222,10 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     over-quota output folder stops the run (frames written so far stay complete, ``summary.json``
     lists them); ``--resume`` finishes the job once there is room.
     """
+    if isinstance(paths, (list, tuple)):
+        for path in paths:
+            if run_file_clash(path, out):
+                raise ValueError(run_file_clash(path, out))
     check_writable(out)
     release_large_frees()
     holder = f"pid {os.getpid()} on {socket.gethostname()}, started {time.strftime('%Y-%m-%d %H:%M:%S')}"
@@ -343,6 +363,11 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             protected.add(real_path(path))
             frame = Frame(fid, path)
             frame.meta.update(stem=name, input_key=key, identity=identity)
+            clash = run_file_clash(path, out)
+            if clash:  # (a watched folder's newcomer: a listed one refused the run before it began)
+                frame.fail("load", clash)
+                yield frame
+                continue
             reusable = (run.resume and earlier is not None and earlier.record is not None
                         and earlier.record.get("status") == "ok" and earlier.config == config_id)
             if reusable:  # (a changed configuration was said once, above)

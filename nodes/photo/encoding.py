@@ -2,8 +2,9 @@
 stores it sRGB-encoded (about its 2.2nd root): the method works on linear values, decoded from the
 photo's encoding, and every image it writes goes back to that encoding.
 
-A colour photo (3 channels) is taken as sRGB, a grey one as linear (Yale B's PGMs are a camera's
-linear data; the project's renders are written linear), unless ``--encoding`` says otherwise.
+A colour photo (3 channels) and any JPEG are taken as sRGB, another grey one as linear (Yale B's PGMs
+are a camera's linear data; the project's renders are written linear), unless ``--encoding`` says
+otherwise.
 """
 from __future__ import annotations
 

@@ -40,6 +40,8 @@ MAX_SIDE = 32_000  # OpenCV's warps stop at 32767 pixels a side
 MAX_ASPECT = 16  # a face photo is not a strip
 MAX_WORK_PIXELS = 4_000_000  # photos are processed at most this size (``read_photo``'s max_pixels)
 MAX_FILE_BYTES = 512 << 20
+MAX_PLAIN_PNM_PIXELS = 4_000_000  # a plain (ASCII) PNM is parsed token by token: a test file, not a camera's
+MAX_SIDECAR_BYTES = 64 << 10  # a sidecar holds a light and two eyes: a few dozen bytes
 
 
 def _read_file(p: Path) -> bytes:
@@ -87,7 +89,29 @@ def _read_binary_pnm(data: bytes) -> tuple[np.ndarray, int] | None:
     return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
 
 
-def _check_size(p: Path, width: int, height: int) -> None:
+def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, int] | None:
+    """A plain (ASCII) PGM (P2) or PPM (P3), already checked to be ``width`` x ``height``, as
+    ``_read_binary_pnm`` gives a binary one (its samples on the scale 0..maxval, whatever the maxval);
+    None when it is malformed (too few samples, one over maxval)."""
+    text = re.sub(rb"#[^\n]*", b" ", data)  # comments may sit anywhere between tokens
+    tokens = text.split()
+    channels = 3 if tokens[0] == b"P3" else 1
+    try:
+        maxval = int(tokens[3])
+        count = width * height * channels
+        if not 0 < maxval < 65536 or len(tokens) < 4 + count:
+            return None
+        samples = np.array(tokens[4:4 + count], dtype=np.int64)
+    except (ValueError, IndexError):
+        return None
+    if samples.min() < 0 or samples.max() > maxval:
+        return None
+    samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
+    samples = samples.reshape((height, width, 3) if channels == 3 else (height, width))
+    return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
+
+
+def check_size(p: Path, width: int, height: int) -> None:
     if width * height > MAX_PIXELS:
         raise InputError(f"{p}: {width}x{height} pixels exceeds the {MAX_PIXELS // 1_000_000}-megapixel limit; "
                          "downscale it first")
@@ -110,7 +134,7 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
         raise InputError(f"{p}: not a readable .npy array ({exc})") from None
     if len(shape) != 2 or dtype.hasobject or not np.issubdtype(dtype, np.number):
         raise InputError(f"{p}: .npy input must be a 2-D numeric array, got {dtype} {shape}")
-    _check_size(p, shape[1], shape[0])
+    check_size(p, shape[1], shape[0])
     try:
         fh.seek(0)
         arr = np.load(fh, allow_pickle=False)
@@ -179,7 +203,7 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
     colour = None
     if p.suffix.lower() == ".npy":
         img = _load_npy(p, data)
-        small = _shrunk(img, max_pixels)
+        small = shrunk(img, max_pixels)
         return Photo(small, None, small.shape[1] / img.shape[1], (img.shape[1], img.shape[0]))
     tiff = data[:4] in TIFF_MAGIC
     try:
@@ -197,8 +221,15 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
                          "downscale it first") from None
     except (OSError, ValueError, SyntaxError, IndexError, KeyError):
         raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
-    _check_size(p, width, height)
+    check_size(p, width, height)
     pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
+    if data[:2] in (b"P2", b"P3"):  # plain PNM: read here, whatever its maxval (OpenCV scales only 8 and 16 bits)
+        if width * height > MAX_PLAIN_PNM_PIXELS:
+            raise InputError(f"{p}: a plain (ASCII) PNM of {width}x{height} pixels; over "
+                             f"{MAX_PLAIN_PNM_PIXELS // 1_000_000} megapixels, save it as a binary one")
+        pnm = _read_ascii_pnm(data, width, height)
+        if pnm is None:
+            raise InputError(f"{p}: corrupt or truncated plain PNM data")
     reduce = 1
     if pnm is not None:  # by its own maxval: OpenCV reads 10- and 12-bit PNM with the bytes swapped
         raw, maxval = pnm
@@ -230,13 +261,15 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
         raise InputError(f"{p}: image holds NaN or infinite values")
     if raw.dtype.kind not in "uif":
         raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
-    full = _sample_range(raw if colour_raw is None else colour_raw)
-    raw, colour_raw = _shrunk(raw, max_pixels), None if colour_raw is None else _shrunk(colour_raw, max_pixels)
+    full = sample_range(raw if colour_raw is None else colour_raw)
+    raw, colour_raw = shrunk(raw, max_pixels), None if colour_raw is None else shrunk(colour_raw, max_pixels)
     lo, hi = float(raw.min()) / full, float(raw.max()) / full
     if hi - lo < 1.0 / 255.0:
         raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
     scale = max(raw.shape) / max(width, height)  # EXIF may turn it
-    if resolve(encoding, 1 if colour_raw is None else 3) == "srgb":
+    # a JPEG is sRGB-encoded whatever its channels (a black-and-white photo too); other grey files (Yale B's PGMs,
+    # the project's renders) are taken as linear
+    if resolve(encoding, 3 if colour_raw is not None or kind == "JPEG" else 1) == "srgb":
         encoded = raw if colour_raw is None else colour_raw
         rgb8 = encoded if encoded.dtype == np.uint8 and full == 255.0 else \
             (np.clip(encoded.astype(np.float32) / np.float32(full), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
@@ -259,7 +292,7 @@ def _grey(bgr: np.ndarray) -> np.ndarray:
     return bgr.astype(np.float32) @ LUMA[::-1]
 
 
-def _sample_range(raw: np.ndarray) -> float:
+def sample_range(raw: np.ndarray) -> float:
     """What full brightness is in these samples (see ``read_photo``)."""
     if raw.dtype == np.uint8:
         return 255.0
@@ -274,7 +307,7 @@ def _sample_range(raw: np.ndarray) -> float:
     return top  # beyond 16 bits no depth is standard: the brightest sample is full brightness
 
 
-def _shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
+def shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
     """(H, W) or (H, W, C) samples area-averaged to at most ``max_pixels`` pixels, in their own type
     when OpenCV can (8/16-bit, float), so a large photo is never held as floats at full size."""
     h, w = samples.shape[:2]
@@ -341,19 +374,31 @@ def yaleb_light(path: str | os.PathLike) -> np.ndarray:
 
 
 def parse_light(text: str) -> np.ndarray:
-    """``"x,y,z"`` -> (3,) unit vector toward the light, camera frame."""
+    """``"x,y,z"`` (a vector) or ``"A,E"`` (azimuth, elevation in degrees, ``light_from_angles``) ->
+    (3,) unit vector toward the light, camera frame."""
     try:
         v = np.array([float(t) for t in text.split(",")], np.float64)
     except ValueError:
-        raise ValueError(f"light {text!r} is not three numbers x,y,z") from None
+        raise ValueError(f"light {text!r} is not two angles A,E (degrees) or three numbers x,y,z") from None
     return checked_light(v, f"light {text!r}")
 
 
+MAX_AZIMUTH = 180.0
+MAX_ELEVATION = 90.0
+
+
 def checked_light(v: np.ndarray, what: str) -> np.ndarray:
-    """Validate and normalise a light vector; raise ``ValueError`` naming ``what``."""
+    """Validate and normalise a light: three numbers are a vector toward it (camera frame), two are
+    its azimuth and elevation in degrees (the Yale B convention, ``light_from_angles``: azimuth > 0
+    toward the image's left, elevation > 0 up); raise ``ValueError`` naming ``what``."""
     v = np.asarray(v, np.float64).reshape(-1)
+    if v.shape == (2,) and np.all(np.isfinite(v)):
+        if abs(v[0]) > MAX_AZIMUTH or abs(v[1]) > MAX_ELEVATION:
+            raise ValueError(f"{what}: azimuth must be within +-{MAX_AZIMUTH:g} and elevation within "
+                             f"+-{MAX_ELEVATION:g} degrees")
+        v = light_from_angles(v[0], v[1])
     if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what}: must be three finite numbers")
+        raise ValueError(f"{what}: must be two angles (azimuth, elevation in degrees) or three finite numbers")
     n = np.linalg.norm(v)
     if n < 1e-9:
         raise ValueError(f"{what}: is the zero vector")
@@ -375,7 +420,16 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             return Sidecar()
         raise InputError(f"{p}: cannot look for its sidecar {side.name} ({exc.strerror or exc})") from None
     try:
-        data = json.loads(side.read_text(encoding="utf-8"))
+        size = side.stat().st_size
+        if size > MAX_SIDECAR_BYTES:
+            raise InputError(f"{p}: its sidecar {side.name} is {size} bytes, over the {MAX_SIDECAR_BYTES}-byte limit "
+                             "(a sidecar holds a light and two eyes)")
+        with side.open("rb") as fh:  # no more than the limit is read, whatever the file grows to meanwhile
+            raw = fh.read(MAX_SIDECAR_BYTES + 1)
+        if len(raw) > MAX_SIDECAR_BYTES:
+            raise InputError(f"{p}: its sidecar {side.name} is over the {MAX_SIDECAR_BYTES}-byte limit")
+        # utf-8-sig: a byte-order mark (some editors write one) is not part of the JSON
+        data = json.loads(raw.decode("utf-8-sig"))
         if not isinstance(data, dict):
             raise ValueError("top level is not an object")
         light = checked_light(data["light"], "light") if "light" in data else None
@@ -384,6 +438,10 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             eyes = np.asarray(data["eyes"], np.float64)
             if eyes.shape != (2, 2) or not np.all(np.isfinite(eyes)):
                 raise ValueError("eyes must be [[x1, y1], [x2, y2]]")
-    except (ValueError, TypeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{p}: malformed sidecar {side.name} ({exc})") from None
+    except InputError:
+        raise
+    except OSError as exc:
+        raise InputError(f"{p}: its sidecar {side.name} cannot be read ({exc.strerror or exc})") from None
+    except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
+        raise InputError(f"{p}: malformed sidecar {side.name} ({' '.join(str(exc).split())})") from None
     return Sidecar(light=light, eyes=eyes)

@@ -115,3 +115,17 @@ def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_reli
     result.save(tmp_path / "out")
     saved = cv2.imread(str(tmp_path / "out" / "relit.png"), cv2.IMREAD_UNCHANGED)
     assert saved.shape == (h, w, 3)
+
+
+def test_fit_of_a_colour_array_is_fit_of_the_file_holding_it(tmp_path):
+    """The astronaut (scikit-image, public domain) as a uint8 array and as the PNG of it: the same
+    numbers out, bit for bit (they differed by up to 0.59 on 0.5 % of the relit pixels)."""
+    import cv2
+
+    data = pytest.importorskip("skimage.data")
+    rgb = np.ascontiguousarray(data.astronaut())
+    cv2.imwrite(str(tmp_path / "a.png"), rgb[..., ::-1])
+    from_file, from_array = shadowflow.fit(tmp_path / "a.png"), shadowflow.fit(rgb)
+    assert np.array_equal(from_file.relit, from_array.relit)
+    assert np.array_equal(from_file.normals, from_array.normals, equal_nan=True)
+    assert from_file.faces == from_array.faces

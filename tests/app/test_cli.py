@@ -246,3 +246,35 @@ def test_an_input_given_twice_is_processed_once_under_one_name(tmp_path, demo_ru
     assert code == 0, err
     assert err.count(f"{face}: given more than once; processed once") == 1
     assert [r["stem"] for r in json.loads((out / "summary.json").read_text())] == ["face", "face-2"]
+
+
+def test_a_light_given_by_its_angles_is_the_light_given_by_its_vector(tmp_path):
+    """``--light=30,10`` (azimuth, elevation in degrees, Yale B's convention) and the vector it names,
+    ``--light=-0.4924,0.1736,0.8529``, give the same fit; so do ``--relight`` and a sidecar's angles."""
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src = tmp_path / "in"
+    src.mkdir()
+    photo = write_shadowed_face(src / "face.png", np.random.default_rng(6), light_from_angles(30, 10))
+    eyes = json.loads(photo.with_suffix(".json").read_text())["eyes"]
+    photo.with_suffix(".json").write_text(json.dumps({"eyes": eyes}))  # the light from the command line
+    outs = {}
+    for name, light in (("angles", "--light=30,10"), ("vector", "--light=-0.4924,0.1736,0.8529")):
+        outs[name] = tmp_path / name
+        assert main(["run", str(photo), "--out", str(outs[name]), "--quiet", "--record", "none", light,
+                     "--relight=-20,0"]) == 0
+    recs = [json.loads((outs[k] / "summary.json").read_text())[0] for k in outs]
+    assert np.allclose(recs[0]["light"], recs[1]["light"], atol=1e-4)
+    assert recs[0]["iterations"] == recs[1]["iterations"]
+    a, b = (np.load(outs[k] / "face" / "normals.npy") for k in outs)
+    # the vector is the angles' rounded to 4 decimals (5e-5 apart): the normals agree to 0.1 degree
+    assert np.nanmax(np.abs(a - b)) < 3e-3 and np.nanmean(np.abs(a - b)) < 2e-4
+    assert (outs["angles"] / "face" / "relit_A-020E+00.png").is_file()
+    # the same angles in a sidecar
+    photo.with_suffix(".json").write_text(json.dumps({"eyes": eyes, "light": [30, 10]}))
+    side = tmp_path / "sidecar"
+    assert main(["run", str(photo), "--out", str(side), "--quiet", "--record", "none"]) == 0
+    rec = json.loads((side / "summary.json").read_text())[0]
+    assert rec["light_source"] == "sidecar" and np.allclose(rec["light"], light_from_angles(30, 10), atol=1e-6)
+    assert main(["run", str(photo), "--out", str(tmp_path / "bad"), "--quiet", "--light=200,0"]) == 2

@@ -89,7 +89,10 @@ def _variants(folder: Path, image: np.ndarray, side: str) -> dict[str, str]:
     put("palette.png", lambda p: Image.fromarray(image).convert("P").save(p))
 
     def exif_rotated(p: Path) -> None:  # stored rotated; the EXIF tag says how to show it upright
-        im = Image.fromarray(np.ascontiguousarray(np.rot90(image, 1)))
+        from shadowflow.nodes.photo.encoding import linear_to_srgb
+
+        encoded = (linear_to_srgb(image / 255.0) * 255 + 0.5).astype(np.uint8)  # a JPEG is sRGB, as a camera's
+        im = Image.fromarray(np.ascontiguousarray(np.rot90(encoded, 1)))
         exif = im.getexif()
         exif[0x0112] = 6  # "rotate 90 degrees clockwise to display"
         im.save(p, "JPEG", quality=98, exif=exif.tobytes())
@@ -563,8 +566,12 @@ def test_a_33_megapixel_jpeg_is_read_reduced_and_memory_stays_bounded(tmp_path):
     (libjpeg's 1/2 scale, then area-averaged), their sidecar eyes scaled with them."""
     face = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(4), light_from_angles(40), source="ict")
     side = json.loads(face.with_suffix(".json").read_text())
-    k = 44  # 128 px render -> 5632 px: a 5632 x 5632 frame, 31.7 MP
-    big = cv2.resize(cv2.imread(str(face)), None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+    k = 44  # 128 px render -> 5632 px: a 5632 x 5632 frame, 31.7 MP, sRGB-encoded as a camera's JPEG is
+    from shadowflow.nodes.photo.encoding import linear_to_srgb
+
+    linear = cv2.resize(cv2.imread(str(face)) / np.float32(255.0), None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+    big = (linear_to_srgb(linear) * 255 + 0.5).astype(np.uint8)
+    del linear
     photo = tmp_path / "big.jpg"
     cv2.imwrite(str(photo), big, [cv2.IMWRITE_JPEG_QUALITY, 90])
     del big

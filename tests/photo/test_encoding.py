@@ -64,3 +64,12 @@ def test_a_colour_portrait_comes_back_srgb_its_surroundings_as_they_were(tmp_pat
     lit = out.mask & out.lit & (out.weights > 0.9)
     diff = np.abs(relit8[lit].astype(int) - given[lit].astype(int))
     assert np.median(diff) <= 1  # relit by its own light, the lit face is itself
+
+
+def test_a_black_and_white_jpeg_is_srgb_as_a_camera_saved_it(tmp_path):
+    grey = np.tile(np.linspace(40, 220, 64).astype(np.uint8), (64, 1))
+    cv2.imwrite(str(tmp_path / "bw.jpg"), grey, [cv2.IMWRITE_JPEG_QUALITY, 100])
+    cv2.imwrite(str(tmp_path / "bw.png"), grey)
+    assert read_photo(tmp_path / "bw.jpg", encoding="auto").encoding == "srgb"
+    assert read_photo(tmp_path / "bw.png", encoding="auto").encoding == "linear"
+    assert read_photo(tmp_path / "bw.jpg", encoding="linear").encoding == "linear"

@@ -2,6 +2,7 @@ import json
 
 import cv2
 import numpy as np
+from shadowflow.nodes.geometry.reflectance import light_from_angles
 import pytest
 from shadowflow.nodes.photo.loader import InputError, load_image, load_photo, parse_light, read_sidecar, yaleb_light
 
@@ -58,9 +59,13 @@ def test_unreadable_files_name_the_file(tmp_path):
 
 def test_light_sources(tmp_path):
     np.testing.assert_allclose(parse_light("-1,0,1"), np.array([-1, 0, 1]) / np.sqrt(2))
-    for bad, why in (("0,0,0", "zero"), ("1,0,-1", "away"), ("1,2", "three"), ("a,b,c", "three"), ("nan,0,1", "finite")):
+    for bad, why in (("0,0,0", "zero"), ("1,0,-1", "away"), ("1,2,3,4", "three"), ("a,b,c", "three"),
+                     ("nan,0,1", "finite"), ("200,0", "azimuth"), ("0,95", "elevation"), ("120,0", "away")):
         with pytest.raises(ValueError, match=why):
             parse_light(bad)
+    # two numbers: azimuth and elevation in degrees, Yale B's convention (azimuth toward the image's left)
+    np.testing.assert_allclose(parse_light("30,10"), light_from_angles(30, 10))
+    assert parse_light("60,0")[0] < -0.8  # toward the image's left: x negative
     with pytest.raises(InputError, match="impossible"):
         yaleb_light("yaleB01_P00A+200E+00.pgm")
     with pytest.raises(InputError, match="no Yale B light"):

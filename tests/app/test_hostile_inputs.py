@@ -1,0 +1,111 @@
+"""Hostile use of the inputs (the watched folder, the names of inputs, sidecars, the run's own files in
+--out): nothing a user gave is lost, nothing left waiting is called done. Each case failed as described
+before its fix."""
+import json
+import time
+
+import cv2
+import numpy as np
+import pytest
+from shadowflow.nodes.app.cli import main
+
+
+def _face(path, seed=3, az=30):
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    return write_shadowed_face(path, np.random.default_rng(seed), light_from_angles(az))
+
+
+def test_the_watch_idle_clock_starts_when_the_last_file_is_handed_on(tmp_path):
+    """``--watch --idle-exit S`` ended with photos still waiting (34 of 160 processed) when the run took
+    longer than S over a burst: the clock ran from when the burst was listed."""
+    from shadowflow.nodes.app.inputs import FolderWatch
+
+    for k in range(12):
+        cv2.imwrite(str(tmp_path / f"f{k:02d}.png"), np.full((40, 40), 100 + k, np.uint8))
+    watch = FolderWatch(tmp_path, {".png"}, idle_exit=0.3, poll=0.05, settle=0.0)
+    taken = []
+    for path in watch:  # a consumer slower than the idle time, as a run over a burst is
+        taken.append(path)
+        time.sleep(0.1)
+    assert len(taken) == 12
+
+
+def test_inputs_named_like_the_runs_own_files_get_folders_of_their_own(tmp_path):
+    """Inputs named summary.json.png, report.html.png, manifest.json.png, run.mcap.png, run.rrd.png:
+    their output folders collided with the run's files ("free space" errors, no report), and
+    --resume could never get past them."""
+    src = tmp_path / "in"
+    src.mkdir()
+    base = _face(src / "face.png")
+    names = ["summary.json.png", "report.html.png", "manifest.json.png", "run.mcap.png", "run.rrd.png"]
+    for name in names:
+        (src / name).write_bytes(base.read_bytes())
+        (src / name).with_suffix(".json").write_text(base.with_suffix(".json").read_text())
+    out = tmp_path / "out"
+    for resume in ([], ["--resume"]):
+        assert main(["run", str(src), "--out", str(out), "--quiet", *resume]) == 0
+        records = json.loads((out / "summary.json").read_text())
+        assert [r["status"] for r in records] == ["ok"] * 6
+    stems = {r["stem"] for r in records}
+    assert {"summary.json-2", "report.html-2", "manifest.json-2", "run.mcap-2", "run.rrd-2"} <= stems
+    assert (out / "report.html").is_file() and (out / "run.mcap").is_file()
+
+
+def test_out_in_the_input_folder_never_writes_over_a_photos_sidecar(tmp_path, capsys):
+    """``--out`` the input folder: the run's summary.json and manifest.json overwrote the sidecars of
+    photos called summary.png and manifest.png (and manifest.png was fitted with the run's manifest as
+    its sidecar)."""
+    src = tmp_path / "in"
+    src.mkdir()
+    base = _face(src / "face.png")
+    for name in ("summary", "manifest"):
+        (src / f"{name}.png").write_bytes(base.read_bytes())
+        (src / f"{name}.json").write_text(base.with_suffix(".json").read_text())
+    before = {p.name: p.read_bytes() for p in src.iterdir()}
+    assert main(["run", str(src), "--out", str(src), "--quiet", "--record", "none"]) == 2
+    assert "is the run's own" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in src.iterdir() if p.name in before} == before
+
+
+def test_relight_files_are_never_written_over_an_input(tmp_path, capsys):
+    """A photo sitting where a ``--relight`` file goes (``OUT/<stem>/relit_A+030E+00.png``) was overwritten."""
+    out = tmp_path / "out"
+    (out / "face").mkdir(parents=True)
+    photo = _face(out / "face" / "relit_A+030E+00.png")
+    src = tmp_path / "in"
+    src.mkdir()
+    _face(src / "face.png", seed=4)
+    before = photo.read_bytes()
+    assert main(["run", str(src / "face.png"), str(photo), "--out", str(out), "--quiet", "--record", "none",
+                 "--relight=30,0"]) == 1
+    assert photo.read_bytes() == before
+    assert "would overwrite an input" in capsys.readouterr().err
+
+
+def test_two_relight_lights_with_one_file_name_are_refused(tmp_path, capsys):
+    """``--relight`` lights within a degree wrote one file name, the earlier ones lost."""
+    src = _face(tmp_path / "face.png")
+    assert main(["run", str(src), "--out", str(tmp_path / "out"), "--quiet", "--relight=30,0",
+                 "--relight=30.2,0.1"]) == 2
+    assert "give them a degree apart" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("eyes", ["82,48,46,48", "sidecar"])
+def test_eyes_given_right_eye_first_are_taken_in_image_order(tmp_path, eyes):
+    """Eyes given image-right first (``--eyes`` or a sidecar) were fitted upside down and called ``ok``."""
+    src = _face(tmp_path / "face.png")
+    side = json.loads(src.with_suffix(".json").read_text())
+    args = ["--light", "30,0"]
+    if eyes == "sidecar":
+        src.with_suffix(".json").write_text(json.dumps({"eyes": side["eyes"][::-1]}))
+    else:
+        src.with_suffix(".json").write_text(json.dumps({}))
+        args += ["--eyes", eyes]
+    out = tmp_path / "out"
+    assert main(["run", str(src), "--out", str(out), "--quiet", "--record", "none", *args]) == 0
+    rec = json.loads((out / "summary.json").read_text())[0]
+    assert rec["status"] == "ok" and rec["faces"][0]["eyes"] == [[46.0, 48.0], [82.0, 48.0]]
+    normals = np.load(out / "face" / "normals.npy")
+    assert np.nanmedian(normals[:40, :, 1]) > 0  # the forehead faces up: the face is fitted the right way up

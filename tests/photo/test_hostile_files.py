@@ -1,0 +1,78 @@
+"""Hostile files at the loader: plain PNMs of any depth, sidecars of any size or with a byte-order
+mark, eyes that cannot place a face, and arrays given to the API that are too large, empty or on
+another scale. Each case failed as described before its fix."""
+import json
+
+import numpy as np
+import pytest
+from shadowflow.nodes.photo.loader import InputError, read_photo, read_sidecar
+
+
+def _plain(path, magic, maxval, samples):
+    h, w = samples.shape[:2]
+    body = " ".join(str(int(v)) for v in samples.reshape(-1))
+    path.write_text(f"{magic}\n# made by a test\n{w} {h}\n{maxval}\n{body}\n")
+    return path
+
+
+def test_plain_pnm_of_any_depth_is_read_on_its_own_scale(tmp_path):
+    """A 12-bit P3 came out 16x too dark (and ``ok``); a 10-bit P2 failed with an internal error."""
+    ramp = np.tile(np.linspace(0, 1, 48), (40, 1))
+    p3 = _plain(tmp_path / "twelve.ppm", "P3", 4095, np.dstack([ramp, ramp / 2, ramp / 4]) * 4095)
+    p2 = _plain(tmp_path / "ten.pgm", "P2", 1023, np.round(ramp * 1023))
+    colour = read_photo(p3, encoding="linear").colour
+    np.testing.assert_allclose(colour[0, -1], [1.0, 0.5, 0.25], atol=1e-3)
+    grey = read_photo(p2).grey
+    np.testing.assert_allclose(grey[5], ramp[5], atol=1e-3)
+    (tmp_path / "short.pgm").write_text("P2\n40 40\n255\n1 2 3\n")
+    with pytest.raises(InputError, match="short.pgm: corrupt or truncated plain PNM"):
+        read_photo(tmp_path / "short.pgm")
+
+
+def test_a_sidecar_is_read_with_a_byte_order_mark_and_refused_when_huge(tmp_path):
+    """A sidecar with a UTF-8 BOM was "malformed"; a 300 MB one was read whole, a 4 GB sparse one until
+    memory ran out."""
+    photo = tmp_path / "face.png"
+    photo.write_bytes(b"")
+    (tmp_path / "face.json").write_bytes(b"\xef\xbb\xbf" + json.dumps({"light": [0, 0, 1]}).encode())
+    assert read_sidecar(photo).light.tolist() == [0.0, 0.0, 1.0]
+    with open(tmp_path / "face.json", "wb") as fh:  # sparse: 4 GB on the directory, nothing on disk
+        fh.truncate(4 << 30)
+    with pytest.raises(InputError, match="face.png: its sidecar face.json is .* over the 65536-byte limit"):
+        read_sidecar(photo)
+    (tmp_path / "face.json").write_text('{"light": ' + "[" * 100000 + "]" * 100000 + "}")
+    with pytest.raises(InputError, match="face.png: its sidecar face.json is"):
+        read_sidecar(photo)
+
+
+def test_arrays_given_to_fit_are_checked_and_reduced_as_files_are():
+    """``shadowflow.fit`` of a 10000 x 10000 array applied neither the 40 MP limit nor the 4 MP reduction
+    (294 s, 8.6 GB, then MemoryError); an empty or 0-255 float array and NaN eyes gave internal errors."""
+    import shadowflow
+    from shadowflow.nodes.app.api import _as_image
+
+    with pytest.raises(InputError, match="exceeds the 40-megapixel limit"):
+        _as_image(np.lib.stride_tricks.as_strided(np.zeros(1, np.uint8), (10000, 10000), (0, 0)))
+    with pytest.raises(InputError, match="too small"):
+        shadowflow.fit(np.zeros((0, 0)))
+    data, scale = _as_image(np.zeros((3000, 3000), np.uint8) + np.arange(3000, dtype=np.uint8)[None, :],
+                            max_pixels=4_000_000)
+    assert scale == pytest.approx(2000 / 3000, abs=1e-3) and data["image"].shape == (2000, 2000)
+    data, _ = _as_image(np.tile(np.linspace(0, 255, 64), (64, 1)))  # floats over 1: on their own range
+    assert data["image"].max() == pytest.approx(1.0) and data["image"][0, 32] == pytest.approx(0.51, abs=0.02)
+    for eyes in ([[np.nan, 1], [2, 3]], [[1e9, 1], [2e9, 3]], [[10, 10], [10.5, 10]]):
+        with pytest.raises(InputError, match="given eyes"):
+            shadowflow.fit(np.random.default_rng(0).random((100, 100)), eyes=eyes)
+
+
+def test_a_light_given_to_fit_is_read_as_the_command_line_reads_it():
+    """A light that is not unit length gave a different, failed fit (the command line normalises it);
+    one given as a string ("0,0,1", "YALEB") was silently replaced by an estimate."""
+    from shadowflow.nodes.app.api import _options
+
+    assert np.allclose(_options(None, [0, 0, 2], None).light, [0, 0, 1])
+    assert np.allclose(_options(None, "0,0,1", None).light, [0, 0, 1])
+    assert np.allclose(_options(None, "30,10", None).light, _options(None, [30, 10], None).light)
+    assert _options(None, "YALEB", None).light == "yaleb"
+    with pytest.raises(ValueError, match="points away"):
+        _options(None, [0, 0, -1], None)
