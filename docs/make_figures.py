@@ -1,5 +1,7 @@
-"""Regenerate the README's figures from faces the project renders (ICT-FaceKit identities), never
-from evaluation data: ``python docs/make_figures.py`` (writes docs/demo.png, docs/portrait.png)."""
+"""Regenerate the README's figures from faces the project renders (ICT-FaceKit identities) and from
+scikit-image's public-domain ``astronaut`` (NASA), never from evaluation data:
+``python docs/make_figures.py`` (writes docs/astronaut.png, docs/demo.png, docs/portrait.png; needs
+scikit-image, in the ``eval`` and ``test`` extras)."""
 from __future__ import annotations
 
 import json
@@ -12,6 +14,7 @@ import numpy as np
 import shadowflow
 from shadowflow.nodes.evaluation.scenes import draw_face, write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.photo.encoding import linear_to_srgb
 
 DOCS = Path(__file__).resolve().parent
 
@@ -23,6 +26,47 @@ def _grey8(img: np.ndarray) -> np.ndarray:
     else:
         g = cv2.cvtColor(g.astype(np.float32), cv2.COLOR_GRAY2BGR)
     return (g * 255 + 0.5).astype(np.uint8)
+
+
+def _label(img: np.ndarray, text: str) -> np.ndarray:
+    """``img`` (BGR uint8) with ``text`` on a dark band along its top."""
+    out = img.copy()
+    cv2.rectangle(out, (0, 0), (out.shape[1], 26), (0, 0, 0), -1)
+    cv2.putText(out, text, (8, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
+def astronaut_figure(folder: Path) -> np.ndarray:
+    """scikit-image's astronaut: the photo with the face the finder found (box, eyes, outline), relit
+    frontally, relit from 60 degrees to the image's right and to its left (``--relight``), each a
+    crop around her head and shoulders, doubled."""
+    from skimage import data
+
+    rgb = np.ascontiguousarray(data.astronaut())
+    path = folder / "astronaut.png"
+    cv2.imwrite(str(path), rgb[..., ::-1])
+    r = shadowflow.fit(path, options=shadowflow.MethodOptions(
+        extra_lights=(light_from_angles(-60, 10), light_from_angles(60, 10))))
+    relit = [img for _, img in r.photo.data["photo_relit"]]
+    found = rgb[..., ::-1].copy()
+    face = r.faces[0]
+    x0, y0, x1, y1 = (int(round(v)) for v in face["box"])
+    cv2.rectangle(found, (x0, y0), (x1, y1), (80, 220, 80), 1, cv2.LINE_AA)
+    for poly in r.frame.data["placement"].outlines["oval"] + r.frame.data["placement"].outlines["eyes"]:
+        cv2.polylines(found, [np.round(poly).astype(np.int32)], True, (255, 200, 0), 1, cv2.LINE_AA)
+    for x, y in face["eyes"]:
+        cv2.drawMarker(found, (int(round(x)), int(round(y))), (0, 0, 255), cv2.MARKER_CROSS, 7, 1, cv2.LINE_AA)
+    crop = (slice(24, 280), slice(100, 356))
+
+    def panel(bgr: np.ndarray, text: str) -> np.ndarray:
+        return _label(cv2.resize(bgr[crop], None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC), text)
+
+    pose = face["pose"]
+    return np.hstack([panel(rgb[..., ::-1], "photo"),
+                      panel(found, f"face found (yaw {pose['yaw']:+.0f}, pitch {pose['pitch']:+.0f})"),
+                      panel(_grey8(relit[0]), "relit frontally"),
+                      panel(_grey8(relit[1]), "relit from the right (60, 10)"),
+                      panel(_grey8(relit[2]), "relit from the left (-60, 10)")])
 
 
 def demo_figure(folder: Path) -> np.ndarray:
@@ -52,18 +96,20 @@ def portrait_figure(folder: Path) -> np.ndarray:
     _, on, _ = draw_face(np.random.default_rng(8), source="ict")  # the face write_shadowed_face drew, shadows too
     region[on] = (0.06 + 0.94 * grey[on])[:, None] * np.array([1.0, 0.78, 0.62])  # a little ambient, as in a photo
     photo = folder / "portrait.png"
-    cv2.imwrite(str(photo), _grey8(frame))
+    cv2.imwrite(str(photo), _grey8(linear_to_srgb(frame)))  # saved as a camera would: sRGB-encoded
     side = json.loads(face_png.with_suffix(".json").read_text())
     eyes = (np.array(side["eyes"]) + [left, top]).tolist()
     photo.with_suffix(".json").write_text(json.dumps({"light": side["light"], "eyes": eyes}))
     options = shadowflow.MethodOptions(extra_lights=(light_from_angles(-45),))
     r = shadowflow.fit(photo, options=options)
-    other = r.frame.data["photo_relit"][1][1]
-    return np.hstack([_grey8(frame), _grey8(r.relit), _grey8(other), _grey8(np.where(r.mask[..., None], r.albedo, 0))])
+    other = r.photo.data["photo_relit"][1][1]
+    return np.hstack([_grey8(linear_to_srgb(frame)), _grey8(r.relit), _grey8(other),
+                      _grey8(np.where(r.mask[..., None], r.albedo, 0))])
 
 
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as tmp:
+        cv2.imwrite(str(DOCS / "astronaut.png"), astronaut_figure(Path(tmp)))
         cv2.imwrite(str(DOCS / "demo.png"), demo_figure(Path(tmp)))
         cv2.imwrite(str(DOCS / "portrait.png"), portrait_figure(Path(tmp)))
-    print(f"wrote {DOCS / 'demo.png'} and {DOCS / 'portrait.png'}")
+    print(f"wrote {DOCS / 'astronaut.png'}, {DOCS / 'demo.png'} and {DOCS / 'portrait.png'}")

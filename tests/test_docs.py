@@ -5,7 +5,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = ["README.md", "recordings/README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))]
+DOCS = ["README.md", "CONTRIBUTING.md", "LICENSES/README.md", "recordings/README.md",
+        *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))]
 
 
 def _anchors(text: str) -> set[str]:
@@ -29,3 +30,29 @@ def test_every_link_resolves(doc):
         elif anchor and file.suffix == ".md" and anchor not in _anchors(file.read_text()):
             broken.append(target)
     assert broken == []
+
+
+def test_the_readme_is_a_page_and_opens_with_a_real_photo():
+    """About 200 lines (at most 250), its first figure the astronaut's, and that figure made by
+    docs/make_figures.py."""
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 250
+    figures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert figures[0] == "docs/astronaut.png"
+    made = (ROOT / "docs" / "make_figures.py").read_text()
+    assert all(Path(f).name in made for f in figures if f.startswith("docs/") and "viewer" not in f)
+
+
+def test_the_readme_commands_name_options_the_command_line_has():
+    """Every ``shadowflow <command> --option`` in the README is one the parser knows."""
+    from shadowflow.nodes.app.cli import build_parser
+
+    blocks = "\n".join(re.findall(r"```sh\n(.*?)```", (ROOT / "README.md").read_text(), re.S))
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if a.dest == "command").choices
+    for line in re.findall(r"shadowflow (\w+) (.*)$", blocks, re.M):
+        command, rest = line
+        assert command in subparsers, command
+        known = {opt for a in subparsers[command]._actions for opt in a.option_strings}
+        for opt in re.findall(r"(--[a-z][a-z-]*)", rest):
+            assert opt in known, (command, opt)
