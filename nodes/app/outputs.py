@@ -19,7 +19,7 @@ from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_ch
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
-from ..method.products import squeeze_channels, input_grid_products, photo_mesh, relit_photos
+from ..method.products import face_products, on_photo, photo_mesh, relit_photos, squeeze_channels
 from ..model.shape_model import ShapeModel
 
 # a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
@@ -127,7 +127,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     written = {}
     for face in faces_of(frame):
         sub = face_folder(int(face.meta.get("face", 1)))
-        for name, path in write_face(face, model, folder / sub if sub else folder, relit).items():
+        for name, path in write_face(face, model, folder / sub if sub else folder).items():
             written[f"{sub}/{name}" if sub else name] = path
     encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
     for light, image in relit[1:]:
@@ -138,17 +138,24 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     return written
 
 
-def write_face(face: Frame, model: ShapeModel, folder: Path, relit: list) -> dict[str, str]:
-    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path."""
-    p = input_grid_products(face, model, relit)
-    mask = p.pop("mask")
+def write_face(face: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
+    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. Made from the face's
+    box (``face_products``): only the arrays' files hold the whole photo's grid, as conventions.md
+    asks."""
+    box, p = face_products(face, model)
+    shape = face.data["image"].shape[:2]
+    mask = p["mask"]
+
+    def png(values8: np.ndarray) -> bytes:
+        return _png_bytes(on_photo(values8, box, shape))
+
     encoders = {
-        "normals.npy": lambda: _npy_bytes(p.pop("normals")),
-        "mask.png": lambda: _png_bytes(np.where(mask, 255, 0).astype(np.uint8)),
-        "weights.npy": lambda: _npy_bytes(p.pop("weights")),
-        "depth.npy": lambda: _npy_bytes(p.pop("depth")),
-        "albedo.png": lambda: _png_bytes(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
-        "shadow.png": lambda: _png_bytes(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
+        "normals.npy": lambda: _npy_bytes(on_photo(p.pop("normals"), box, shape)),
+        "mask.png": lambda: png(np.where(mask, 255, 0).astype(np.uint8)),
+        "weights.npy": lambda: _npy_bytes(on_photo(p.pop("weights"), box, shape)),
+        "depth.npy": lambda: _npy_bytes(on_photo(p.pop("depth"), box, shape)),
+        "albedo.png": lambda: png(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
+        "shadow.png": lambda: png(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
         "novel_view.png": lambda: _png_bytes(to_8bit(face.data["novel_view"], face.data["novel_view"] > 0)),
         "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face, model)),  # the fit's resolution, the photo's frame
     }

@@ -474,7 +474,7 @@ class PhotoRelightNode:
         # everything happens in the box around the face (plus the feather): a large photo's background
         # costs nothing, and the photo outside the box is not touched
         y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * feather + 4)
-        al = Alignment(full.matrix - np.array([[0.0, 0.0, x0], [0.0, 0.0, y0]]), full.how)
+        al = full.cropped(x0, y0)
         photo = full_photo[y0:y1, x0:x1]
         shape = photo.shape[:2]
         face = mask_to_input(m.mask, al, shape)

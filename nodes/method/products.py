@@ -8,7 +8,7 @@ import numpy as np
 from ...flow.frame import Frame
 from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
-from ..photo.align import mask_to_input, normals_to_input, scalar_to_input
+from ..photo.align import face_box, mask_to_input, normals_to_input, reach_margin, scalar_to_input
 from ..photo.encoding import linear_to_srgb
 from .photo_relight import FaceLayer, compose
 from .relight import surface_mesh
@@ -17,45 +17,87 @@ from .relight import surface_mesh
 def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.ndarray:
     """(H, W) bool over a photo (H, W): the model's face under the frame's alignment, within the
     face's own outline when its landmarks gave one (``placement.outlines["oval"]``)."""
-    d = frame.data
-    mask = mask_to_input(model.mask, d["alignment"], shape)
-    placement = d.get("placement")
-    if placement is not None and placement.outlines:
-        mask &= polygon_mask(placement.outlines["oval"][0], shape)
+    box = product_box(frame, model, shape)
+    mask = np.zeros(shape, bool)
+    mask[box[0]:box[1], box[2]:box[3]] = _box_mask(frame, model, box)
     return mask
+
+
+def product_box(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> tuple[int, int, int, int]:
+    """``(row0, row1, col0, col1)`` of the photo (H, W) that holds everything the face's products
+    know: beyond it they are NaN (0 in masks), so only this box is computed."""
+    al = frame.data["alignment"]
+    return face_box(model.mask, al, shape, margin=reach_margin(al))
+
+
+def _box_mask(frame: Frame, model: ShapeModel, box: tuple[int, int, int, int]) -> np.ndarray:
+    y0, y1, x0, x1 = box
+    mask = mask_to_input(model.mask, frame.data["alignment"].cropped(x0, y0), (y1 - y0, x1 - x0))
+    placement = frame.data.get("placement")
+    if placement is not None and placement.outlines:
+        mask &= polygon_mask(placement.outlines["oval"][0] - [x0, y0], mask.shape)
+    return mask
+
+
+def _in_box(values: np.ndarray, src: tuple[int, int, int, int], dst: tuple[int, int, int, int], fill) -> np.ndarray:
+    """``values`` (h, w[, C]) covering the photo's box ``src`` seen through the box ``dst``: ``fill`` where ``src``
+    does not reach."""
+    out = np.full((dst[1] - dst[0], dst[3] - dst[2]) + values.shape[2:], fill, values.dtype)
+    r0, r1, c0, c1 = max(src[0], dst[0]), min(src[1], dst[1]), max(src[2], dst[2]), min(src[3], dst[3])
+    if r1 > r0 and c1 > c0:
+        out[r0 - dst[0]:r1 - dst[0], c0 - dst[2]:c1 - dst[2]] = values[r0 - src[0]:r1 - src[0], c0 - src[2]:c1 - src[2]]
+    return out
+
+
+def face_products(frame: Frame, model: ShapeModel) -> tuple[tuple[int, int, int, int], dict[str, np.ndarray]]:
+    """One face's results on the photo's pixels inside its ``product_box`` ``(row0, row1, col0, col1)``
+    (beyond it each is NaN, or False): ``(box, {mask, normals, weights, depth, albedo, lit})`` as
+    ``input_grid_products`` describes them, each (h, w[, C]) the box's size. Only the box is computed:
+    a 4-megapixel photo's background costs nothing."""
+    d = frame.data
+    box = product_box(frame, model, d["image"].shape[:2])
+    y0, y1, x0, x1 = box
+    al, bshape, m = d["alignment"].cropped(x0, y0), (y1 - y0, x1 - x0), model.mask
+    mask = _box_mask(frame, model, box)
+    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, bshape)
+    depth = scalar_to_input(d["depth"], m, al, bshape) * np.float32(al.scale)
+    normals = normals_to_input(d["normals"], m, al, bshape)
+    # the relit box (``photo_box``) holds the photo's albedo and shadow
+    albedo = _in_box(d["photo_albedo"].astype(np.float32), d["photo_box"], box, np.nan)
+    shadow = _in_box(np.asarray(d["photo_shadow"], bool), d["photo_box"], box, False)
+    nan = np.float32(np.nan)
+    return box, {
+        "mask": mask,
+        "normals": np.where(mask[..., None], normals, nan).astype(np.float32),
+        "weights": np.where(mask, np.clip(weights, 0, 1), nan).astype(np.float32),
+        "depth": np.where(mask, depth, nan).astype(np.float32),
+        "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, nan))),
+        "lit": mask & ~shadow,
+    }
+
+
+def on_photo(values: np.ndarray, box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndarray:
+    """A box's ``values`` (h, w[, C]) placed in an array of the photo's ``shape`` (H, W): NaN (floats)
+    or False / 0 elsewhere."""
+    fill = np.nan if values.dtype.kind == "f" else 0
+    out = np.full(tuple(shape) + values.shape[2:], fill, values.dtype)
+    out[box[0]:box[1], box[2]:box[3]] = values
+    return out
 
 
 def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = None) -> dict[str, np.ndarray]:
     """One face's results on the INPUT image's pixel grid (see ``conventions.md``): mask,
     normals, weights, depth (input pixels), lit (H, W); albedo (H, W) or (H, W, 3) for a colour
     photo, NaN off the face, in the photo's encoding; relit: the photo relit by ``relight_light`` (H,
-    W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)`` for each of ``extra_lights``.
-    frame: the face's frame; relit: the photo's relit images with every face (``relit_photos`` of
-    the photo's frame), default this face's alone."""
-    d = frame.data
-    al = d["alignment"]
-    shape = d["image"].shape[:2]
-    m = model.mask
-    mask = face_mask(frame, model, shape)
-    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, shape)
-    depth = scalar_to_input(d["depth"], m, al, shape) * al.scale
-    y0, y1, x0, x1 = d["photo_box"]
-    channels = d["photo_albedo"].shape[-1]
-    albedo = np.full(shape + (channels,), np.nan, np.float32)
-    albedo[y0:y1, x0:x1] = d["photo_albedo"]
-    shadow = np.zeros(shape, bool)
-    shadow[y0:y1, x0:x1] = d["photo_shadow"]
+    W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)``
+    for each of ``extra_lights``. frame: the face's frame; relit: the photo's relit images with every
+    face (``relit_photos`` of the photo's frame), default this face's alone."""
+    shape = frame.data["image"].shape[:2]
+    box, products = face_products(frame, model)
     relit = relit_photos(frame) if relit is None else relit
-    return {
-        "mask": mask,
-        "normals": np.where(mask[..., None], normals_to_input(d["normals"], m, al, shape), np.nan).astype(np.float32),
-        "weights": np.where(mask, np.clip(weights, 0, 1), np.nan).astype(np.float32),
-        "depth": np.where(mask, depth, np.nan).astype(np.float32),
-        "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, np.nan))),
-        "lit": mask & ~shadow,
-        "relit": squeeze_channels(relit[0][1]),
-        "relit_extra": [(light, squeeze_channels(r)) for light, r in relit[1:]],
-    }
+    return {**{name: on_photo(values, box, shape) for name, values in products.items()},
+            "relit": squeeze_channels(relit[0][1]),
+            "relit_extra": [(light, squeeze_channels(r)) for light, r in relit[1:]]}
 
 
 def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -40,6 +40,11 @@ class Alignment:
         u, _, vt = np.linalg.svd(lin)
         return u @ vt
 
+    def cropped(self, x0: float, y0: float) -> Alignment:
+        """The same placement on the photo cropped at column ``x0``, row ``y0`` (the crop's pixel
+        ``(0, 0)`` is the photo's ``(x0, y0)``)."""
+        return Alignment(self.matrix - np.array([[0.0, 0.0, x0], [0.0, 0.0, y0]]), self.how)
+
     def points_to_input(self, points: np.ndarray) -> np.ndarray:
         """(M, 2) model-grid points ``(col, row)`` -> (M, 2) input pixels ``(x, y)``."""
         return np.asarray(points, np.float64) @ self.matrix[:, :2].T + self.matrix[:, 2]
@@ -100,21 +105,37 @@ def stretch_vertically(al: Alignment, factor: float, about_row: float, how: str)
 
 def inside_input(al: Alignment, input_shape: tuple[int, int], grid: tuple[int, int]) -> np.ndarray:
     """(Hm, Wm) bool: model pixels whose place in the input lies inside the photo."""
-    ones = np.ones(input_shape[:2], np.float32)
-    inside = cv2.warpAffine(ones, al.matrix, (grid[1], grid[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    r0, r1, c0, c1 = grid_reach(al, grid, input_shape, 2)
+    ones = np.ones((r1 - r0, c1 - c0), np.float32)
+    inside = cv2.warpAffine(ones, al.cropped(c0, r0).matrix, (grid[1], grid[0]),
+                            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     return inside >= 0.999
 
 
+def grid_reach(al: Alignment, grid: tuple[int, int], shape: tuple[int, int], reach: int) -> tuple[int, int, int, int]:
+    """``(row0, row1, col0, col1)``: the photo's (H, W) pixels the model grid (Hm, Wm) covers under ``al``,
+    grown by ``reach`` pixels and cut to the photo; the whole photo when the grid lies wholly off it."""
+    corners = al.points_to_input(np.array([[-1, -1], [grid[1], -1], [-1, grid[0]], [grid[1], grid[0]]], np.float64))
+    c0, r0 = np.maximum(np.floor(corners.min(axis=0)).astype(int) - reach, 0)
+    c1, r1 = np.minimum(np.ceil(corners.max(axis=0)).astype(int) + reach + 1, [shape[1], shape[0]])
+    if c1 <= c0 or r1 <= r0:
+        return 0, shape[0], 0, shape[1]
+    return int(r0), int(r1), int(c0), int(c1)
+
+
 def to_model_grid(image: np.ndarray, al: Alignment, grid: tuple[int, int]) -> np.ndarray:
-    """Resample an input image (H, W) onto the model grid (area-averaged when shrinking)."""
-    img = np.asarray(image, np.float32)
-    if al.scale > 1.5:
-        # Pre-blur so a large photo is averaged, not aliased, when sampled at the model grid.
-        sigma = 0.5 * np.sqrt(al.scale**2 - 1.0)
-        img = cv2.GaussianBlur(img, (0, 0), sigma)
-    return cv2.warpAffine(img, al.matrix, (grid[1], grid[0]), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_REPLICATE)
+    """Resample an input image (H, W) onto the model grid (area-averaged when shrinking). Only the
+    photo's pixels the grid reaches (and the blur's) are touched: a 4-megapixel photo costs what its
+    face does."""
+    img = np.asarray(image)
+    sigma = 0.5 * np.sqrt(al.scale**2 - 1.0) if al.scale > 1.5 else 0.0
+    r0, r1, c0, c1 = grid_reach(al, grid, img.shape, int(np.ceil(4 * sigma)) + 2)  # OpenCV's kernel: 4 sigma
+    crop = np.asarray(img[r0:r1, c0:c1], np.float32)
+    if sigma:
+        # pre-blurred so a large photo is averaged, not aliased, when sampled at the model grid
+        crop = cv2.GaussianBlur(crop, (0, 0), sigma)
+    return cv2.warpAffine(crop, al.cropped(c0, r0).matrix, (grid[1], grid[0]),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _to_input(values: np.ndarray, al: Alignment, shape: tuple[int, int], interp: int) -> np.ndarray:
@@ -175,7 +196,8 @@ def normals_to_model(normals: np.ndarray, valid: np.ndarray, al: Alignment,
 
 def face_box(mask: np.ndarray, al: Alignment, shape: tuple[int, int], margin: float = 0.0) -> tuple[int, int, int, int]:
     """``(row0, row1, col0, col1)``: the input pixels the model-grid ``mask`` (Hm, Wm) covers under
-    ``al``, grown by ``margin`` pixels and cut to the input ``shape`` (H, W)."""
+    ``al``, grown by ``margin`` pixels and cut to the input ``shape`` (H, W). A field brought to the
+    photo (``scalar_to_input``) reaches at most one model pixel beyond its mask: ``reach_margin``."""
     rows, cols = np.nonzero(mask)
     corners = np.array([[cols.min(), rows.min()], [cols.max(), rows.min()], [cols.min(), rows.max()],
                         [cols.max(), rows.max()]], np.float64)
@@ -184,3 +206,9 @@ def face_box(mask: np.ndarray, al: Alignment, shape: tuple[int, int], margin: fl
     c0, r0 = int(max(0, np.floor(lo[0]))), int(max(0, np.floor(lo[1])))
     c1, r1 = int(min(shape[1], np.ceil(hi[0]))), int(min(shape[0], np.ceil(hi[1])))
     return r0, max(r1, r0 + 1), c0, max(c1, c0 + 1)
+
+
+def reach_margin(al: Alignment) -> float:
+    """Photo pixels a ``face_box`` must grow by to hold everything ``mask_to_input`` and
+    ``scalar_to_input`` can mark as known (one model pixel, interpolated, plus one for rounding)."""
+    return al.scale + 1.0

@@ -94,3 +94,44 @@ def test_a_mask_comes_to_the_photo_with_a_smooth_border_not_a_staircase_of_model
     x = np.arange(20, 100)
     assert np.abs(top - np.polyval(np.polyfit(x, top, 1), x)).max() < 1.0
     assert photo.sum() == pytest.approx(mask.sum() * 16, rel=0.05)  # the face keeps its size
+
+
+@pytest.mark.parametrize("eyes", [[[500.0, 400.0], [620.0, 410.0]], [[10.0, 5.0], [200.0, 30.0]],
+                                  [[1150.0, 870.0], [1190.0, 880.0]], [[-30.0, 400.0], [60.0, 380.0]]])
+def test_the_model_grid_is_sampled_from_the_photo_as_if_the_whole_photo_were_blurred(eyes):
+    """``to_model_grid`` and ``inside_input`` touch only the photo's pixels the grid (and the blur)
+    reach; what they give is the same, to the bit, as blurring and warping the whole photo, for a face
+    in the middle, at a corner, small, and partly off the photo."""
+    import cv2
+    from shadowflow.nodes.photo.align import inside_input, to_model_grid
+
+    rng = np.random.default_rng(0)
+    photo = rng.random((900, 1200)).astype(np.float32)
+    al = eyes_alignment(np.array(eyes), np.array([[40.0, 50.0], [88.0, 50.0]]))
+    whole = cv2.GaussianBlur(photo, (0, 0), 0.5 * np.sqrt(al.scale**2 - 1.0)) if al.scale > 1.5 else photo
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    expected = cv2.warpAffine(whole, al.matrix, (128, 128), flags=flags, borderMode=cv2.BORDER_REPLICATE)
+    np.testing.assert_array_equal(to_model_grid(photo, al, (128, 128)), expected)
+    ones = cv2.warpAffine(np.ones(photo.shape, np.float32), al.matrix, (128, 128), flags=flags,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    np.testing.assert_array_equal(inside_input(al, photo.shape, (128, 128)), ones >= 0.999)
+
+
+def test_a_faces_products_lie_inside_the_box_they_are_computed_on():
+    """The fields and the mask a face's products hold, brought to the whole photo, are known only
+    inside ``face_box(..., reach_margin)``: computing them on that box loses nothing (a box one model
+    pixel short of the reach cut the mask's edge)."""
+    from shadowflow.nodes.photo.align import face_box, mask_to_input, reach_margin, scalar_to_input
+
+    mask = np.zeros((128, 128), bool)
+    mask[20:110, 25:100] = True
+    shape = (700, 900)
+    for eyes in ([[300.0, 250.0], [420.0, 262.0]], [[500.0, 300.0], [520.0, 340.0]]):
+        al = eyes_alignment(np.array(eyes), np.array([[46.0, 48.0], [82.0, 48.0]]))
+        y0, y1, x0, x1 = face_box(mask, al, shape, margin=reach_margin(al))
+        known = np.isfinite(scalar_to_input(np.ones((128, 128), np.float32), mask, al, shape)) | mask_to_input(mask, al, shape)
+        outside = known.copy()
+        outside[y0:y1, x0:x1] = False
+        assert known.sum() > 1000 and not outside.any()
+        boxed = mask_to_input(mask, al.cropped(x0, y0), (y1 - y0, x1 - x0))
+        assert np.mean(boxed != mask_to_input(mask, al, shape)[y0:y1, x0:x1]) < 1e-3
