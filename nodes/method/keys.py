@@ -43,6 +43,8 @@ DATA: dict[str, tuple[str, str]] = {
                      "relight_photo"),
     "photo_layers": ("list of (light (3,), ``FaceLayer``): the face relit, to compose into the photo",
                      "relight_photo"),
+    "live": ("``LiveFace``: what relights the face for any light in view.html (a preview of its box)",
+             "relight_photo"),
 }
 
 # frame.meta: key -> (what it holds, who writes it); all JSON-friendly, summarised in summary.json

@@ -32,9 +32,13 @@ from ..photo.placement import FacePlacement, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST, EyeDetail
 from .light import estimate_light, expected_normals
+from .live_relight import live_relight_data
 from .photo_relight import (
+    CLIPPED,
+    LIT_SHADING,
     FaceLayer,
     clipped_floor,
+    exposure_target,
     grow,
     inner_alpha,
     lit_weight,
@@ -56,7 +60,6 @@ from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, 
 
 PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocular distances
 PHOTO_FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
-LIT_SHADING = 0.3  # skin with at least this shading (n . s) is lit: the relit face's exposure is matched on it
 # the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``). On
 # the five Yale B subjects (frontal relight, dB at +-25 / +-50 / +-70 / +-35+15): 24.50 / 21.89 / 19.18 / 22.14
 # unsmoothed, 24.66 / 22.01 / 19.28 / 22.27 at 1.0, 24.69 / 22.01 / 19.33 / 22.28 at 1.5, 24.69 / 21.92 / 19.34 /
@@ -526,8 +529,10 @@ class PhotoRelightNode:
         for light in (self.options.relight_light, *self.options.extra_lights):
             s = np.asarray(light, np.float64) / np.linalg.norm(light)
             cast = cast_shadow(d["depth"], al.vector_to_model(s))
-            cast_in = np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)) >= 0.5
-            new_shading = np.where(cast_in, np.float32(0.0), np.clip(normals @ s.astype(np.float32), 0.0, None))
+            # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
+            # model pixel's soft ramp, not a staircase of them across the cheek
+            cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)), 0.0, 1.0)
+            new_shading = (np.float32(1.0) - cast_in) * np.clip(normals @ s.astype(np.float32), 0.0, None)
             # the albedo this light can trust: I / S also where S is small but S' is no larger
             light_albedo = albedo_for(trust_for(with_ambient(new_shading, ambient)))
             # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
@@ -540,6 +545,11 @@ class PhotoRelightNode:
                               outside_gain(photo, face_image, face, feather), alpha)
             layers.append((np.asarray(light, np.float64), layer))
         d.update(photo_box=(y0, y1, x0, x1), photo_albedo=albedo, photo_shadow=shadow, photo_layers=layers)
+        d["live"] = live_relight_data(
+            box=(y0, y1, x0, x1), photo=photo, albedo=albedo, normals=normals, face=face, alpha=alpha, skin=skin_only,
+            want=exposure_target(photo, lit_skin), ambient=ambient, photo_light=np.asarray(d["light"], np.float64),
+            clipped=(np.atleast_3d(photo) >= CLIPPED) & face[..., None], depth=d["depth"], grid_mask=m.mask,
+            to_box=al.matrix, encoding=frame.meta.get("encoding", "linear"))
         return frame
 
 

@@ -26,6 +26,9 @@ TRUST_SHADING = (0.4, 0.6)
 MAX_AMPLIFICATION = (1.1, 1.5)
 MIN_SHADING = (0.08, 0.15)
 CLIPPED = 0.995  # brightness at or above this in any channel: the skin's value is unknown
+# a clipped pixel's bound divides by the photo's shading, at least this (``clipped_floor``)
+CLIP_RATIO_FLOOR = 0.05
+LIT_SHADING = 0.3  # skin with at least this shading (n . s) is lit: the relit face's exposure is matched on it
 MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
 # the share of the light a face's shadowed side keeps (ambient, fill): a face relit from the side has its shadowed
 # side this bright, as a photo's is, not black. Measured from the photo's attached shadow when it shows one
@@ -199,7 +202,7 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     clipped = (img >= CLIPPED) & face[..., None]
     if not clipped.any():
         return face_image
-    ratio = np.asarray(new_shading, np.float32) / np.maximum(np.asarray(shading, np.float32), np.float32(0.05))
+    ratio = np.asarray(new_shading, np.float32) / np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
     bound = np.float32(gain) * ratio[..., None]
     return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
@@ -224,17 +227,30 @@ def with_ambient(shading: np.ndarray, ambient: float) -> np.ndarray:
     return (np.float32(ambient) + np.float32(1.0 - ambient) * np.asarray(shading, np.float32)).astype(np.float32)
 
 
+def exposure_target(photo: np.ndarray, lit_skin: np.ndarray) -> float | None:
+    """The median brightness (mean over channels) of the skin the photo shows lit (``lit_skin`` (H, W)
+    bool): what a relit face is exposed to (``skin_exposure``); None when that skin is nearly empty."""
+    if lit_skin.sum() < 50:
+        return None
+    return float(np.median(np.atleast_3d(photo).mean(axis=-1)[lit_skin]))
+
+
 def skin_exposure(photo: np.ndarray, relit: np.ndarray, lit_skin: np.ndarray, relit_skin: np.ndarray) -> float:
     """The factor that gives a relit face the exposure of the photo's own lit skin: the median
-    brightness of the skin the photo shows lit (``lit_skin``) over the median of the relit face's lit
-    skin (``relit_skin``). Relit by the photo's own light it is 1 (the photo comes back as it was);
-    a face lit from 70 deg relit frontally would otherwise be three times as bright as the skin the
-    photo shows, the lamp being the same. photo, relit (H, W, C); lit_skin, relit_skin (H, W) bool;
-    1 when either is nearly empty."""
-    if lit_skin.sum() < 50 or relit_skin.sum() < 50:
+    brightness of the skin the photo shows lit (``lit_skin``, ``exposure_target``) over the median of
+    the relit face's lit skin (``relit_skin``). Relit by the photo's own light it is 1 (the photo
+    comes back as it was); a face lit from 70 deg relit frontally would otherwise be three times as
+    bright as the skin the photo shows, the lamp being the same. photo, relit (H, W, C); lit_skin,
+    relit_skin (H, W) bool; 1 when either is nearly empty."""
+    return exposure_gain(exposure_target(photo, lit_skin), relit, relit_skin)
+
+
+def exposure_gain(want: float | None, relit: np.ndarray, relit_skin: np.ndarray) -> float:
+    """``want`` (``exposure_target``) over the median brightness of ``relit`` (H, W, C) on
+    ``relit_skin`` (H, W) bool; 1 when either is unknown or nearly empty."""
+    if want is None or relit_skin.sum() < 50:
         return 1.0
     have = float(np.median(np.atleast_3d(relit).mean(axis=-1)[relit_skin]))
-    want = float(np.median(np.atleast_3d(photo).mean(axis=-1)[lit_skin]))
     return want / have if have > 1e-6 else 1.0
 
 

@@ -1,0 +1,135 @@
+"""A face relit live: the few arrays a browser needs to relight one face for any light, at a
+preview's resolution, and ``render_live``, the reference the page's JavaScript follows step for
+step (``nodes/app/view.py``).
+
+The live face is the product's relighting (``PhotoRelightNode``) without what needs the whole
+photo or a second look at it: the albedo is the one ``albedo.png`` holds (the product trusts the
+photo's own pixels a little further where a light changes the shading little), and the photo
+around the face is left as it is (the product carries the face's change of light into hair and
+neck). Inside the face the two agree to a few grey levels (``docs/relighting.md``).
+
+Arrays are on the preview's pixel grid (h, w), a face's box of the photo scaled to at most
+``LIVE_SIDE`` pixels a side; ``C`` is 1 (grey) or 3 (RGB); light directions in the camera frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..photo.align import Alignment, scalar_to_input
+from ..photo.encoding import linear_to_srgb, srgb_to_linear
+from .photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, exposure_gain, with_ambient
+from .shadow import cast_shadow
+
+LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
+
+
+FACE, SKIN, CLIPPED_BIT = 1, 2, 4  # ``LiveFace.flags``: the face, its skin, its clipped channels (4 << c)
+
+
+@dataclass(frozen=True)
+class LiveFace:
+    """What relights one face for any light, as the page receives it (integers, so the page and
+    ``render_live`` start from the same numbers). box: ``(y0, y1, x0, x1)`` the photo's pixels the
+    preview shows; photo8 (h, w, C) uint8, the photo in its own ``encoding`` ("srgb" or "linear");
+    albedo16 (h, w, C) uint16, the linear albedo over ``albedo_scale``; normals16 (h, w, 3) int16,
+    camera frame, x 32767; flags (h, w) uint8 (``FACE``, ``SKIN``, ``CLIPPED_BIT << c``: the photo at
+    the top of its range); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
+    want: the exposure of the photo's lit skin (``exposure_target``) or None; ambient: the room's share
+    of the light; photo_light (3,); depth (Hm, Wm) float32 the fit's height field, NaN off its mask;
+    to_preview (2, 3) model pixel -> preview pixel."""
+
+    box: tuple[int, int, int, int]
+    photo8: np.ndarray
+    albedo16: np.ndarray
+    albedo_scale: float
+    normals16: np.ndarray
+    flags: np.ndarray
+    alpha8: np.ndarray
+    want: float | None
+    ambient: float
+    photo_light: np.ndarray
+    depth: np.ndarray
+    to_preview: np.ndarray
+    encoding: str
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.flags.shape
+
+
+def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
+                      face: np.ndarray, alpha: np.ndarray, skin: np.ndarray, want: float | None, ambient: float,
+                      photo_light: np.ndarray, clipped: np.ndarray, depth: np.ndarray, grid_mask: np.ndarray,
+                      to_box: np.ndarray, encoding: str, side: int = LIVE_SIDE) -> LiveFace:
+    """A ``LiveFace`` from the relighting's arrays on the photo's box (h, w): photo, albedo (h, w, C)
+    linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
+    (2, 3) model pixel -> box pixel. Scaled (area-averaged) to at most ``side`` pixels a side."""
+    h, w = face.shape
+    k = min(1.0, side / max(h, w))
+    size = (max(1, round(w * k)), max(1, round(h * k)))  # (width, height) as OpenCV takes it
+    kx, ky = size[0] / w, size[1] / h
+
+    def area(a: np.ndarray) -> np.ndarray:
+        a = np.asarray(a, np.float32)
+        out = a if k == 1.0 else cv2.resize(a, size, interpolation=cv2.INTER_AREA)
+        return out.reshape(size[1], size[0], *a.shape[2:])
+
+    f = area(face) >= 0.5
+    n = area(np.where(face[..., None], normals, 0.0))
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-6)
+    n = np.where(f[..., None], n, 0.0)
+    a = np.where(f[..., None], area(np.nan_to_num(np.atleast_3d(albedo))), 0.0)
+    scale = float(max(a.max(), 1e-6))
+    shown = area(np.atleast_3d(photo))
+    shown = linear_to_srgb(shown) if encoding == "srgb" else np.clip(shown, 0.0, 1.0)
+    flags = f * FACE + ((area(skin) >= 0.5) & f) * SKIN
+    for c, channel in enumerate(np.moveaxis(area(np.atleast_3d(clipped)).reshape(size[1], size[0], -1), -1, 0)):
+        flags = flags + ((channel >= 0.5) & f) * (CLIPPED_BIT << c)
+    # pixel centres: preview (x + 0.5) = k (box x + 0.5)
+    to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
+    return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),
+                    albedo16=np.round(a / scale * 65535.0).astype(np.uint16), albedo_scale=scale,
+                    normals16=np.round(n * 32767.0).astype(np.int16), flags=flags.astype(np.uint8),
+                    alpha8=np.round(np.where(f, area(alpha), 0.0) * 255.0).astype(np.uint8),
+                    want=want, ambient=float(ambient), photo_light=np.asarray(photo_light, np.float64),
+                    depth=np.where(grid_mask, depth, np.nan).astype(np.float32), to_preview=to_preview,
+                    encoding=encoding)
+
+
+def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
+    """(h, w) float32 in [0, 1]: how much of each preview pixel is in ``light``'s cast shadow, traced on
+    the fit's height field (its model grid, as the product does) and brought to the preview."""
+    al = Alignment(live.to_preview, "live")
+    cast = cast_shadow(live.depth, al.vector_to_model(light))
+    mask = np.isfinite(live.depth)
+    return np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), mask, al, live.size)), 0.0, 1.0)
+
+
+def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None) -> np.ndarray:
+    """(h, w, C) float32 in [0, 1], in the photo's encoding: the preview with its face relit by
+    ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (``S'`` the new shading, less the
+    share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than the clipping proves,
+    faded into the photo by ``alpha``. cast: the light's cast shadow (``live_cast``), traced when None."""
+    s = np.asarray(light, np.float64)
+    s = s / np.linalg.norm(s)
+    cast = live_cast(live, s) if cast is None else cast
+    normals = live.normals16.astype(np.float32) / np.float32(32767.0)
+    albedo = live.albedo16.astype(np.float32) * np.float32(live.albedo_scale / 65535.0)
+    face, skin = (live.flags & FACE) > 0, (live.flags & SKIN) > 0
+    clipped = np.stack([(live.flags & (CLIPPED_BIT << c)) > 0 for c in range(albedo.shape[-1])], axis=-1)
+    photo = live.photo8.astype(np.float32) / np.float32(255.0)
+    photo = srgb_to_linear(photo) if live.encoding == "srgb" else photo
+    new = np.where(face, (1.0 - cast) * np.clip(normals @ s.astype(np.float32), 0.0, None), 0.0).astype(np.float32)
+    lighting = with_ambient(new, live.ambient)
+    unexposed = albedo * lighting[..., None]
+    gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
+    face_image = np.float32(gain) * unexposed
+    old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
+    bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
+    face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
+    a = (live.alpha8.astype(np.float32) / np.float32(255.0))[..., None]
+    out = a * face_image + (1.0 - a) * photo
+    return (linear_to_srgb(out) if live.encoding == "srgb" else out).astype(np.float32)
