@@ -9,7 +9,7 @@ import heapq
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, Mapping
+from typing import Callable, Collection, Iterable, Iterator, Mapping
 
 import numpy as np
 
@@ -143,10 +143,10 @@ def format_table(rows: list[ConvergenceRow]) -> str:
 
 
 def plot_convergence(series: Iterable[tuple[object, Mapping]], path: str | Path, keys: tuple[str, ...],
-                     labels: Mapping[str, str] | None = None, legend_max: int = 12) -> Path:
+                     labels: Mapping[str, str] | None = None, legend_max: int = 12, highlight: Collection = ()) -> Path:
     """``convergence_figure`` written as a PNG at ``path``; returns the path."""
     path = Path(path)
-    convergence_figure(series, keys, labels, legend_max).savefig(path)
+    convergence_figure(series, keys, labels, legend_max, highlight).savefig(path)
     return path
 
 
@@ -170,31 +170,31 @@ def plot_label(text: str) -> str:
 
 
 def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str, ...],
-                       labels: Mapping[str, str] | None = None, legend_max: int = 12):
+                       labels: Mapping[str, str] | None = None, legend_max: int = 12, highlight: Collection = ()):
     """A matplotlib ``Figure`` with one panel per scalar of ``keys``, one line per frame against
     the iteration, on a log scale where a panel's values are all positive. series: (frame label,
     {iteration: {name: value}}) per frame, e.g. ``(name, fr.scalars[channel])``; values that are
     missing or not finite numbers are left out. labels: a panel's title (with its unit) by key.
-    Up to ``legend_max`` frames get a legend; more are coloured along a colour bar of their
-    order."""
+    Up to ``legend_max`` frames get a legend, a colour each; more are drawn thin and grey with their
+    median per iteration in black, and those named in ``highlight`` (up to ``legend_max``) in colour
+    with a legend: a run's odd frames stand out of the crowd."""
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
     series = list(series)
     labels = labels or {}
+    many = len(series) > legend_max
+    marked = [k for k, (label, _) in enumerate(series) if many and label in set(highlight)][:legend_max]
     # fixed margins: a constrained layout measured every tick label again and took half the drawing time
-    side = 2.6 if len(series) <= legend_max else 1.1  # inches right of the panels: the legend or the colour bar
+    side = 2.6 if not many or marked else 0.3  # inches right of the panels: the legend
     width = 4.4 * len(keys) + side
     fig = Figure(figsize=(width, 3.6), dpi=110)
     fig.subplots_adjust(left=0.85 / width, right=1 - side / width, bottom=0.14, top=0.9, wspace=0.4)
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(keys), squeeze=False)[0]
-    many = len(series) > legend_max
-    cmap = colormaps["viridis"] if many else colormaps["tab10"]
+    cmap = colormaps["tab10"]
     handles = {}  # frame -> its first line: the legend's entries, given explicitly (a label starting
     # with "_" would otherwise be left out of it)
     for ax, key in zip(axes, keys):
@@ -202,13 +202,21 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
         for k, (label, s) in enumerate(series):
             pts = [(i, _number(s[i].get(key))) for i in sorted(i for i in s if i is not None)]
             pts = np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
-            if len(pts):
-                colour = cmap(k / max(len(series) - 1, 1)) if many else cmap(k % 10)
-                line, = ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.2 if not many else 0.7,
-                                marker="." if len(pts) < 3 else None)
-                handles.setdefault(k, (line, plot_label(str(label))))
-                plotted.append(pts[:, 1])
-        if plotted and all((v > 0).all() for v in plotted):
+            if not len(pts):
+                continue
+            plotted.append(pts)
+            if many and k not in marked:
+                ax.plot(pts[:, 0], pts[:, 1], color="0.7", lw=0.5, alpha=0.6, zorder=1)
+                continue
+            colour = cmap((marked.index(k) if many else k) % 10)
+            line, = ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.3, marker="." if len(pts) < 3 else None, zorder=3)
+            handles.setdefault(k, (line, plot_label(str(label))))
+        if many and plotted:  # the crowd's median per iteration
+            iters = np.unique(np.concatenate([p[:, 0] for p in plotted]))
+            med = [np.median([p[p[:, 0] == i, 1][0] for p in plotted if (p[:, 0] == i).any()]) for i in iters]
+            line, = ax.plot(iters, med, color="k", lw=1.6, zorder=2)
+            handles.setdefault(-1, (line, f"median of {len(series)}"))
+        if plotted and all((p[:, 1] > 0).all() for p in plotted):
             ax.set_yscale("log")
         ax.set_title(labels.get(key, key), fontsize=10)
         ax.set_xlabel("iteration")
@@ -216,13 +224,12 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
         ax.grid(True, alpha=0.3)  # major lines only: minor ones on a log axis were most of the drawing time
         if not plotted:
             ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, color="grey")
-    if series and many:
-        bar = fig.add_axes((1 - 0.8 / width, 0.14, 0.15 / width, 0.76))
-        fig.colorbar(ScalarMappable(Normalize(0, len(series) - 1), cmap), cax=bar, label="frame (in order)")
-    elif handles:
-        entries = [handles[k] for k in sorted(handles)]
+    if handles and (not many or marked):
+        entries = [handles[k] for k in sorted(handles, key=lambda k: (k < 0, k))]  # the median last
         axes[-1].legend([h for h, _ in entries], [t for _, t in entries], loc="upper left", bbox_to_anchor=(1.02, 1),
                         fontsize=8, title="frame", frameon=False)
+    elif handles:
+        axes[-1].legend([handles[-1][0]], [handles[-1][1]], loc="upper right", fontsize=8, frameon=False)
     return fig
 
 

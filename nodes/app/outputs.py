@@ -21,11 +21,12 @@ from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
 from ..method.products import face_products, on_photo, photo_mesh, relit_photos, squeeze_channels
 from ..model.shape_model import ShapeModel
+from .view import VIEW_NAME, view_html
 
 # a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
 FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "novel_view.png",
               "mesh.ply")
-OUTPUT_FILES = (*FACE_FILES, "relit.png")
+OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
 
 
 def real_path(path: str | Path) -> Path:
@@ -132,6 +133,10 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
     for light, image in relit[1:]:
         encoders[relit_name(light)] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
+    # the photo to look at and relight by hand: every face, the failed ones marked
+    stem = frame.meta.get("stem")
+    faces = [(face_record(p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
+    encoders[VIEW_NAME] = lambda: view_html(frame, faces)
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
         written[name] = str(folder / name)

@@ -1,11 +1,13 @@
-"""``OUT/report.html``: a run at a glance. A contact sheet of every frame (its input, shadow map,
-weights, frontal relighting, novel view and albedo, with its summary row and quality flags), the
-fit's convergence plot, and the frames that failed with their reasons.
+"""``OUT/report.html``: a run at a glance. The frames that failed with their reasons; for each
+photo (the first ``LARGE_PHOTOS``) its faces before and after, large, under a slider, their boxes
+and eyes drawn and a doubtful face marked with its reason, with a link to its ``view.html`` (relit
+live); a contact sheet of every frame (its input, weights, shadow map, relighting, novel view and
+albedo); and the fit's convergence plot.
 
 One HTML file with relative links to the frames' PNGs under ``OUT/<stem>/``; the pictures that
-are not PNG outputs (the input, the weights) and the plot are embedded as small images, so the
-report opens from the folder with nothing else to serve it. Everything taken from a file name or
-a record is HTML-escaped.
+are not PNG outputs (the input, the weights, the before/after crops) and the plot are embedded,
+so the report opens from the folder with nothing else to serve it. Everything taken from a file
+name or a record is HTML-escaped.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import base64
 import html
 import io
 import json
+import os
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -25,9 +28,12 @@ from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
 from ..photo.loader import InputError, read_photo
 from .record import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS, frame_name
+from .view import SLIDER_SCRIPT, SLIDER_STYLE, VIEW_NAME, face_marks, faces_crop
 
 REPORT_NAME = "report.html"
 THUMB = 128  # pixels, the longer side of a picture in the contact sheet
+LARGE_PHOTOS = 60  # photos shown large (before/after) at the top; every frame has its row in the sheet below
+LARGE_SIDE = 640  # pixels, the longer side of a large before/after
 PLOT_FRAMES = 200  # convergence curves drawn at most (the first ones of the run)
 LINKED = (("shadow", "shadow.png"), ("relit", "relit.png"), ("novel view", "novel_view.png"),
           ("albedo", "albedo.png"))
@@ -42,16 +48,19 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
     the folder); neither, or unreadable: the report says so. Returns the report's path."""
     frames = n_ok = doubtful = 0
     failed = []  # (input, step, reason) of each frame without outputs
+    odd = set()  # the file names of doubtful frames: drawn in colour in a crowded convergence plot
     for r in records:
         frames += 1
         if _written(out, r):
             n_ok += 1
-            doubtful += str(r.get("status", "")).startswith("doubtful")
+            if str(r.get("status", "")).startswith("doubtful"):
+                doubtful += 1
+                odd.add(_file_name(r.get("source")))
         else:
             failed.append((r.get("source"), r.get("failed_in", ""), r.get("status")))
     if series is None and recording is not None:
         series = _recorded_series(recording)
-    plot = _convergence_png(series) if series else None
+    plot = _convergence_png(series, odd) if series else None
     parts = [_HEAD.format(title=html.escape(title)),
              f"<h1>{html.escape(title)}</h1>",
              f"<p class=meta>{frames} frames: {n_ok - doubtful} ok, {doubtful} doubtful (outputs written, "
@@ -64,17 +73,29 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
         parts.append("<p class=meta>No recording to plot (run with <code>--record mcap</code>).</p>")
     if failed:
         parts.append(f"<h2>Failed ({len(failed)})</h2><table class=failed><tr><th>input<th>step<th>reason</tr>")
-        parts += [f"<tr><td>{_text(source)}<td>{_text(step)}<td>{_text(status)}" for source, step, status in failed]
+        parts += [f"<tr><td title=\"{_text(source)}\">{_text(_file_name(source))}<td>{_text(step)}"
+                  f"<td>{_text(_reason(source, status))}" for source, step, status in failed]
         parts.append("</table>")
-    parts.append(f"<h2>Frames ({n_ok})</h2><table class=sheet><tr><th>frame<th>input<th>weights"
-                 + "".join(f"<th>{name}" for name, _ in LINKED) + "</tr>")
+    head = "\n".join(parts)
+    sheet = (f"<h2>Every frame ({n_ok})</h2><table class=sheet><tr><th>frame<th>input<th>weights"
+             + "".join(f"<th>{name}" for name, _ in LINKED) + "</tr>")
 
-    def page():  # row by row: 2,000 frames' embedded thumbnails are tens of MB
-        yield "\n".join(parts).encode()
-        for r in records:  # read again, a row at a time
+    def page():  # card by card and row by row: 2,000 frames' embedded pictures are tens of MB
+        yield head.encode()
+        shown = 0
+        for r in records:  # read again, a card at a time
+            if shown < LARGE_PHOTOS and _written(out, r):
+                if shown == 0:
+                    yield (f"\n<h2>Photos{f' (the first {LARGE_PHOTOS})' if n_ok > LARGE_PHOTOS else ''}</h2>"
+                           "<p class=meta>Drag across a picture to compare the photo (left) with it relit "
+                           "(right); <i>relight live</i> opens the photo to move the light yourself.</p>").encode()
+                shown += 1
+                yield ("\n" + _card(out, r)).encode()
+        yield ("\n" + sheet).encode()
+        for r in records:  # and again, a row at a time
             if _written(out, r):
                 yield ("\n" + _row(out, r)).encode()
-        yield b"\n</table></body></html>\n"
+        yield f"\n</table><script>{SLIDER_SCRIPT}</script></body></html>\n".encode()
 
     return atomic_write_chunks(out / REPORT_NAME, page())
 
@@ -89,7 +110,7 @@ def _row(out: Path, r: dict) -> str:
     stem = r["stem"]
     q = r.get("quality") or {}
     flags = q.get("flags") or []
-    status = "doubtful" if flags else "ok"
+    status = "ok" if all(str(f.get("status", "ok")) == "ok" for f in r.get("faces") or [r]) else "doubtful"
     light = r.get("light")
     facts = [f"<b>{html.escape(stem)}</b>", f"<span class={status}>{status}</span>",
              f"quality {_num(q.get('score'))}", f"{_num(r.get('iterations'))} iterations"
@@ -108,14 +129,88 @@ def _row(out: Path, r: dict) -> str:
 
 
 def _input_thumb(source) -> np.ndarray | None:
-    """The input, grey, at most THUMB pixels a side (a large JPEG is decoded reduced)."""
+    """The input as its file shows it (colour or grey, BGR), at most THUMB pixels a side (a large JPEG
+    is decoded reduced)."""
+    shown = _shown(source, 4 * THUMB * THUMB)
+    return None if shown is None else _fit(shown)
+
+
+def _shown(source, max_pixels: int | None) -> np.ndarray | None:
+    """The input ``source`` as its file shows it: uint8 BGR for colour, grey otherwise (in its own
+    encoding), reduced to ``max_pixels``; None when it cannot be read (any more)."""
     if not isinstance(source, str):
         return None
     try:
-        grey = read_photo(source, max_pixels=4 * THUMB * THUMB).grey
+        photo = read_photo(source, max_pixels=max_pixels)
     except (InputError, OSError, ValueError):
         return None
-    return _fit(np.clip(grey * 255 + 0.5, 0, 255).astype(np.uint8))
+    values = photo.colour[..., ::-1] if photo.colour is not None else photo.grey  # read as linear: the file's values
+    return np.ascontiguousarray(np.clip(values * 255 + 0.5, 0, 255).astype(np.uint8))
+
+
+def _card(out: Path, r: dict) -> str:
+    """A photo large: its faces before and after under a slider (the part of the photo around its
+    faces, at most LARGE_SIDE a side), the faces' boxes and eyes, a line per face, and its links."""
+    stem = r["stem"]
+    folder = out / stem
+    after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
+    before = _shown(r.get("source"), None)
+    faces = r.get("faces") or []
+    lines = []
+    for k, f in enumerate(faces, 1):
+        status = str(f.get("status", ""))
+        cls = "ok" if status == "ok" else "doubtful"
+        pose = f.get("pose") or {}
+        turn = f", turned {_num(pose.get('yaw'), 2)}°" if isinstance(pose.get("yaw"), (int, float)) else ""
+        lines.append(f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
+                     f"({_text(f.get('found', ''))}{turn})</span>")
+    links = (f'<a href="{quote(f"{stem}/{VIEW_NAME}")}">relight live</a> · '
+             f'<a href="{quote(f"{stem}/relit.png")}">relit.png</a> · <a href="{quote(stem)}/">files</a>')
+    head = (f"<div class=card><h3>{html.escape(stem)}</h3><p class=meta title=\"{_text(r.get('source'))}\">"
+            f"{_text(_file_name(r.get('source')))} · {links}</p><ul class=faces>{''.join(lines)}</ul>")
+    if after is None or before is None:
+        return head + "<p class=meta>(the photo or its relit file cannot be read)</p></div>"
+    h, w = after.shape[:2]
+    if before.shape[:2] != (h, w):  # read reduced, as the run did
+        before = cv2.resize(before, (w, h), interpolation=cv2.INTER_AREA)
+    if before.ndim != after.ndim:  # a grey photo relit in grey, or colour: show both alike
+        before = cv2.cvtColor(before, cv2.COLOR_GRAY2BGR) if before.ndim == 2 else before
+        after = cv2.cvtColor(after, cv2.COLOR_GRAY2BGR) if after.ndim == 2 else after
+    x0, y0, x1, y1 = faces_crop([f.get("box") for f in faces], (w, h))
+    c0, r0, c1, r1 = int(x0), int(y0), int(np.ceil(x1)), int(np.ceil(y1))
+    k = min(1.0, LARGE_SIDE / max(c1 - c0, r1 - r0))
+
+    def crop(img: np.ndarray) -> str:
+        part = img[r0:r1, c0:c1]
+        if k < 1.0:
+            part = cv2.resize(part, (max(1, round((c1 - c0) * k)), max(1, round((r1 - r0) * k))),
+                              interpolation=cv2.INTER_AREA)
+        ok, enc = cv2.imencode(".jpg", part, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        return base64.b64encode(enc.tobytes()).decode() if ok else ""
+
+    cw, ch = c1 - c0, r1 - r0
+    # the crops fill the stage: its size is the crop's, the marks shifted into it
+    shifted = [dict(f, box=[f["box"][0] - c0, f["box"][1] - r0, f["box"][2] - c0, f["box"][3] - r0] if f.get("box")
+                    else None, eyes=[[x - c0, y - r0] for x, y in f.get("eyes") or []]) for f in faces]
+    return head + (
+        f'<div class=compare data-size="{cw} {ch}" data-crop="0 0 {cw} {ch}">'
+        f'<div class=stage><img alt="relit" src="data:image/jpeg;base64,{crop(after)}"></div>'
+        f'<div class=before><div class=stage><img alt="photo" src="data:image/jpeg;base64,{crop(before)}"></div></div>'
+        f'<div class=stage><svg viewBox="0 0 {cw} {ch}" preserveAspectRatio="none">{face_marks(shifted, (cw, ch))}'
+        f'</svg></div><div class=divider></div><span class=tag style="left: 6px">photo</span>'
+        f'<span class=tag style="right: 6px">relit</span>'
+        f'<input type=range min=0 max=100 value=50 aria-label="before / after"></div></div>')
+
+
+def _file_name(source) -> str:
+    return os.path.basename(source) if isinstance(source, str) else str(source)
+
+
+def _reason(source, status) -> str:
+    """A failed frame's status without its file's path in front (the table names the file)."""
+    status = str(status)
+    prefix = f"{source}: "
+    return status[len(prefix):] if isinstance(source, str) and status.startswith(prefix) else status
 
 
 def _weights_thumb(path: Path) -> np.ndarray | None:
@@ -166,12 +261,14 @@ def _recorded_series(recording: Path) -> list[tuple[str, dict]] | None:
     return [found[f] for f in sorted(found)]
 
 
-def _convergence_png(series: list[tuple[str, dict]]) -> str:
-    """The convergence plot of ``series`` (at most PLOT_FRAMES of them), base64 PNG."""
+def _convergence_png(series: list[tuple[str, dict]], highlight: set[str]) -> str:
+    """The convergence plot of ``series`` (at most PLOT_FRAMES of them; those named in ``highlight``
+    in colour when there are many), base64 PNG."""
     from ...flow.replay import convergence_figure
 
     buf = io.BytesIO()
-    convergence_figure(series[:PLOT_FRAMES], CONVERGENCE_PLOTS, CONVERGENCE_LABELS).savefig(buf, format="png")
+    convergence_figure(series[:PLOT_FRAMES], CONVERGENCE_PLOTS, CONVERGENCE_LABELS,
+                       highlight=highlight).savefig(buf, format="png")
     return base64.b64encode(buf.getvalue()).decode()
 
 
@@ -189,7 +286,7 @@ def _text(x) -> str:
 
 
 _HEAD = """<!doctype html><html lang=en><head><meta charset=utf-8><title>{title}</title>
-<style>
+<style>""" + SLIDER_STYLE.replace("{", "{{").replace("}", "}}") + """
 body {{ font: 14px/1.4 system-ui, sans-serif; margin: 24px; color: #222; }}
 h1 {{ font-size: 22px; margin: 0 0 4px; }} h2 {{ font-size: 17px; margin: 24px 0 8px; }}
 .meta {{ color: #666; }} .plot {{ max-width: 100%; }}
@@ -197,5 +294,7 @@ table {{ border-collapse: collapse; }} td, th {{ padding: 4px 6px; vertical-alig
 .sheet tr:nth-child(even) {{ background: #f4f4f4; }} .sheet img {{ display: block; image-rendering: pixelated; }}
 .facts {{ min-width: 210px; font-size: 13px; }} .ok {{ color: #1a7f37; }} .doubtful {{ color: #b35900; }}
 .flag {{ color: #b35900; font-size: 12px; }} .failed td {{ border-top: 1px solid #ddd; }}
+.card {{ margin: 0 0 28px; max-width: 640px; }} .card h3 {{ margin: 0; font-size: 16px; }}
+.card .compare {{ max-width: 640px; }} ul.faces {{ margin: 2px 0 6px; padding-left: 18px; }}
 </style></head><body>"""
 

@@ -10,7 +10,7 @@ import pytest
 from shadowflow.nodes.app.cli import main
 
 LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png",
-          "novel_view.png", "mesh.ply"}
+          "novel_view.png", "mesh.ply", "view.html"}
 
 
 @pytest.fixture(scope="module")

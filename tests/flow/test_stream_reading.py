@@ -138,5 +138,12 @@ def test_the_convergence_plot_has_units_a_legend_and_the_recorded_values():
     assert [t.get_text() for t in res.get_legend().get_texts()] == ["a.png", "b.png"]
     (xa, ya), (xb, yb) = [ln.get_data() for ln in sigma.get_lines()]
     assert list(xa) == [1, 3] and list(ya) == [0.2, 0.05] and list(xb) == [1] and list(yb) == [0.4]
-    many = convergence_figure([(f"f{k}", {1: {"sigma": 1.0 + k}}) for k in range(20)], ("sigma",), legend_max=12)
-    assert many.axes[0].get_legend() is None and len(many.axes) == 2  # a colour bar instead of 20 labels
+    crowd = [(f"f{k}", {1: {"sigma": 1.0 + k}, 2: {"sigma": 0.5 + k}}) for k in range(20)]
+    many = convergence_figure(crowd, ("sigma",), legend_max=12)
+    # 20 thin grey lines and their median, not 20 labels
+    assert [t.get_text() for t in many.axes[0].get_legend().get_texts()] == ["median of 20"]
+    median = many.axes[0].get_lines()[-1]
+    assert list(median.get_data()[0]) == [1, 2] and list(median.get_data()[1]) == [10.5, 10.0]
+    odd = convergence_figure(crowd, ("sigma",), legend_max=12, highlight={"f3", "f17"})
+    # the odd frames in colour and named, beside the crowd's median
+    assert [t.get_text() for t in odd.axes[0].get_legend().get_texts()] == ["f3", "f17", "median of 20"]
