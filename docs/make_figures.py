@@ -1,10 +1,13 @@
 """Regenerate the README's figures from faces the project renders (ICT-FaceKit identities) and from
 scikit-image's public-domain ``astronaut`` (NASA), never from evaluation data:
-``python docs/make_figures.py`` (writes docs/astronaut.png, docs/demo.png, docs/portrait.png; needs
-scikit-image, in the ``eval`` and ``test`` extras)."""
+``python docs/make_figures.py`` (writes docs/astronaut.png, docs/demo.png, docs/portrait.png, and with
+Debian's ``chromium`` docs/view.png and docs/report.png; needs scikit-image, in the ``eval`` and ``test``
+extras)."""
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -107,9 +110,51 @@ def portrait_figure(folder: Path) -> np.ndarray:
                       _grey8(np.where(r.mask[..., None], r.albedo, 0))])
 
 
+def screenshot(url: str, path: Path, size: tuple[int, int]) -> bool:
+    """A page in headless Chromium saved as ``path``; False when there is no Chromium."""
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        return False
+    subprocess.run([exe, "--headless=new", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    "--virtual-time-budget=20000", f"--screenshot={path}", f"--window-size={size[0]},{size[1]}", url],
+                   check=True, capture_output=True, timeout=120)
+    return True
+
+
+def page_figures(folder: Path) -> list[Path]:
+    """The astronaut's ``view.html`` relit live from 40 deg to the left and 15 up, the slider at 40 %
+    (docs/view.png), and the report of a run over her, a three-person frame of her and a side-lit
+    render (docs/report.png)."""
+    from skimage import data
+
+    from shadowflow.nodes.app.cli import main
+
+    inputs = folder / "pages"
+    inputs.mkdir()
+    rgb = data.astronaut()
+    cv2.imwrite(str(inputs / "astronaut.png"), rgb[..., ::-1])
+    head = cv2.resize(rgb[40:240, 130:330], None, fx=0.7, fy=0.7, interpolation=cv2.INTER_AREA)
+    group = np.full((300, 600, 3), (90, 120, 150), np.uint8)
+    for k, x in enumerate((20, 220, 430)):
+        small = cv2.resize(head, None, fx=1.0 - 0.1 * k, fy=1.0 - 0.1 * k, interpolation=cv2.INTER_AREA)
+        group[40:40 + small.shape[0], x:x + small.shape[1]] = small
+    cv2.imwrite(str(inputs / "group.png"), group[..., ::-1])
+    write_shadowed_face(inputs / "side-lit.png", np.random.default_rng(7), light_from_angles(50), source="ict")
+    out = folder / "out"
+    main(["run", str(inputs), "--out", str(out), "--quiet", "--record", "mcap"])
+    made = []
+    if screenshot((out / "astronaut" / "view.html").as_uri() + "#light=40,15&cut=40", DOCS / "view.png", (1000, 1180)):
+        made.append(DOCS / "view.png")
+    if screenshot((out / "report.html").as_uri(), DOCS / "report.png", (1000, 1500)):
+        made.append(DOCS / "report.png")
+    return made
+
+
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as tmp:
         cv2.imwrite(str(DOCS / "astronaut.png"), astronaut_figure(Path(tmp)))
         cv2.imwrite(str(DOCS / "demo.png"), demo_figure(Path(tmp)))
         cv2.imwrite(str(DOCS / "portrait.png"), portrait_figure(Path(tmp)))
-    print(f"wrote {DOCS / 'astronaut.png'}, {DOCS / 'demo.png'} and {DOCS / 'portrait.png'}")
+        pages = page_figures(Path(tmp))
+    print(f"wrote {DOCS / 'astronaut.png'}, {DOCS / 'demo.png'}, {DOCS / 'portrait.png'}",
+          *(str(p) for p in pages))
