@@ -137,7 +137,9 @@ def format_table(rows: list[ConvergenceRow]) -> str:
     for r in rows:
         trend = f"{f(r.residual_first)} -> {f(r.residual_last)}"
         conv = "-" if r.converged is None else ("yes" if r.converged else "no")
-        what = one_line(r.source if r.status == "ok" else r.status)
+        # a doubtful frame's flags with its file (a failed one's status already names it)
+        what = one_line(r.source if r.status == "ok" else f"{r.status}: {r.source}" if r.status.startswith("doubtful")
+                        else r.status)
         lines.append(f"{r.frame:>5} {r.iterations:>5} {f(r.final_sigma):>9} {trend:>24} {conv:>9}  {what}")
     return "\n".join(lines)
 

@@ -111,3 +111,16 @@ def test_summary_record_writes_a_nan_as_null(tmp_path):
     assert "NaN" not in text and "Infinity" not in text
     loaded = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in summary.json"))
     assert loaded[0]["light"][0] is None
+
+
+def test_convergence_table_names_a_doubtful_frame_by_its_file():
+    """``replay`` named a doubtful frame by its flags alone: which file to look at was not said."""
+    from shadowflow.flow.replay import ConvergenceRow, format_table
+
+    rows = [ConvergenceRow(frame=0, source="/photos/cut-off.png", status="doubtful: 64 % of the face outside the frame",
+                           iterations=15, final_sigma=0.02, residual_first=0.3, residual_last=0.01, converged=True),
+            ConvergenceRow(frame=1, source="/photos/ok.png", status="ok", iterations=12, final_sigma=0.1,
+                           residual_first=0.3, residual_last=0.1, converged=True)]
+    lines = format_table(rows).splitlines()
+    assert "64 % of the face outside the frame" in lines[1] and "/photos/cut-off.png" in lines[1]
+    assert lines[2].endswith("/photos/ok.png")
