@@ -42,14 +42,18 @@ class InputEntry:
     frame: int
     config: str
     record: dict | None = None
-    sha256: str = ""
+    sha256: str = ""  # the caller's fingerprint of the input (e.g. ``content_hash`` of its files)
 
-    def same_file(self, path: str | os.PathLike, identity: tuple[int, int] | None) -> bool:
-        """Is ``path`` (now of ``identity``) still the file this entry was made from? Equal size and
-        mtime, or equal size and content (a copy that kept the bytes but not the time)."""
+    def same_file(self, identity: tuple[int, int] | None, fingerprint: str) -> bool:
+        """Is the input (now of ``identity`` and ``fingerprint``, the caller's hash of what the input is
+        made of) still what this entry was made from? Equal size and fingerprint; an entry written
+        without one (an older manifest) falls back to equal size and mtime. The mtime alone proves
+        nothing: a file can be replaced and its time put back."""
         if identity is None or identity[0] != self.size:
             return False
-        return identity[1] == self.mtime_ns or (bool(self.sha256) and content_hash(path) == self.sha256)
+        if self.sha256:
+            return fingerprint == self.sha256
+        return identity[1] == self.mtime_ns
 
 
 def _open_regular(path: str | os.PathLike, limit: int, follow: bool = True) -> int | None:

@@ -3,12 +3,14 @@ watched for new images (``shadowflow run --watch``)."""
 from __future__ import annotations
 
 import glob
+import os
 import stat
 import time
 from pathlib import Path
 from typing import Iterator
 
-from ..photo.loader import IMAGE_SUFFIXES
+from ...flow.manifest import content_hash
+from ..photo.loader import IMAGE_SUFFIXES, sidecar_path
 
 
 def _output_folder(path: Path) -> bool:
@@ -102,3 +104,18 @@ class FolderWatch:
             if self.idle_exit is not None and not waiting and time.monotonic() - last_new > self.idle_exit:
                 return
             time.sleep(self.poll)
+
+
+def input_fingerprint(path: str | os.PathLike) -> str:
+    """What an input is made of, for ``--resume`` to recognise: the SHA-256 of the image's bytes, and
+    of its sidecar's when it has one (its eyes and light change the fit). Empty when the image cannot
+    be read."""
+    image = content_hash(path)
+    if not image:
+        return ""
+    try:
+        side = sidecar_path(path)
+        has_side = side.is_file()
+    except (OSError, ValueError):
+        has_side = False
+    return f"{image}+{content_hash(side) or 'unreadable'}" if has_side else image

@@ -25,7 +25,6 @@ from ...flow.manifest import (
     Journal,
     RunManifest,
     config_hash,
-    content_hash,
     file_identity,
     input_key,
 )
@@ -41,6 +40,7 @@ from .outputs import (
     RUN_FILES,
     WriteNode,
     real_path,
+    relit_name,
     safe_stem,
     status_lines,
     summary_record,
@@ -48,6 +48,7 @@ from .outputs import (
 )
 from .process import HeapTrimmer, one_blas_thread, release_large_frees
 from .blueprint import rerun_sink
+from .inputs import input_fingerprint
 from .record import CONVERGENCE, FitRecorder, RecordNode
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
 
@@ -117,9 +118,11 @@ def _storage_failure(exc: BaseException | None) -> bool:
     return isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS
 
 
-def complete(folder: Path) -> bool:
-    """All output files of a frame exist (each was written by an atomic rename)."""
-    return all((folder / name).is_file() for name in OUTPUT_FILES)
+def complete(folder: Path, extra_lights: Iterable = ()) -> bool:
+    """All output files of a frame exist (each was written by an atomic rename), a relit photo for each
+    of ``extra_lights`` (``--relight``) among them."""
+    names = (*OUTPUT_FILES, *(relit_name(light) for light in extra_lights))
+    return all((folder / name).is_file() for name in names)
 
 
 class Progress:
@@ -371,13 +374,15 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             reusable = (run.resume and earlier is not None and earlier.record is not None
                         and earlier.record.get("status") == "ok" and earlier.config == config_id)
             if reusable:  # (a changed configuration was said once, above)
-                if not earlier.same_file(path, identity):
+                fingerprint = input_fingerprint(path)
+                if not earlier.same_file(identity, fingerprint):
                     note(f"note: {path} changed since the earlier run: redone")
-                elif complete(out / name):
+                elif complete(out / name, options.extra_lights):
                     frame.skipped = True
                     frame.meta["previous"] = earlier.record
-            if not frame.skipped:  # what the frame is made from, for a later --resume to recognise
-                frame.meta["sha256"] = content_hash(path)
+                frame.meta["sha256"] = fingerprint
+            else:  # what the frame is made from, for a later --resume to recognise
+                frame.meta["sha256"] = input_fingerprint(path)
             yield frame
 
     def save_manifest() -> None:

@@ -408,10 +408,15 @@ def checked_light(v: np.ndarray, what: str) -> np.ndarray:
     return v
 
 
+def sidecar_path(path: str | os.PathLike) -> Path:
+    """Where the sidecar of the image ``path`` would be: ``<stem>.json`` beside it."""
+    return Path(path).with_suffix(".json")
+
+
 def read_sidecar(path: str | os.PathLike) -> Sidecar:
     """``<stem>.json`` beside ``path``, if any. Raises ``InputError`` when it is malformed."""
     p = Path(path)
-    side = p.with_suffix(".json")
+    side = sidecar_path(p)
     try:
         if not side.is_file():
             return Sidecar()

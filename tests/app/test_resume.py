@@ -2,6 +2,7 @@
 (model, options, tool version, each input's identity <-> its output name and frame id), and
 folder-mode recordings that merge only the job's own parts (issue 18 #1, #2, #3, #7)."""
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -158,3 +159,38 @@ def test_a_manifest_that_cannot_be_trusted_means_every_input_is_redone(tmp_path)
         assert proc.returncode == 0, proc.stderr
         assert _mtimes(out)["face"] > before["face"]
         before = _mtimes(out)
+
+
+def test_resume_redoes_an_input_whose_sidecar_bytes_or_relit_files_changed(tmp_path):
+    """Issue 39 #5 and #11: an input is known by its bytes and its sidecar's, not by its size and
+    mtime; a frame is complete only with every file its options ask for, ``--relight`` ones included."""
+    src = tmp_path / "in"
+    src.mkdir()
+    for name, seed in (("side.png", 1), ("swap.pgm", 2), ("lost.png", 3), ("kept.png", 4)):
+        _face(src / name, seed)
+    out = tmp_path / "out"
+    relight = ["--relight", "30,10"]
+    assert _run([src], out, *relight).returncode == 0
+    before = _mtimes(out)
+    assert set(before) == {"side", "swap", "lost", "kept"}
+    # the sidecar's light edited (the fit depends on it)
+    side = json.loads((src / "side.json").read_text())
+    side["light"] = [-0.5, 0.0, 0.87]
+    (src / "side.json").write_text(json.dumps(side))
+    # another photo of the same size in place (a binary PGM: one pixel brighter), its mtime restored
+    st = (src / "swap.pgm").stat()
+    data = bytearray((src / "swap.pgm").read_bytes())
+    data[-64 * 128 - 64] = min(255, data[-64 * 128 - 64] + 40)
+    (src / "swap.pgm").write_bytes(bytes(data))
+    os.utime(src / "swap.pgm", ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert (src / "swap.pgm").stat().st_size == st.st_size
+    # one relit file lost
+    (out / "lost" / "relit_A+030E+10.png").unlink()
+    resumed = _run([src], out, "--resume", *relight)
+    assert resumed.returncode == 0, resumed.stderr
+    after = _mtimes(out)
+    assert after["kept"] == before["kept"]
+    assert all(after[k] > before[k] for k in ("side", "swap", "lost")), resumed.stderr
+    assert "side.png changed since the earlier run" in resumed.stderr
+    assert "swap.pgm changed since the earlier run" in resumed.stderr
+    assert (out / "lost" / "relit_A+030E+10.png").is_file()
