@@ -1,6 +1,8 @@
 """Reading MCAP recordings back without trusting them."""
 from __future__ import annotations
 
+import dataclasses
+import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +56,75 @@ class RecordingError(ValueError):
 
 
 MAX_OPEN_BYTES = 2 << 30  # arrays held for frames not yet closed; a file needing more is refused
+# a chunk is decompressed whole: one declaring more is refused before any of it is (the writer's chunks hold a
+# frame, 4 MiB typically; a message holds one array of at most MAX_ARRAY_BYTES)
+MAX_CHUNK_BYTES = MAX_ARRAY_BYTES + (1 << 20)
+
+
+class ChunkError(ValueError):
+    """A chunk that cannot be read within its bounds (the file is bad, not cut short)."""
+
+
+def _chunk_data(chunk) -> bytes:
+    """The chunk's records, decompressed no further than the size it declares (itself at most
+    ``MAX_CHUNK_BYTES``), whatever its compressed stream holds."""
+    declared = chunk.uncompressed_size
+    if declared > MAX_CHUNK_BYTES:
+        raise ChunkError(f"a chunk declares {declared} bytes, over the {MAX_CHUNK_BYTES >> 30} GiB limit")
+    if chunk.compression == "zstd":
+        import zstandard
+
+        reader = zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data), read_across_frames=True)
+        parts, got = [], 0
+        while got <= declared and (part := reader.read(min(declared + 1 - got, 1 << 20) or 1)):
+            parts.append(part)
+            got += len(part)
+        data = b"".join(parts)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+
+        data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=declared + 1)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise ChunkError(f"a chunk is compressed with {chunk.compression!r} (zstd, lz4 or none are read)")
+    if len(data) > declared:
+        raise ChunkError(f"a chunk decompresses to more than the {declared} bytes it declares")
+    if len(data) < declared:
+        raise ChunkError(f"a chunk decompresses to {len(data)} bytes, not the {declared} it declares")
+    return data
+
+
+class McapMessages:
+    """``(channel, message)`` of an MCAP stream in file order (a ``NonSeekingReader`` with its chunks
+    bounded, ``_chunk_data``). Raises ``ChunkError`` for a chunk out of bounds, the reader's errors
+    (``mcap.exceptions.EndOfFile`` for a file cut short) for the rest. ``started``: its header was read
+    (a file cut after it is a recording cut short, not a file of another kind)."""
+
+    def __init__(self, fh, record_size_limit: int):
+        self.fh, self.record_size_limit, self.started = fh, record_size_limit, False
+
+    def __iter__(self) -> Iterator[tuple[object, object]]:
+        from mcap.exceptions import McapError
+        from mcap.records import Channel, Chunk, Header, Message
+        from mcap.stream_reader import StreamReader, breakup_chunk
+
+        channels: dict[int, Channel] = {}
+        for record in StreamReader(self.fh, emit_chunks=True, record_size_limit=self.record_size_limit).records:
+            if isinstance(record, Header):
+                self.started = True
+            if isinstance(record, Chunk):
+                inner = breakup_chunk(dataclasses.replace(record, compression="", data=_chunk_data(record)))
+            else:
+                inner = (record,)
+            for r in inner:
+                if isinstance(r, Channel):
+                    channels[r.id] = r
+                elif isinstance(r, Message):
+                    channel = channels.get(r.channel_id)
+                    if channel is None:
+                        raise McapError(f"a message on channel {r.channel_id}, which was never declared")
+                    yield channel, r
 
 
 class FrameStream:
@@ -72,7 +143,7 @@ class FrameStream:
         self.path, self.arrays, self.truncated = Path(path), arrays, False
 
     def __iter__(self) -> Iterator[FrameRecording]:
-        from mcap.reader import NonSeekingReader
+        from mcap.exceptions import EndOfFile
 
         path = self.path
         open_frames: dict[int, FrameRecording] = {}
@@ -87,16 +158,23 @@ class FrameStream:
             if fh.read(8) != b"\x89MCAP0\r\n":
                 raise RecordingError(f"{path}: not an MCAP file")
             fh.seek(0)
-            reader = NonSeekingReader(fh, record_size_limit=MAX_ARRAY_BYTES + (1 << 20))
-            it = reader.iter_messages(log_time_order=False)  # file order: stream, never buffer the file
+            messages = McapMessages(fh, MAX_CHUNK_BYTES)
+            it = iter(messages)  # file order: stream, never buffer the file
             while True:
                 try:
-                    schema, channel, message = next(it)
+                    channel, message = next(it)
                 except StopIteration:
                     break
                 except MemoryError:
                     raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
-                except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors, EOF...: all mean a bad file
+                except ChunkError as exc:
+                    raise RecordingError(f"{path}: {exc}") from None
+                except EndOfFile as exc:  # cut short (a kill, a full disk): what came before it stands
+                    if not (seen_any or messages.started):
+                        raise RecordingError(f"{path}: unreadable MCAP (EndOfFile: {exc})") from None
+                    self.truncated = True
+                    break
+                except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors...: all mean a bad file
                     if not seen_any:
                         raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
                     self.truncated = True

@@ -311,6 +311,16 @@ def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_pa
     assert resumed.returncode == 0, resumed.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert [r["status"] for r in summary] == ["ok"] * 3
+    if record == "mcap":  # issue 39 #8: the cut part does not make the job's recording unreadable
+        replay = subprocess.run(CLI + ["replay", str(out)], capture_output=True, text=True, cwd=REPO, timeout=300)
+        assert replay.returncode == 0, replay.stderr
+        assert all(r["stem"] in replay.stdout for r in summary), replay.stdout
+        fresh = tmp_path / "fresh"
+        made = subprocess.run([str(fresh) if x == str(out) else x for x in cmd], capture_output=True, text=True, cwd=REPO, timeout=300)
+        assert made.returncode == 0, made.stderr
+        diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, cwd=REPO,
+                              timeout=300)
+        assert diff.returncode == 0 and diff.stdout.startswith("same: 3 frames"), diff.stdout + diff.stderr
 
 
 def test_a_run_store_that_takes_no_more_stops_the_run_and_resume_finishes(tmp_path, monkeypatch, capsys,

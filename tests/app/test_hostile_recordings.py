@@ -124,3 +124,56 @@ def test_convergence_table_names_a_doubtful_frame_by_its_file():
     lines = format_table(rows).splitlines()
     assert "64 % of the face outside the frame" in lines[1] and "/photos/cut-off.png" in lines[1]
     assert lines[2].endswith("/photos/ok.png")
+
+
+def _mcap_with_chunk(path, compression: str, data: bytes, declared: int) -> None:
+    """An MCAP file: its magic, a header, and one chunk of ``data`` that declares ``declared``
+    bytes once decompressed (a file cut there, as after a kill)."""
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import Chunk, Header
+
+    b = RecordBuilder()
+    Header(profile="", library="hostile").write(b)
+    Chunk(compression=compression, data=data, message_end_time=0, message_start_time=0, uncompressed_crc=0,
+          uncompressed_size=declared).write(b)
+    path.write_bytes(b"\x89MCAP0\r\n" + bytes(b.end()))
+
+
+def _peak_rss_mib() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", ""])
+def test_a_chunk_declaring_3_gb_is_refused_before_it_is_decompressed(tmp_path, compression, capsys):
+    """Issue 39 #12: a small file whose one chunk declares 3 GB drove replay and diff to 3 GB."""
+    import lz4.frame
+    import zstandard
+
+    small = b"\x00" * 4096
+    data = {"zstd": zstandard.ZstdCompressor(write_content_size=False).compress(small),
+            "lz4": lz4.frame.compress(small), "": small}[compression]
+    path = tmp_path / "run.mcap"
+    _mcap_with_chunk(path, compression, data, 3 << 30)
+    assert path.stat().st_size < 100_000
+    before = _peak_rss_mib()
+    assert main(["replay", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "3221225472 bytes" in err[0] and "1 GiB" in err[0], err
+    assert _peak_rss_mib() - before < 200
+
+
+def test_a_chunk_that_decompresses_past_its_declared_size_is_refused_without_holding_it(tmp_path, capsys):
+    """The declared size is the bound: 256 MiB of zeros in 1 MB of zstd declaring 64 kB is not read on."""
+    import zstandard
+
+    comp = zstandard.ZstdCompressor(level=1, write_content_size=False).compressobj()
+    data = b"".join([comp.compress(b"\x00" * (16 << 20)) for _ in range(16)]) + comp.flush()
+    path = tmp_path / "run.mcap"
+    _mcap_with_chunk(path, "zstd", data, 65536)
+    before = _peak_rss_mib()
+    assert main(["replay", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "more than the 65536 bytes it declares" in err[0], err
+    assert _peak_rss_mib() - before < 100
