@@ -34,7 +34,7 @@ from ..method.eye_detail import CONTRAST as EYE_CONTRAST
 from ..method.nodes import MethodOptions
 from ..method.robust_fit import FitConfig
 from ..model.default_model import resolve_model, train_from_recipe
-from ..model.shape_model import save_model
+from ..model.shape_model import check_grid, save_model
 from ..model.sources import SOURCES_HELP, load_source
 from ..photo.encoding import ENCODINGS
 from ..photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
@@ -150,6 +150,33 @@ def _view_size(px: int | None) -> int | None:
     return px
 
 
+def _grid_size(text: str) -> tuple[int, int]:
+    """``--size H,W``: a model grid (``shape_model.check_grid``)."""
+    try:
+        h, w = (int(t) for t in text.split(","))
+    except ValueError:
+        raise ValueError(f"--size is H,W, two whole numbers of pixels, not {text!r}") from None
+    return check_grid((h, w), "--size")
+
+
+def _at_least(value: int, least: int, flag: str) -> int:
+    if value < least:
+        raise ValueError(f"{flag} must be {least} or more, not {value}")
+    return value
+
+
+def _light_angles(text: str) -> list[float]:
+    """``--angles``: light angles from the view axis, degrees, each in [0, 90)."""
+    try:
+        angles = [float(t) for t in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--angles is a list of degrees such as 45,60,75, not {text!r}") from None
+    bad = [a for a in angles if not 0.0 <= a < 90.0]  # also NaN
+    if bad:
+        raise ValueError(f"--angles: {bad[0]:g} is not a light angle from the view axis (0 to below 90 degrees)")
+    return angles
+
+
 def _load_model(spec: str | None):
 
     return resolve_model(spec)
@@ -244,8 +271,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-
-    size = [int(t) for t in args.size.split(",")]
+    size = list(_grid_size(args.size))
+    _at_least(args.n, 2, "--n")
+    _at_least(args.modes, 1, "--modes")
+    if args.modes >= args.n:
+        raise ValueError(f"--modes {args.modes}: {args.n} faces give at most {args.n - 1} modes (--n)")
     recipe = {"source": args.source, "n": args.n, "seed": args.seed, "modes": args.modes, "size": size}
     if args.expressions:
         if not 0.0 < args.expressions <= 1.0:
@@ -319,7 +349,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
 
-    size = tuple(int(t) for t in args.size.split(","))
+    size = _grid_size(args.size)
+    _at_least(args.n_test, 1, "--n-test")
+    _at_least(args.n_train, 2, "--n-train")
+    angles = _light_angles(args.angles)
     t0 = time.perf_counter()
     if args.model:
         model = _load_model(args.model)
@@ -332,7 +365,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
     test, albedo = load_source(args.source, args.n_test, args.test_seed, model.grid)
     if args.albedo == "constant":
         albedo = None
-    angles = [float(a) for a in args.angles.split(",")]
     fits = {"both": ["gauss-newton", "paper"], "all": FITS}.get(args.fit, [args.fit])
     report = {"source": args.source, "test_faces": args.n_test, "test_seed": args.test_seed,
               "model": trained_on, "modes": model.n_modes, "grid": list(model.grid), "albedo": args.albedo,

@@ -234,6 +234,19 @@ def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
 
 
 MAX_MODEL_BYTES = 1 << 30  # a model's members may unpack to at most 1 GiB (a 256^2, K = 99 one is ~40 MB)
+# a model grid's side: the fit works at 128^2; every step allocates grid-sized arrays, so a 5000^2 grid of a few
+# face pixels (a 1 MB file) would take gigabytes
+MIN_GRID_SIDE, MAX_GRID_SIDE = 16, 512
+
+
+def check_grid(grid, what: str = "grid") -> tuple[int, int]:
+    """``(H, W)`` of a model grid, each side an integer from ``MIN_GRID_SIDE`` to ``MAX_GRID_SIDE``, or
+    ``ValueError`` naming ``what``."""
+    h, w = (int(x) for x in grid)
+    if not (MIN_GRID_SIDE <= h <= MAX_GRID_SIDE and MIN_GRID_SIDE <= w <= MAX_GRID_SIDE):
+        raise ValueError(f"{what} {h} x {w} is over the {MAX_GRID_SIDE}-pixel limit of a side" if max(h, w) > MAX_GRID_SIDE
+                         else f"{what} {h} x {w}: each side is at least {MIN_GRID_SIDE} pixels")
+    return h, w
 
 
 def load_model(path: str | os.PathLike) -> ShapeModel:
@@ -272,6 +285,7 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
     grid = data["grid"]
     if grid.shape != (2,) or tuple(int(x) for x in grid) != mask.shape:
         raise ValueError(f"{path}: 'grid' {grid.tolist()} does not match the mask's shape {list(mask.shape)}")
+    check_grid(grid, f"{path}: 'grid'")
     modes = data["modes"]
     if modes.ndim != 2 or modes.shape[1] < 1:
         raise ValueError(f"{path}: 'modes' must be a (2N, K) array")

@@ -177,3 +177,27 @@ def test_a_chunk_that_decompresses_past_its_declared_size_is_refused_without_hol
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "more than the 65536 bytes it declares" in err[0], err
     assert _peak_rss_mib() - before < 100
+
+
+@pytest.mark.parametrize("args, says", [
+    (["train", "--size", "0,0"], "--size"),
+    (["train", "--size", "5000,5000"], "--size"),
+    (["train", "--size", "128"], "--size"),
+    (["train", "--size", "a,b"], "--size"),
+    (["train", "--n", "1"], "--n"),
+    (["train", "--modes", "0"], "--modes"),
+    (["train", "--n", "10", "--modes", "20"], "--modes"),
+    (["eval", "--angles", "90"], "--angles"),
+    (["eval", "--angles", "-400"], "--angles"),
+    (["eval", "--angles", "45,nan"], "--angles"),
+    (["eval", "--size", "0,0"], "--size"),
+    (["eval", "--n-test", "0"], "--n-test"),
+])
+def test_train_and_eval_arguments_that_cannot_work_are_refused_in_one_line(tmp_path, args, says, capsys):
+    """The smaller cases of issue 39: ``train --size 0,0`` trained 0 modes and exited 0, others gave
+    Python's messages; ``eval`` took 90 and -400 degrees and printed half a table for nan."""
+    extra = ["--out", str(tmp_path / "m.npz")] if args[0] == "train" else []
+    assert main([*args, *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0], err
+    assert not (tmp_path / "m.npz").exists()

@@ -131,3 +131,17 @@ def test_a_corrupt_or_odd_cache_entry_is_rebuilt_and_a_zip_bomb_refused(tmp_path
     monkeypatch.setattr(shape_model, "MAX_MODEL_BYTES", 1000)
     with pytest.raises(ValueError, match="over the 1000-byte limit"):
         load_model(save_model(procedural_model, tmp_path / "big.npz"))
+
+
+def test_a_model_grid_past_the_side_limit_is_refused_before_its_arrays_are_used(tmp_path, procedural_model):
+    """Issue 39 #15: a 1 MB model file of a 5000 x 5000 grid (a few face pixels, the rest masked off) took
+    over 6.5 GB and 92 s to fit; its size on disk is far under the 1 GiB limit on members."""
+    arrays = _model_arrays(procedural_model.truncated(6), tmp_path)
+    mask = np.zeros((5000, 5000), bool)
+    mask[:128, :128] = arrays["mask"]
+    arrays.update(mask=mask, grid=np.array([5000, 5000]))
+    path = tmp_path / "huge-grid.npz"
+    np.savez_compressed(path, **arrays)
+    assert path.stat().st_size < 2_000_000
+    with pytest.raises(ValueError, match=r"'grid' 5000 x 5000 is over the 512-pixel limit of a side"):
+        load_model(path)
