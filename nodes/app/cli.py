@@ -52,7 +52,7 @@ from .record import (
     stage_rank,
 )
 from .outputs import real_path
-from .runner import RunOptions, check_writable, run_stream, tool_version
+from .runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream, tool_version
 
 FITS = ["gauss-newton", "irls", "paper"]
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
@@ -108,9 +108,8 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--max-iterations must be 1 or more, not {args.max_iterations}")
     if args.record_every < 1:
         raise ValueError(f"--record-every must be 1 or more, not {args.record_every}")
-    if args.frame_timeout is not None and not (args.frame_timeout > 0 and math.isfinite(args.frame_timeout)):
-        raise ValueError(f"--frame-timeout must be a positive, finite number of seconds (leave it out for no limit), "
-                         f"not {args.frame_timeout}")
+    if not (args.frame_timeout >= 0 and math.isfinite(args.frame_timeout)):
+        raise ValueError(f"--frame-timeout must be a finite number of seconds (0: no limit), not {args.frame_timeout}")
     if not (args.settle >= 0 and math.isfinite(args.settle)):
         raise ValueError(f"--settle must be a finite number of seconds, not {args.settle}")
     if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
@@ -197,6 +196,17 @@ def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
     return paths
 
 
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """How ``run`` runs (recordings, workers, resume, time limit), from its arguments."""
+    record = tuple(x for x in args.record.split(",") if x and x != "none")
+    unknown = set(record) - {"rerun", "mcap"}
+    if unknown:
+        raise ValueError(f"--record takes rerun, mcap or none, not {', '.join(sorted(unknown))}")
+    return RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
+                      fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
+                      frame_timeout=args.frame_timeout or None, dask=args.dask)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
@@ -224,10 +234,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
         return 2
     note = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    record = tuple(x for x in args.record.split(",") if x and x != "none")
-    unknown = set(record) - {"rerun", "mcap"}
-    if unknown:
-        raise ValueError(f"--record takes rerun, mcap or none, not {', '.join(sorted(unknown))}")
+    run = run_options(args)
+    record = run.record
     light: str | np.ndarray = args.light
     if args.light not in ("auto", "yaleb"):
         light = parse_light(args.light)
@@ -241,9 +249,6 @@ def cmd_run(args: argparse.Namespace) -> int:
                             novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
                             eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
                             encoding=args.encoding)
-    run = RunOptions(record=record, record_options=RecordOptions(args.record_every, args.record_float16),
-                     fit_workers=args.workers, resume=args.resume, quiet=args.quiet,
-                     frame_timeout=args.frame_timeout, dask=args.dask)
     watch = None
     if args.watch:
         paths = expand_inputs(inputs, note) if inputs else []
@@ -510,8 +515,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
     r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
     r.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR, help=DASK_HELP)
-    r.add_argument("--frame-timeout", type=float, metavar="SECONDS",
-                   help="fail a frame when one step takes longer than this on it (default: no limit)")
+    r.add_argument("--frame-timeout", type=float, default=DEFAULT_FRAME_TIMEOUT, metavar="SECONDS",
+                   help=f"fail a frame when one step takes longer than this on it (default {DEFAULT_FRAME_TIMEOUT:g}; "
+                        "0: no limit)")
     r.add_argument("--resume", action="store_true", help="skip inputs whose outputs in --out are complete")
     r.add_argument("--watch", metavar="DIR", help="keep processing new images that appear in DIR")
     r.add_argument("--idle-exit", type=float, metavar="SECONDS", help="with --watch: stop after this long with nothing new")

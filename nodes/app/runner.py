@@ -53,6 +53,11 @@ from .record import CONVERGENCE, FitRecorder, RecordNode
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
 
 
+# seconds one step may take on one frame unless told otherwise: a step takes a second or two on a 40-megapixel photo,
+# so a frame past this is stuck (a file that costs unbounded work, a hung filesystem), and the run goes on without it
+DEFAULT_FRAME_TIMEOUT = 120.0
+
+
 @dataclass
 class RunOptions:
     """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node (local engine);
@@ -65,7 +70,7 @@ class RunOptions:
     queue_size: int = 2
     resume: bool = False
     quiet: bool = False
-    frame_timeout: float | None = None
+    frame_timeout: float | None = DEFAULT_FRAME_TIMEOUT
     dask: str | None = None  # ``--dask``: local, local:N, tcp://HOST:PORT or env (None: threads here)
 
 

@@ -111,6 +111,30 @@ def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, i
     return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
 
 
+# a progressive JPEG is decoded scan by scan, each a pass over the whole image: encoders write 6 (grey) to 10 (colour)
+# scans, a hostile file thousands of tiny ones (1.8 MB took 105 s of CPU). libjpeg-turbo's tools offer such a limit
+# (djpeg -maxscans) that OpenCV does not expose, so the scans are counted before decoding
+MAX_JPEG_SCANS = 100
+
+
+def jpeg_scans(data: bytes) -> int:
+    """How many scans (SOS markers) a JPEG's bytes hold: the segments before the first are walked by their
+    lengths (an EXIF thumbnail's scan is not counted), then its markers counted (in entropy-coded data a
+    0xFF byte is always followed by 0x00 or a restart marker, so ``FF DA`` is a scan)."""
+    i, n = 2, len(data)
+    while i + 4 <= n and data[i] == 0xFF:
+        marker = data[i + 1]
+        if marker == 0xDA:
+            break
+        if marker == 0xFF:  # fill byte
+            i += 1
+        elif 0xD0 <= marker <= 0xD8 or marker == 0x01:  # markers without a length
+            i += 2
+        else:
+            i += 2 + int.from_bytes(data[i + 2:i + 4], "big")
+    return data.count(b"\xff\xda", i)
+
+
 def check_size(p: Path, width: int, height: int) -> None:
     if width * height > MAX_PIXELS:
         raise InputError(f"{p}: {width}x{height} pixels exceeds the {MAX_PIXELS // 1_000_000}-megapixel limit; "
@@ -222,6 +246,9 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
     except (OSError, ValueError, SyntaxError, IndexError, KeyError):
         raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
     check_size(p, width, height)
+    if kind == "JPEG" and (scans := jpeg_scans(data)) > MAX_JPEG_SCANS:
+        raise InputError(f"{p}: a progressive JPEG of {scans} scans, over the {MAX_JPEG_SCANS}-scan limit "
+                         "(encoders write at most about 10; each costs a pass over the whole photo)")
     pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
     if data[:2] in (b"P2", b"P3"):  # plain PNM: read here, whatever its maxval (OpenCV scales only 8 and 16 bits)
         if width * height > MAX_PLAIN_PNM_PIXELS:

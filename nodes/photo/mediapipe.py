@@ -54,14 +54,32 @@ def _load(path: Path) -> cv2.dnn.Net:
     return cv2.dnn.readNetFromTFLite(str(path), **kwargs)
 
 
-_local = threading.local()  # a dnn.Net is not safe to share between threads: one pair per thread
+class NetPool:
+    """The loaded nets of one model, lent to one caller at a time: a ``dnn.Net`` is not safe to share
+    between threads, and loading one takes milliseconds, so the nets outlive the threads that use them
+    (a time-limited step runs each frame in a new thread)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._free: list[cv2.dnn.Net] = []
+        self._lock = threading.Lock()
+
+    def forward(self, blob: np.ndarray, outputs: list[str]) -> tuple[np.ndarray, ...]:
+        """The named outputs of the net for the input ``blob`` (N, C, H, W) float32."""
+        with self._lock:
+            net = self._free.pop() if self._free else None
+        if net is None:
+            net = _load(self.path)
+        try:
+            net.setInput(blob)
+            return tuple(net.forward(outputs))
+        finally:
+            with self._lock:
+                self._free.append(net)
 
 
-def _nets() -> tuple[cv2.dnn.Net, cv2.dnn.Net]:
-    nets = getattr(_local, "nets", None)
-    if nets is None:
-        nets = _local.nets = (_load(DETECTOR_FILE), _load(MESH_FILE))
-    return nets
+DETECTOR = NetPool(DETECTOR_FILE)
+MESH = NetPool(MESH_FILE)
 
 
 def _anchors() -> np.ndarray:
@@ -161,7 +179,6 @@ def detect_faces(rgb: np.ndarray, min_iod: float = 30.0) -> list[Detection]:
 
     min_iod: the smallest distance between the eyes, in pixels, the tiles are made fine enough for
     (smaller faces may be found too)."""
-    det, _ = _nets()
     h, w = rgb.shape[:2]
     found: list[Detection] = []
     views = _views((h, w), min_iod)
@@ -174,8 +191,8 @@ def detect_faces(rgb: np.ndarray, min_iod: float = 30.0) -> list[Detection]:
         else:
             win = _window(rgb, to_photo, DETECTOR_SIZE)
         x = win.astype(np.float32) / np.float32(127.5) - np.float32(1.0)
-        det.setInput(np.ascontiguousarray(x.transpose(2, 0, 1)[None]))
-        scores, regressors = det.forward(["classificators", "regressors"])
+        scores, regressors = DETECTOR.forward(np.ascontiguousarray(x.transpose(2, 0, 1)[None]),
+                                              ["classificators", "regressors"])
         found += _decode(scores.reshape(-1), regressors.reshape(-1, 16), to_photo)
     return weighted_nms(found)
 
@@ -254,7 +271,6 @@ def face_mesh(rgb: np.ndarray, roi: Roi) -> tuple[np.ndarray, float]:
     """The 468-point mesh in ``roi`` of ``rgb`` (H, W, 3) uint8: ``(points (468, 3) float64, presence)``;
     points are x, y in photo pixels and z in the same pixels, toward the camera positive; presence
     in [0, 1] (under 0.5: no face)."""
-    _, net = _nets()
     to_photo = roi.to_photo(MESH_SIZE)
     shrink = roi.side / MESH_SIZE  # photo pixels per crop pixel
     if shrink > 2.0:  # a large face: area-average the photo first, so the crop is not aliased
@@ -263,8 +279,7 @@ def face_mesh(rgb: np.ndarray, roi: Roi) -> tuple[np.ndarray, float]:
     else:
         crop = _window(rgb, to_photo, MESH_SIZE)
     x = crop.astype(np.float32) / np.float32(255.0)
-    net.setInput(np.ascontiguousarray(x.transpose(2, 0, 1)[None]))
-    mesh, presence = net.forward(["conv2d_21", "conv2d_31"])
+    mesh, presence = MESH.forward(np.ascontiguousarray(x.transpose(2, 0, 1)[None]), ["conv2d_21", "conv2d_31"])
     pts = mesh.reshape(468, 3).astype(np.float64)
     xy = pts[:, :2] @ to_photo[:, :2].T + to_photo[:, 2]
     z = -pts[:, 2] * (roi.side / MESH_SIZE)

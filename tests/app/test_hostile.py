@@ -463,7 +463,8 @@ def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
 @pytest.mark.parametrize("args, says", [
     (["--workers", "0"], "--workers must be 1 or more"),
     (["--max-iterations", "0"], "--max-iterations must be 1 or more"),
-    (["--frame-timeout", "inf"], "--frame-timeout must be a positive, finite"),
+    (["--frame-timeout", "inf"], "--frame-timeout must be a finite number"),
+    (["--frame-timeout", "-1"], "--frame-timeout must be a finite number"),
     (["--record-every", "0"], "--record-every must be 1 or more"),
     (["--eyes", "nan,1,2,3"], "four finite numbers"),
     (["--eyes", "5,5,5,5"], "two distinct eye centres"),
@@ -478,6 +479,18 @@ def test_arguments_that_cannot_work_are_refused_before_any_work(tmp_path, args, 
                           text=True, timeout=120)
     assert proc.returncode == 2 and says in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert not out.exists()
+
+
+def test_frames_have_a_time_limit_unless_told_otherwise():
+    """Issue 39 #13: no limit by default, so a file costing unbounded work held its frame for minutes."""
+    from shadowflow.nodes.app.cli import build_parser, run_options
+    from shadowflow.nodes.app.runner import DEFAULT_FRAME_TIMEOUT, RunOptions
+
+    assert RunOptions().frame_timeout == DEFAULT_FRAME_TIMEOUT == 120.0
+    parse = build_parser().parse_args
+    assert run_options(parse(["run", "--demo", "--out", "o"])).frame_timeout == DEFAULT_FRAME_TIMEOUT
+    assert run_options(parse(["run", "--demo", "--out", "o", "--frame-timeout", "0"])).frame_timeout is None
+    assert run_options(parse(["run", "--demo", "--out", "o", "--frame-timeout", "2.5"])).frame_timeout == 2.5
 
 
 def test_a_stage_without_workers_is_refused_by_the_engine():

@@ -76,3 +76,38 @@ def test_a_light_given_to_fit_is_read_as_the_command_line_reads_it():
     assert _options(None, "YALEB", None).light == "yaleb"
     with pytest.raises(ValueError, match="points away"):
         _options(None, [0, 0, -1], None)
+
+
+def _jpeg_scans_cut(data: bytes) -> list[tuple[int, int]]:
+    """(start, end) of each scan of a baseline-structured JPEG: its SOS segment and entropy-coded data."""
+    out, i = [], 2
+    while data[i + 1] != 0xD9:
+        length = int.from_bytes(data[i + 2:i + 4], "big")
+        j = i + 2 + length
+        if data[i + 1] == 0xDA:
+            while data[j] != 0xFF or data[j + 1] == 0 or 0xD0 <= data[j + 1] <= 0xD7:
+                j += 1
+            out.append((i, j))
+        i = j
+    return out
+
+
+def test_a_jpeg_of_thousands_of_scans_is_refused_before_it_is_decoded(tmp_path):
+    """Issue 39 #13: a progressive JPEG that repeats a scan thousands of times took 35-105 s of CPU to
+    decode (each scan is a pass over the photo). A real progressive JPEG (10 scans) is still read."""
+    import cv2
+    from shadowflow.nodes.photo.loader import MAX_JPEG_SCANS, jpeg_scans
+
+    rng = np.random.default_rng(0)
+    img = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (0, 0), 3)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])
+    good = bytes(buf)
+    scans = _jpeg_scans_cut(good)
+    assert jpeg_scans(good) == len(scans) == 10
+    (tmp_path / "progressive.jpg").write_bytes(good)
+    assert read_photo(tmp_path / "progressive.jpg").grey.shape == (480, 640)
+    start, end = scans[-1]  # the last refinement scan, repeated
+    evil = good[:end] + good[start:end] * 3000 + good[end:]
+    (tmp_path / "scans.jpg").write_bytes(evil)
+    with pytest.raises(InputError, match=rf"scans.jpg: a progressive JPEG of 3010 scans, over the {MAX_JPEG_SCANS}-scan"):
+        read_photo(tmp_path / "scans.jpg")  # counted, not decoded (decoding it takes seconds)
