@@ -82,6 +82,23 @@ class DaskPipeline(Stoppable):
         self.in_flight = in_flight or default_in_flight(client)
         super().__init__()  # stop(): tasks still out are cancelled, their frames emitted ``cancelled``
         self.max_in_flight = 0  # observed, for tests and benchmarks
+        # why the cluster was lost mid-run (its scheduler died or cannot be reached), or None: the
+        # frames out then are emitted ``cancelled`` and the stream ends, as after ``stop()``
+        self.lost: str | None = None
+
+    def _cluster_lost(self, exc: BaseException) -> str | None:
+        """Why ``exc`` (raised by a call to the client) means the cluster is gone, or None when it is
+        something else. The client is then no longer running, or says the connection was lost."""
+        text = " ".join(str(exc).split()).lower()
+        status = str(getattr(self.client, "status", "running")).split(".")[-1]
+        cut = "scheduler-connection-lost" in text or "lost the connection to the scheduler" in text
+        if status == "running" and not cut:
+            return None
+        try:
+            where = f" at {self.client.scheduler.address}"
+        except Exception:  # noqa: BLE001 - the address is only for the message
+            where = ""
+        return f"the Dask scheduler{where} went away ({'connection lost' if cut else f'client {status}'})"
 
     def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
         from distributed import wait
@@ -119,52 +136,62 @@ class DaskPipeline(Stoppable):
         next_seq, exhausted = 0, False
         try:
             while True:
-                while not exhausted and not self._stop.is_set() and len(out) < self.in_flight:
-                    try:
-                        item = source.get(timeout=0.05 if out else 0.5)
-                    except queue.Empty:
-                        break
-                    if item is end:
-                        exhausted = True
-                        break
-                    seq, frame = item
-                    if frame.skipped or not frame.ok:
-                        out[seq] = frame
-                        continue
-                    given[seq] = frame
-                    out[seq] = self.client.submit(process_frame, token, bundle, frame, self.frame_timeout,
-                                                  pure=False, key=f"frame-{seq}-{token}")
-                    self.max_in_flight = max(self.max_in_flight, len(out))
-                if self._stop.is_set():
+                halted = self._stop.is_set() or self.lost is not None
+                try:
+                    while not exhausted and not halted and len(out) < self.in_flight:
+                        try:
+                            item = source.get(timeout=0.05 if out else 0.5)
+                        except queue.Empty:
+                            break
+                        if item is end:
+                            exhausted = True
+                            break
+                        seq, frame = item
+                        if frame.skipped or not frame.ok:
+                            out[seq] = frame
+                            continue
+                        given[seq] = frame
+                        out[seq] = self.client.submit(process_frame, token, bundle, frame, self.frame_timeout,
+                                                      pure=False, key=f"frame-{seq}-{token}")
+                        self.max_in_flight = max(self.max_in_flight, len(out))
                     running = [f for f in out.values() if not isinstance(f, Frame)]
-                    self.client.cancel(running)
+                    if running and not halted:
+                        try:
+                            wait(running, timeout=0.2, return_when="FIRST_COMPLETED")
+                        except TimeoutError:  # none finished yet: look at the source and the stop flag again
+                            pass
+                        for seq, f in list(out.items()):
+                            if not isinstance(f, Frame) and f.done():
+                                out[seq] = self._result(f, given[seq])
+                                given.pop(seq)
+                except Exception as exc:  # noqa: BLE001 - the cluster going away is the stream's end, not a crash
+                    self.lost = self._cluster_lost(exc)
+                    if self.lost is None:
+                        raise
+                    halted = True
+                if halted:  # tasks still out are cancelled; their frames go on as cancelled
+                    running = [f for f in out.values() if not isinstance(f, Frame)]
+                    if running and self.lost is None:
+                        self.client.cancel(running)
                     for seq, f in list(out.items()):
                         if not isinstance(f, Frame):
                             given[seq].cancelled = True
                             out[seq] = given.pop(seq)
-                running = [f for f in out.values() if not isinstance(f, Frame)]
-                if running:
-                    try:
-                        wait(running, timeout=0.2, return_when="FIRST_COMPLETED")
-                    except TimeoutError:  # none finished yet: look at the source and the stop flag again
-                        pass
-                for seq, f in list(out.items()):
-                    if not isinstance(f, Frame) and f.done():
-                        out[seq] = self._result(f, given.pop(seq))
                 while next_seq in out and isinstance(out[next_seq], Frame):  # input order
                     frame = out.pop(next_seq)
                     next_seq += 1
                     if self.on_done is not None:
                         self.on_done(frame)
                     yield frame
-                if not out and (exhausted or self._stop.is_set()):
+                if not out and (exhausted or halted):
                     break
         finally:
             closing.set()
             leftover = [f for f in out.values() if not isinstance(f, Frame)]
-            if leftover:
+            if leftover and self.lost is None:
                 self.client.cancel(leftover)
-            self._close_workers(token)
+            if self.lost is None:
+                self._close_workers(token)
             if previous is not None:
                 _restore_signal_handlers(previous)
         if errors:
@@ -181,12 +208,14 @@ class DaskPipeline(Stoppable):
         except Exception as exc:  # noqa: BLE001 - the cluster went away, a worker's close failed
             warnings.warn(f"closing the workers' part of the run: {type(exc).__name__}: {exc}", stacklevel=2)
 
-    @staticmethod
-    def _result(future, frame: Frame) -> Frame:
-        """The task's frame, or ``frame`` failed with why the task did not finish."""
+    def _result(self, future, frame: Frame) -> Frame:
+        """The task's frame, or ``frame`` failed with why the task did not finish (a task lost with the
+        cluster raises: the stream ends there)."""
         try:
             return future.result()
-        except Exception as exc:  # noqa: BLE001 - KilledWorker, a lost connection...: this frame's
+        except Exception as exc:  # noqa: BLE001 - KilledWorker, a task's error...: this frame's
+            if self._cluster_lost(exc) is not None:
+                raise
             text = f"{frame.source}: {type(exc).__name__}: {exc}"
             frame.fail("dask", " ".join(text.split())[:500])
             frame.error = exc

@@ -266,7 +266,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     watch_error = watch.error if watch is not None else None
     if watch_error:
         print(f"error: {watch_error}", file=sys.stderr)
-    code = 130 if result.stopped else 0 if failures == 0 and result.storage_error is None and not watch_error else 1
+    fine = failures == 0 and result.storage_error is None and result.cluster_error is None and not watch_error
+    code = 130 if result.stopped else 0 if fine else 1
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
         print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
         sys.stdout.flush()

@@ -10,6 +10,7 @@ for the client to record, two workers gave 1.25x one; recorded where they run, s
 """
 from __future__ import annotations
 
+import logging
 import os
 import re
 from contextlib import contextmanager
@@ -149,6 +150,26 @@ def dask_client(spec: str) -> Iterator[object]:
         from distributed import Client
     except ImportError:
         raise ValueError("--dask needs Dask: pip install 'shadowflow[dask]'") from None
+    # the client logs its reconnection attempts with tracebacks when a scheduler goes away; the run says
+    # so itself in one line (``DaskPipeline.lost``)
+    with _quiet_logger("distributed"), _quiet_logger("distributed.client"), _client(kind, arg, Client) as client:
+        yield client
+
+
+@contextmanager
+def _quiet_logger(name: str) -> Iterator[None]:
+    """``name``'s log records under CRITICAL dropped for the duration."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+@contextmanager
+def _client(kind: str, arg, Client) -> Iterator[object]:
     if kind == "local":
         # the cluster's scheduler runs in a process of its own, not in this one: it keeps state per
         # task, which would grow the client's memory with the stream (``flow.cluster_host``)

@@ -161,13 +161,15 @@ class Progress:
 class RunResult:
     """out: the output folder; frames: how many frames have a summary record; not_ok: how many of
     those are not "ok" (failed or doubtful); stopped: a stop (signal) cut the run short;
-    storage_error: why the output folder stopped taking data, if it did (the run stopped then)."""
+    storage_error: why the output folder stopped taking data, if it did (the run stopped then);
+    cluster_error: why a Dask cluster was lost mid-run, if it was (the run stopped then)."""
 
     out: Path
     frames: int
     not_ok: int
     stopped: bool
     storage_error: str | None = None
+    cluster_error: str | None = None  # why a Dask cluster was lost mid-run (the run stopped then)
 
     @functools.cached_property
     def records(self) -> list[dict]:
@@ -510,5 +512,10 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
+    lost = getattr(pipeline, "lost", None)
+    if lost:
+        print(f"error: {lost}; finished frames are written; run again with --resume to complete the job",
+              file=sys.stderr)
     frames_done, not_ok = store.records.counts()
-    return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None)
+    return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None,
+                     lost)

@@ -186,3 +186,53 @@ def test_local_runs_its_scheduler_outside_the_client():
     with dask_client("local:1") as client:
         assert client.run_on_scheduler(os.getpid) != os.getpid()
         assert os.getpid() not in client.run(os.getpid).values()
+
+
+def test_the_scheduler_dying_mid_run_ends_in_one_line_and_resume_completes(tmp_path):
+    """Issue 39 #20: the Dask scheduler killed mid-run ended the run in a traceback. Now the frames out
+    are left for ``--resume`` and the run says why in one line, exit 1."""
+    import socket
+
+    src = tmp_path / "in"
+    _inputs(src, 16)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "start_new_session": True}
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                  "--port", str(port), "--no-dashboard"], **quiet)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                               "--nworkers", "1", "--no-dashboard"], **quiet)
+    out = tmp_path / "out"
+    try:
+        proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", address] + FAST,
+                                stderr=subprocess.PIPE, text=True)
+        deadline = time.time() + 180
+        while time.time() < deadline:
+            man = RunManifest.load(out)
+            if man is not None and len(man.entries) >= 4:
+                break
+            time.sleep(0.05)
+        scheduler.kill()
+        killed_at = len(RunManifest.load(out).entries)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        for p in (scheduler, worker):
+            p.kill()
+            p.wait()
+    assert killed_at < 19, "the kill came after the run had finished"
+    assert proc.returncode == 1, err
+    lines = [line for line in err.strip().splitlines() if "empty.jpg" not in line]  # a bad input's own line
+    assert len(lines) == 1 and "the Dask scheduler at " + address + " went away" in lines[0] and "--resume" in lines[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert 4 <= len(summary) < 19
+    resumed = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume"] + FAST, capture_output=True,
+                             text=True, timeout=300)
+    assert resumed.returncode == 1, resumed.stderr  # the three bad inputs
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary) == 19 and sum(r["status"] == "ok" for r in summary) == 16
+    fresh = tmp_path / "fresh"
+    assert subprocess.run(CLI + ["run", str(src), "--out", str(fresh)] + FAST, timeout=300).returncode == 1
+    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    assert diff.returncode == 0 and diff.stdout.startswith("same: 19 frames"), diff.stdout + diff.stderr
