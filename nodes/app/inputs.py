@@ -67,8 +67,8 @@ class FolderWatch:
             return None
         found = {}
         for f in names:
-            if f.suffix.lower() not in self.suffixes:
-                continue
+            if f.suffix.lower() not in self.suffixes or f.name.startswith("."):
+                continue  # hidden files (a Mac's ._ companions) are skipped, as in folder mode
             try:
                 st = f.stat()
             except OSError:

@@ -18,7 +18,9 @@ from PIL import Image
 from ..geometry.reflectance import light_from_angles
 from .encoding import decode_samples, linear_luminance, resolve
 
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".npy"}
+# what a folder is read for; a file named on the command line is read whatever its name
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".jfif", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".webp", ".gif",
+                  ".npy"}
 _YALEB = re.compile(r"_P\d+A([+-]\d{3})E([+-]\d{2})")
 
 
@@ -166,7 +168,10 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
         raise InputError(f"{p}: not a readable .npy array ({exc})") from None
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{p}: .npy input holds NaN or infinite values")
-    return np.clip(arr, 0.0, 1.0).astype(np.float32)
+    if arr.dtype.kind == "c" or (arr.size and float(arr.min()) < 0.0):
+        raise InputError(f"{p}: .npy input holds negative or complex values (give brightness, 0 = black)")
+    # on its real scale, as an image file's samples are: floats as [0, 1], 8-bit as 0-255, and so on
+    return np.clip(arr.astype(np.float64) / sample_range(arr), 0.0, 1.0).astype(np.float32)
 
 
 LUMA = np.array([0.299, 0.587, 0.114], np.float32)  # ITU-R BT.601 weights of R, G, B (OpenCV's BGR2GRAY)
@@ -193,7 +198,7 @@ def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
 class Photo:
     """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1], or None
     for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
-    ``max_pixels``); size: the file's (width, height); encoding: "linear" (the values are the file's)
+    ``max_pixels``); size: the file's (width, height), upright (its EXIF orientation applied); encoding: "linear" (the values are the file's)
     or "srgb" (the file's values decoded to linear light, ``photo.encoding``); rgb8: (H, W, 3) uint8
     RGB, the file's own (encoded) values at 8 bits, when it was decoded from sRGB."""
 
@@ -234,7 +239,7 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
             if tiff:
-                width, height, tiff_dtype = _tiff_header(data)
+                width, height, tiff_dtype, tiff_planar = _tiff_header(data)
                 kind = "TIFF"
             else:
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
@@ -244,7 +249,7 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
         raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
                          "downscale it first") from None
     except (OSError, ValueError, SyntaxError, IndexError, KeyError):
-        raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF or BMP)") from None
+        raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF, BMP, WebP or GIF)") from None
     check_size(p, width, height)
     if kind == "JPEG" and (scans := jpeg_scans(data)) > MAX_JPEG_SCANS:
         raise InputError(f"{p}: a progressive JPEG of {scans} scans, over the {MAX_JPEG_SCANS}-scan limit "
@@ -269,7 +274,8 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
                 reduce *= 2
             flags = {1: flags, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
                      8: cv2.IMREAD_REDUCED_COLOR_8}[reduce]
-        if tiff and tiff_dtype not in (np.uint8, np.uint16, np.float32):  # OpenCV reads only these
+        # OpenCV reads only these types, and planar 16-bit RGB with its planes mixed up
+        if tiff and (tiff_planar or tiff_dtype not in (np.uint8, np.uint16, np.float32)):
             raw = _read_tiff(p, data)
         else:
             raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
@@ -294,6 +300,8 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
     if hi - lo < 1.0 / 255.0:
         raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
     scale = max(raw.shape) / max(width, height)  # EXIF may turn it
+    if width != height and (raw.shape[1] > raw.shape[0]) != (width > height):
+        width, height = height, width  # turned a quarter by its EXIF orientation: the size as it stands
     # a JPEG is sRGB-encoded whatever its channels (a black-and-white photo too); other grey files (Yale B's PGMs,
     # the project's renders) are taken as linear
     if resolve(encoding, 3 if colour_raw is not None or kind == "JPEG" else 1) == "srgb":
@@ -347,14 +355,15 @@ def shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
     return cv2.resize(np.ascontiguousarray(samples), size, interpolation=cv2.INTER_AREA)
 
 
-def _tiff_header(data: bytes) -> tuple[int, int, np.dtype]:
-    """(width, height, sample type) of a TIFF's first image, from its header only."""
+def _tiff_header(data: bytes) -> tuple[int, int, np.dtype, bool]:
+    """(width, height, sample type, planar: one plane a channel) of a TIFF's first image, from its header only."""
     import tifffile
 
     try:
         with tifffile.TiffFile(io.BytesIO(data)) as tif:
             page = tif.pages[0]
-            return int(page.imagewidth), int(page.imagelength), np.dtype(page.dtype)
+            planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and page.samplesperpixel > 1
+            return int(page.imagewidth), int(page.imagelength), np.dtype(page.dtype), planar
     except MemoryError:
         raise
     except Exception as exc:  # noqa: BLE001 - struct, index, type errors...: a damaged header, whatever the kind
@@ -367,11 +376,16 @@ def _read_tiff(p: Path, data: bytes) -> np.ndarray | None:
     import tifffile
 
     try:
-        arr = tifffile.imread(io.BytesIO(data), key=0)
+        with tifffile.TiffFile(io.BytesIO(data)) as tif:
+            page = tif.pages[0]
+            arr = page.asarray()
+            planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE
     except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds for damaged files
         if isinstance(exc, MemoryError):
             raise
         return None
+    if planar and arr.ndim == 3:  # one plane a channel, (S, H, W): as interleaved
+        arr = np.moveaxis(arr, 0, -1)
     if arr.ndim == 3 and arr.shape[2] in (3, 4):
         return arr[..., [2, 1, 0]] if arr.shape[2] == 3 else arr[..., [2, 1, 0, 3]]
     if arr.ndim != 2:

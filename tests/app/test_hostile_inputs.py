@@ -2,7 +2,9 @@
 --out): nothing a user gave is lost, nothing left waiting is called done. Each case failed as described
 before its fix."""
 import json
+import os
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -109,3 +111,26 @@ def test_eyes_given_right_eye_first_are_taken_in_image_order(tmp_path, eyes):
     assert rec["status"] == "ok" and rec["faces"][0]["eyes"] == [[46.0, 48.0], [82.0, 48.0]]
     normals = np.load(out / "face" / "normals.npy")
     assert np.nanmedian(normals[:40, :, 1]) > 0  # the forehead faces up: the face is fitted the right way up
+
+
+def test_a_folder_and_a_watched_folder_take_the_same_files(tmp_path):
+    """``.webp``, ``.gif`` and ``.jfif`` were skipped in folders but read when named; ``--watch`` took a
+    Mac's ``._face.png`` companions, which folder mode skips."""
+    from PIL import Image
+    from shadowflow.nodes.app.inputs import FolderWatch, expand_inputs
+    from shadowflow.nodes.photo.loader import IMAGE_SUFFIXES, read_photo
+
+    rng = np.random.default_rng(3)
+    pixels = rng.integers(0, 255, (120, 100, 3)).astype(np.uint8)
+    for name, fmt in (("a.png", "PNG"), ("b.webp", "WEBP"), ("c.gif", "GIF"), ("d.jfif", "JPEG")):
+        Image.fromarray(pixels).save(tmp_path / name, format=fmt)
+    (tmp_path / "._a.png").write_bytes(b"\x00\x05\x16\x07 resource fork")
+    (tmp_path / "notes.txt").write_text("not an image")
+    old = time.time() - 60
+    for p in tmp_path.iterdir():
+        os.utime(p, (old, old))
+    folder = [Path(p).name for p in expand_inputs([str(tmp_path)], note=lambda msg: None)]
+    watched = [Path(p).name for p in FolderWatch(tmp_path, IMAGE_SUFFIXES, idle_exit=0.0, poll=0.01, settle=0.0)]
+    assert folder == watched == ["a.png", "b.webp", "c.gif", "d.jfif"]
+    for name in folder:
+        assert read_photo(tmp_path / name).grey.shape == (120, 100)

@@ -111,3 +111,47 @@ def test_a_jpeg_of_thousands_of_scans_is_refused_before_it_is_decoded(tmp_path):
     (tmp_path / "scans.jpg").write_bytes(evil)
     with pytest.raises(InputError, match=rf"scans.jpg: a progressive JPEG of 3010 scans, over the {MAX_JPEG_SCANS}-scan"):
         read_photo(tmp_path / "scans.jpg")  # counted, not decoded (decoding it takes seconds)
+
+
+def test_a_turned_photo_reports_its_size_upright_as_its_reduction_does(tmp_path):
+    """EXIF orientation 6 (turned a quarter): ``reduced`` gave the file's stored width and height "from" and
+    the upright ones "to", so the two did not describe one turn."""
+    from PIL import Image
+
+    rng = np.random.default_rng(1)
+    stored = (rng.integers(0, 255, (1500, 2400, 3))).astype(np.uint8)  # 2400 wide as stored
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(stored).save(tmp_path / "turned.jpg", exif=exif.tobytes())
+    photo = read_photo(tmp_path / "turned.jpg", max_pixels=1_000_000)
+    h, w = photo.grey.shape
+    assert h > w  # upright: the turn applied
+    assert photo.size == (1500, 2400)  # upright width, height
+    assert abs(photo.size[0] * photo.scale - w) <= 1 and abs(photo.size[1] * photo.scale - h) <= 1
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float64, np.int32])
+def test_a_planar_rgb_tiff_is_read_as_its_colours(tmp_path, dtype):
+    """A planar (one plane a channel) RGB TIFF of a type OpenCV cannot read was refused as "not one grey or
+    colour image"."""
+    import tifffile
+
+    rng = np.random.default_rng(2)
+    rgb = rng.random((90, 70, 3))
+    scale = {np.uint8: 255, np.uint16: 65535, np.float64: 1.0, np.int32: 65535}[dtype]
+    tifffile.imwrite(tmp_path / "planar.tif", np.moveaxis(rgb * scale, -1, 0).astype(dtype), planarconfig="separate",
+                     photometric="rgb")
+    colour = read_photo(tmp_path / "planar.tif", encoding="linear").colour
+    np.testing.assert_allclose(colour, rgb, atol=1.0 / 250)
+
+
+def test_an_integer_npy_is_read_on_its_own_scale_as_an_image_file_is(tmp_path):
+    """An 8- or 12-bit integer ``.npy`` was clipped to [0, 1] (every pixel above 0 full white); negative
+    samples were taken."""
+    ramp = np.tile(np.linspace(0.0, 1.0, 64), (72, 1))
+    for dtype, top in ((np.uint8, 255), (np.int32, 4095), (np.float32, 1.0)):
+        np.save(tmp_path / "ramp.npy", (ramp * top).astype(dtype))
+        np.testing.assert_allclose(read_photo(tmp_path / "ramp.npy").grey, ramp, atol=1.0 / 250)
+    np.save(tmp_path / "signed.npy", ramp - 0.5)
+    with pytest.raises(InputError, match="signed.npy: .npy input holds negative"):
+        read_photo(tmp_path / "signed.npy")
