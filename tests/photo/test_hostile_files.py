@@ -76,6 +76,11 @@ def test_a_light_given_to_fit_is_read_as_the_command_line_reads_it():
     assert _options(None, "YALEB", None).light == "yaleb"
     with pytest.raises(ValueError, match="points away"):
         _options(None, [0, 0, -1], None)
+    # huge or tiny components: a direction all the same (the norm of 1e308s overflowed to "away from the camera")
+    assert np.allclose(_options(None, [1e308, 0, 1e308], None).light, [0.5**0.5, 0, 0.5**0.5])
+    assert np.allclose(_options(None, [-1e300, 1e300, 1e300], None).light, np.array([-1, 1, 1]) / 3**0.5)
+    with pytest.raises(ValueError, match="zero vector"):
+        _options(None, [0, 0, 0], None)
 
 
 def _jpeg_scans_cut(data: bytes) -> list[tuple[int, int]]:
