@@ -160,7 +160,13 @@ def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     elif light is not None:
         changes["light"] = checked_light(light, "light")
     if eyes is not None:
-        changes["eyes"] = np.asarray(eyes, np.float64).reshape(2, 2)
+        try:
+            given = np.asarray(eyes, np.float64)
+        except (TypeError, ValueError):
+            given = np.empty(0)
+        if given.size != 4:
+            raise ValueError(f"eyes {eyes!r}: give the two eye centres [[x1, y1], [x2, y2]] in pixels")
+        changes["eyes"] = given.reshape(2, 2)
     return dataclasses.replace(opts, **changes) if changes else opts
 
 

@@ -261,8 +261,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
     failures = result.not_ok
-    note(f"{result.frames - failures} of {result.frames} done in {time.perf_counter() - t0:.1f} s; "
-         f"report: {out / 'report.html'}" + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
+    note(f"{result.frames - failures} of {result.frames} done in {time.perf_counter() - t0:.1f} s"
+         + (f"; report: {result.report}" if result.report is not None else "")
+         + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
     watch_error = watch.error if watch is not None else None
     if watch_error:
         print(f"error: {watch_error}", file=sys.stderr)

@@ -162,14 +162,16 @@ class RunResult:
     """out: the output folder; frames: how many frames have a summary record; not_ok: how many of
     those are not "ok" (failed or doubtful); stopped: a stop (signal) cut the run short;
     storage_error: why the output folder stopped taking data, if it did (the run stopped then);
-    cluster_error: why a Dask cluster was lost mid-run, if it was (the run stopped then)."""
+    cluster_error: why a Dask cluster was lost mid-run, if it was (the run stopped then); report: the
+    ``report.html`` written, or None (none was: the folder took no more)."""
 
     out: Path
     frames: int
     not_ok: int
     stopped: bool
     storage_error: str | None = None
-    cluster_error: str | None = None  # why a Dask cluster was lost mid-run (the run stopped then)
+    cluster_error: str | None = None
+    report: Path | None = None
 
     @functools.cached_property
     def records(self) -> list[dict]:
@@ -480,6 +482,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         chain = WorkerChain(options, out.resolve(), frozenset(protected), tuple(run.record), run.record_options,
                             recording_id if "rerun" in run.record else "")
         pipeline = DaskPipeline(client, chain, shared=model, on_done=done, frame_timeout=run.frame_timeout)
+    report: Path | None = None
     try:
         with one_blas_thread():
             for _ in pipeline.run(frames(), handle_signals=True):
@@ -507,6 +510,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             try:
                 write_report(out, store.records, out if "mcap" in run.record else None,
                              series=tap.series() if tap is not None else None)
+                report = out / REPORT_NAME
             except OSError as exc:  # the outputs and the summary are written: the report is a view of them
                 print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
         if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
@@ -518,4 +522,4 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
               file=sys.stderr)
     frames_done, not_ok = store.records.counts()
     return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None,
-                     lost)
+                     lost, report)

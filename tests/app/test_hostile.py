@@ -289,13 +289,16 @@ def _limit_file_size(limit: int):
 def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_path, record):
     src = _faces(tmp_path / "in", 3, seed=3)
     out = tmp_path / "out"
-    cmd = CLI + ["run", str(src), "--out", str(out), "--record", record, "--max-iterations", "10", "--quiet"]
+    cmd = CLI + ["run", str(src), "--out", str(out), "--record", record, "--max-iterations", "10"]
     limit = 60_000 if record == "none" else 400_000  # normals.npy (196 KB) / a frame of MCAP won't fit
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=300,
                           preexec_fn=_limit_file_size(limit))
     assert proc.returncode == 1
     errors = [line for line in proc.stderr.splitlines() if line.startswith("error: ")]
     assert len(errors) == 1 and "File too large" in errors[0] and "--resume" in errors[0], proc.stderr
+    # the last line names no report: none was written
+    assert "done in" in proc.stderr.splitlines()[-1] and "report" not in proc.stderr.splitlines()[-1], proc.stderr
+    assert not (out / "report.html").exists()
     # no file is left half-written under its real name: each is complete or absent
     for p in out.rglob("*"):
         assert not p.name.endswith(".tmp"), p

@@ -63,6 +63,9 @@ def test_arrays_given_to_fit_are_checked_and_reduced_as_files_are():
     for eyes in ([[np.nan, 1], [2, 3]], [[1e9, 1], [2e9, 3]], [[10, 10], [10.5, 10]]):
         with pytest.raises(InputError, match="given eyes"):
             shadowflow.fit(np.random.default_rng(0).random((100, 100)), eyes=eyes)
+    for eyes in ("x", [[1, 2]], [1, 2, 3, 4, 5], {"a": 1}):  # Python's own messages before
+        with pytest.raises(ValueError, match=r"give the two eye centres \[\[x1, y1\], \[x2, y2\]\]"):
+            shadowflow.fit(np.random.default_rng(0).random((100, 100)), eyes=eyes)
 
 
 def test_a_light_given_to_fit_is_read_as_the_command_line_reads_it():
