@@ -159,6 +159,28 @@ class RunManifest:
     def names(self) -> set[str]:
         return {e.name.lower() for e in self.entries.values()}
 
+    def gone(self) -> dict[str, str]:
+        """fingerprint -> input key of the entries whose input is no longer at its path (a folder
+        renamed or moved), to be recognised at the new one by what it is made of; an input seen twice
+        under one fingerprint is left out (which of the two moved cannot be told)."""
+        out: dict[str, str] = {}
+        twice: set[str] = set()
+        for e in self.entries.values():
+            if e.sha256 and file_identity(e.path) is None:
+                if e.sha256 in out:
+                    twice.add(e.sha256)
+                out[e.sha256] = e.path
+        return {f: k for f, k in out.items() if f not in twice}
+
+    def move(self, old: str, new: str, identity: tuple[int, int]) -> InputEntry:
+        """The entry of input key ``old`` re-keyed as ``new`` (of ``identity``): its name, frame id and
+        record kept. Returns the new entry (not yet journaled)."""
+        entry = self.entries.pop(old)
+        moved = InputEntry(new, identity[0], identity[1], entry.name, entry.frame, entry.config, entry.record,
+                           entry.sha256)
+        self.entries[new] = moved
+        return moved
+
     @classmethod
     def load(cls, folder: str | os.PathLike) -> RunManifest | None:
         """The folder's manifest with its journal applied; None when there is none or it is not
@@ -182,8 +204,12 @@ class RunManifest:
             e = _entry(raw)
             if e is not None:
                 entries[e.path] = e
-        for e in read_journal(folder):
+        frames = {e.frame: e.path for e in entries.values()}
+        for e in read_journal(folder):  # newer than the manifest: an input moved since takes its frame over
+            if frames.get(e.frame, e.path) != e.path:
+                entries.pop(frames[e.frame], None)
             entries[e.path] = e
+            frames[e.frame] = e.path
         return cls(obj["config"], recordings, _distinct(entries))
 
     def save(self, folder: str | os.PathLike) -> None:

@@ -355,10 +355,18 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         taken, assigned = store.names, store.assigned
         taken |= manifest.names()
         next_id = manifest.next_frame()
+        gone: dict[str, str] | None = None  # the earlier inputs no longer at their paths, by fingerprint
         for path in paths:
             key, identity = input_key(path), file_identity(path)
             earlier = manifest.entries.get(key)
             given = assigned.get(key)  # this run's: name, id, identity
+            if given is None and earlier is None and run.resume and identity is not None and manifest.entries:
+                if gone is None:
+                    gone = manifest.gone()
+                old = gone.pop(input_fingerprint(path), None) if gone else None
+                if old is not None:  # moved here (a renamed folder): its name, frame id and outputs go with it
+                    earlier = manifest.move(old, key, identity)
+                    journal_move(earlier)
             if given is not None:
                 if given[2] == identity:
                     note(f"{path}: given more than once; processed once")
@@ -388,7 +396,7 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
                     note(f"note: {path} changed since the earlier run: redone")
                 elif complete(out / name, options.extra_lights):
                     frame.skipped = True
-                    frame.meta["previous"] = earlier.record
+                    frame.meta["previous"] = {**earlier.record, "source": str(path)}
                 frame.meta["sha256"] = fingerprint
             else:  # what the frame is made from, for a later --resume to recognise
                 frame.meta["sha256"] = input_fingerprint(path)
@@ -401,6 +409,12 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             journal.reopen()
         except OSError as exc:
             out_of_storage(cannot_write(out / MANIFEST_NAME, exc))
+
+    def journal_move(entry: InputEntry) -> None:
+        try:
+            journal.append(entry)
+        except OSError as exc:
+            out_of_storage(cannot_write(exc.filename or out / JOURNAL_NAME, exc))
 
     def journal_entry(frame: Frame, rec: dict) -> None:
         size, mtime = frame.meta.get("identity") or (-1, -1)

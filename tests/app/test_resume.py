@@ -194,3 +194,29 @@ def test_resume_redoes_an_input_whose_sidecar_bytes_or_relit_files_changed(tmp_p
     assert "side.png changed since the earlier run" in resumed.stderr
     assert "swap.pgm changed since the earlier run" in resumed.stderr
     assert (out / "lost" / "relit_A+030E+10.png").is_file()
+
+
+def test_resume_after_the_input_folder_was_renamed_redoes_nothing_and_keeps_the_names(tmp_path):
+    """A renamed input folder made ``--resume`` redo every photo under a ``-2`` name: an input is now
+    also known by what it is made of when its old path is gone."""
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in range(3):
+        _face(src / f"face{k}.png", k)
+    out = tmp_path / "out"
+    assert _run([src], out).returncode == 0
+    before = _mtimes(out)
+    moved = tmp_path / "renamed"
+    src.rename(moved)
+    _face(moved / "new.png", 7)  # and one photo added
+    resumed = _run([moved], out, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    after = _mtimes(out)
+    assert {k: after[k] for k in before} == before and set(after) == {*before, "new"}
+    summary = {r["stem"]: r["source"] for r in json.loads((out / "summary.json").read_text())}
+    assert summary == {**{f"face{k}": str(moved / f"face{k}.png") for k in range(3)}, "new": str(moved / "new.png")}
+    entries = RunManifest.load(out).entries.values()
+    assert sorted((e.name, e.frame, e.path) for e in entries) == sorted(
+        [(f"face{k}", k, str(moved / f"face{k}.png")) for k in range(3)] + [("new", 3, str(moved / "new.png"))])
+    again = _run([moved], out, "--resume")
+    assert again.returncode == 0 and _mtimes(out) == after
