@@ -16,6 +16,7 @@ import numpy as np
 from PIL import Image
 
 from ..geometry.reflectance import light_from_angles
+from .native_messages import decoder_messages_dropped
 from .encoding import decode_samples, linear_luminance, resolve
 
 # what a folder is read for; a file named on the command line is read whatever its name
@@ -278,7 +279,8 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
         if tiff and (tiff_planar or tiff_dtype not in (np.uint8, np.uint16, np.float32)):
             raw = _read_tiff(p, data)
         else:
-            raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+            with decoder_messages_dropped():  # libpng's and libjpeg's own lines: the frame's error says it
+                raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     if raw is None:
         raise InputError(f"{p}: corrupt or truncated {kind} data")
     del data

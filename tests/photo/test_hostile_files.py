@@ -163,3 +163,24 @@ def test_an_integer_npy_is_read_on_its_own_scale_as_an_image_file_is(tmp_path):
     np.save(tmp_path / "signed.npy", ramp - 0.5)
     with pytest.raises(InputError, match="signed.npy: .npy input holds negative"):
         read_photo(tmp_path / "signed.npy")
+
+
+def test_the_decoders_own_lines_are_dropped_and_nothing_else_is(capfd, tmp_path):
+    """libpng and libjpeg printed their own lines ("libpng error: ...", "Corrupt JPEG data: ...") beside the
+    one line the loader gives for the file."""
+    import os
+
+    import cv2
+    from shadowflow.nodes.photo.native_messages import decoder_messages_dropped
+
+    png = cv2.imencode(".png", np.random.default_rng(0).integers(0, 255, (64, 64), dtype=np.uint8))[1].tobytes()
+    with decoder_messages_dropped():
+        assert cv2.imdecode(np.frombuffer(png[:len(png) // 2], np.uint8), cv2.IMREAD_UNCHANGED) is None
+        os.write(2, b"another thread's line\n")
+    assert capfd.readouterr().err == "another thread's line\n"
+    assert cv2.imdecode(np.frombuffer(png[:len(png) // 2], np.uint8), cv2.IMREAD_UNCHANGED) is None
+    assert "PNG" in capfd.readouterr().err  # what is dropped, printed without it
+    (tmp_path / "cut.png").write_bytes(png[:len(png) // 2])
+    with pytest.raises(InputError, match="cut.png: corrupt or truncated PNG data"):
+        read_photo(tmp_path / "cut.png")
+    assert capfd.readouterr().err == ""
