@@ -134,3 +134,21 @@ def test_a_folder_and_a_watched_folder_take_the_same_files(tmp_path):
     assert folder == watched == ["a.png", "b.webp", "c.gif", "d.jfif"]
     for name in folder:
         assert read_photo(tmp_path / name).grey.shape == (120, 100)
+
+
+def test_junk_photos_are_refused_before_the_fit_and_record_no_iteration(tmp_path, capsys):
+    """1,500 noise files made a 4.35 GB run.mcap (100 fit iterations each): a refused frame records
+    nothing past its refusal."""
+    from shadowflow.flow.replay import open_recording
+
+    rng = np.random.default_rng(5)
+    src = tmp_path / "junk"
+    src.mkdir()
+    for k in range(3):
+        noise = rng.integers(0, 255, (240, 320, 3)).astype(np.uint8)
+        cv2.imwrite(str(src / f"noise{k}.png"), cv2.GaussianBlur(noise, (0, 0), 2.0 * k + 0.5))
+    assert main(["run", str(src), "--out", str(tmp_path / "out"), "--record", "mcap", "--quiet"]) == 1
+    rec = open_recording(tmp_path / "out" / "run.mcap")
+    assert [fr.record["status"].endswith("no face found") for fr in rec.finished_frames()] == [True] * 3
+    assert all(not fr.scalars and not fr.arrays for fr in rec.finished_frames())
+    assert (tmp_path / "out" / "run.mcap").stat().st_size < 20_000
