@@ -442,11 +442,14 @@ def checked_light(v: np.ndarray, what: str) -> np.ndarray:
         v = light_from_angles(v[0], v[1])
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise ValueError(f"{what}: must be two angles (azimuth, elevation in degrees) or three finite numbers")
-    top = float(np.max(np.abs(v)))
-    if top == 0.0 or np.linalg.norm(v / top) * top < 1e-9:
+    with np.errstate(over="ignore"):
+        n = np.linalg.norm(v)
+    if not np.isfinite(n):  # the norm of 1e308s overflows: to the largest component first
+        v = v / np.max(np.abs(v))
+        n = np.linalg.norm(v)
+    if n < 1e-9:
         raise ValueError(f"{what}: is the zero vector")
-    v = v / top  # first to the largest component: the norm of 1e308s does not overflow
-    v = v / np.linalg.norm(v)
+    v = v / n
     if v[2] <= 0:
         raise ValueError(f"{what}: points away from the camera (z <= 0): the face would be unlit")
     return v
