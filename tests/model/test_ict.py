@@ -149,7 +149,7 @@ def test_train_from_the_shipped_basis_at_another_grid_and_k(tmp_path, capsys):
     assert m.grid == (64, 64) and m.n_modes == 12 and '"source": "ict"' in m.source
     assert 0.35 < m.mask.mean() < 0.9
     # the expressions need the full model: the shipped basis holds identities only
-    assert main(["train", "--source", "ict", "--expressions", "0.1", "--n", "3", "--out", str(tmp_path / "x.npz")]) == 2
+    assert main(["train", "--source", "ict", "--expressions", "0.1", "--n", "3", "--modes", "2", "--out", str(tmp_path / "x.npz")]) == 2
     assert "ict:PATH" in capsys.readouterr().err
 
 
