@@ -268,251 +268,330 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
     try:
         store.entries.update(previous.entries if previous else {})
         manifest = RunManifest(config, list(previous.recordings) if previous else [], store.entries)
-        return _run_stored(paths, out, model, options, run, total, client, manifest, previous is not None, store)
+        return StoredRun(paths, out, model, options, run, total, client, manifest, previous is not None,
+                         store).execute()
     finally:
         store.close()
 
 
-def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions, run: RunOptions,
-                total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore) -> RunResult:
-    """The run, its manifest's entries and its records in ``store``; ``resumed``: it goes on from an
-    earlier run's manifest."""
-    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
-    config_id = manifest.config_id
+class StoredRun:
+    """One run into a locked ``out`` whose manifest's entries and records are in ``store``: its state and
+    its steps as methods. ``execute()`` streams the inputs through the pipeline; each finished frame comes
+    to ``done``, which keeps its record, journal entry, summary and progress; a full disk (or any storage
+    failure) stops the run through ``out_of_storage``. ``resumed``: it goes on from an earlier run's
+    manifest."""
 
-    specs: list = []  # the recording's file sinks, as (factory, args, kwargs)
-    parts = {suffix: _recording_path(out, suffix, run.resume) for suffix in ("mcap", "rrd")}
-    for path in parts.values():  # a link planted in --out would send the recording elsewhere
-        refuse_link(path)
-    recording_id = str(uuid.uuid4())  # the Rerun recording's id: a distributed run's parts share it
-    if "mcap" in run.record:
-        specs.append((McapSink, (str(parts["mcap"]),), {}))
-        manifest.recordings.append(parts["mcap"].name)
-    own_process = run.record_options.own_process and client is None
-    if "rerun" in run.record:
-        rrd_args = (str(parts["rrd"]), recording_id)
-        if own_process:  # the Rerun SDK keeps something of every entity path a process logs: renewed
-            specs.append((renewed_sink, (f"{rerun_sink.__module__}:rerun_sink", list(rrd_args), {}, RERUN_RENEW_FRAMES), {}))
+    def __init__(self, paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions, run: RunOptions,
+                 total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore):
+        self.paths, self.out, self.model, self.options, self.run = paths, out, model, options, run
+        self.total, self.client, self.manifest, self.resumed, self.store = total, client, manifest, resumed, store
+        self.note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+        self.config_id = manifest.config_id
+        self.storage: str | None = None  # the first storage failure, which stops the run
+        self.summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
+        # outputs must never land on an input: all of them when the list is known, else as they come
+        self.protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
+        self.pipeline = None  # made by ``execute``, after the recordings and the journal are open
+        self._open_recordings()
+        manifest.save(out)  # the job's parts and inputs so far, before any frame
+        self.journal = Journal(out)
+        self.progress = Progress(total, not run.quiet)
+        self.trim_heap = HeapTrimmer()
+
+    def _open_recordings(self) -> None:
+        """The recording's sinks (MCAP, Rerun; on the recording process of their own when it runs here),
+        their parts listed in the manifest, the report's tap, the recorder and the fit's observer."""
+        own_process = self.run.record_options.own_process and self.client is None
+        self.recording_id = str(uuid.uuid4())  # the Rerun recording's id: a distributed run's parts share it
+        specs = self._sink_specs(own_process)
+        if specs and own_process:
+            self.sinks: list = [ProcessSinks(specs)]  # encoding and compression on the other core
         else:
-            specs.append((rerun_sink, rrd_args, {}))
-        manifest.recordings.append(parts["rrd"].name)
-    if specs and own_process:
-        sinks: list = [ProcessSinks(specs)]  # encoding and compression on the other core
-    else:
-        sinks = [factory(*args, **kwargs) for factory, args, kwargs in specs]
-    # the report's convergence plot from what this run records, instead of reading the recording
-    # back at the end (it decompresses every array: 0.7 s for 12 frames); a resumed or distributed
-    # job's frames are recorded elsewhere too, so its report reads the recording
-    tap = ScalarsTap(CONVERGENCE, PLOT_FRAMES) if sinks and not resumed and client is None else None
-    if tap is not None:
-        sinks.append(tap)
-    manifest.save(out)  # the job's parts and inputs so far, before any frame
-    journal = Journal(out)
-    recorder = Recorder(sinks, run.record_options) if sinks else None
-    observer = FitRecorder(model, recorder) if recorder else None
+            self.sinks = [factory(*args, **kwargs) for factory, args, kwargs in specs]
+        # the report's convergence plot from what this run records, instead of reading the recording
+        # back at the end (it decompresses every array: 0.7 s for 12 frames); a resumed or distributed
+        # job's frames are recorded elsewhere too, so its report reads the recording
+        self.tap = (ScalarsTap(CONVERGENCE, PLOT_FRAMES) if self.sinks and not self.resumed and self.client is None
+                    else None)
+        if self.tap is not None:
+            self.sinks.append(self.tap)
+        self.recorder = Recorder(self.sinks, self.run.record_options) if self.sinks else None
+        self.observer = FitRecorder(self.model, self.recorder) if self.recorder else None
 
-    # outputs must never land on an input: all of them when the list is known, else as they come
-    protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
-    if client is None:
-        after = (RecordNode(model, recorder),) if recorder is not None else ()
-        nodes = [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected)]
-        stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
-
-    progress = Progress(total, not run.quiet)
-    trim_heap = HeapTrimmer()
-    storage: list[str] = []  # the first storage failure, which stops the run
-    summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
-
-    def out_of_storage(why: str) -> None:
-        if not storage:
-            storage.append(why)
-            print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
-        pipeline.stop()
-
-    def save_summary(force: bool = False) -> None:
-        """summary.json, rewritten whole: at the end, and meanwhile no more often than keeps its cost
-        under 5 % of the run (the journal already holds every finished frame)."""
-        now = time.monotonic()
-        if not force and now - summary_clock["last"] < max(1.0, 20.0 * summary_clock["cost"]):
-            return
-        t0 = time.perf_counter()
-        try:
-            write_summary(out, store.records)
-        except OSError as exc:
-            out_of_storage(cannot_write(out / "summary.json", exc))
-        summary_clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
-
-    def frames() -> Iterator[Frame]:
-        """The inputs as frames; a store that takes no more ends them."""
-        try:
-            yield from named_frames()
-        except OSError as exc:
-            out_of_storage(cannot_write(exc.filename, exc))
-
-    def named_frames() -> Iterator[Frame]:
-        """Each input with its output name and frame id (the names taken and this run's choices
-        are kept in the store)."""
-        taken, assigned = store.names, store.assigned
-        taken |= manifest.names()
-        next_id = manifest.next_frame()
-        gone: dict[str, str] | None = None  # the earlier inputs no longer at their paths, by fingerprint
-        for path in paths:
-            key, identity = input_key(path), file_identity(path)
-            earlier = manifest.entries.get(key)
-            given = assigned.get(key)  # this run's: name, id, identity
-            if given is None and earlier is None and run.resume and identity is not None and manifest.entries:
-                if gone is None:
-                    gone = manifest.gone()
-                old = gone.pop(input_fingerprint(path), None) if gone else None
-                if old is not None:  # moved here (a renamed folder): its name, frame id and outputs go with it
-                    earlier = manifest.move(old, key, identity)
-                    journal_move(earlier)
-            if given is not None:
-                if given[2] == identity:
-                    note(f"{path}: given more than once; processed once")
-                    continue
-                name, fid = given[:2]  # changed since this run took it (a watched folder): redone
-                earlier = None
-            elif earlier is not None:
-                name, fid = earlier.name, earlier.frame
-                taken.add(name.lower())
+    def _sink_specs(self, own_process: bool) -> list[tuple]:
+        """The recording's file sinks as ``(factory, args, kwargs)``, their files listed in the manifest."""
+        run, manifest = self.run, self.manifest
+        specs: list = []
+        parts = {suffix: _recording_path(self.out, suffix, run.resume) for suffix in ("mcap", "rrd")}
+        for path in parts.values():  # a link planted in --out would send the recording elsewhere
+            refuse_link(path)
+        if "mcap" in run.record:
+            specs.append((McapSink, (str(parts["mcap"]),), {}))
+            manifest.recordings.append(parts["mcap"].name)
+        if "rerun" in run.record:
+            rrd_args = (str(parts["rrd"]), self.recording_id)
+            if own_process:  # the Rerun SDK keeps something of every entity path a process logs: renewed
+                specs.append((renewed_sink, (f"{rerun_sink.__module__}:rerun_sink", list(rrd_args), {},
+                                             RERUN_RENEW_FRAMES), {}))
             else:
-                name, fid = safe_stem(path, taken), next_id
-                next_id += 1
-            assigned.put(key, name, fid, identity)
-            protected.add(real_path(path))
-            frame = Frame(fid, path)
-            frame.meta.update(stem=name, input_key=key, identity=identity)
-            clash = run_file_clash(path, out)
-            if clash:  # (a watched folder's newcomer: a listed one refused the run before it began)
-                frame.fail("load", clash)
-                yield frame
-                continue
-            reusable = (run.resume and earlier is not None and earlier.record is not None
-                        and earlier.record.get("status") == "ok" and earlier.config == config_id)
-            if reusable:  # (a changed configuration was said once, above)
-                fingerprint = input_fingerprint(path)
-                if not earlier.same_file(identity, fingerprint):
-                    note(f"note: {path} changed since the earlier run: redone")
-                elif complete(out / name, options.extra_lights):
-                    frame.skipped = True
-                    frame.meta["previous"] = {**earlier.record, "source": str(path)}
-                frame.meta["sha256"] = fingerprint
-            else:  # what the frame is made from, for a later --resume to recognise
-                frame.meta["sha256"] = input_fingerprint(path)
-            yield frame
+                specs.append((rerun_sink, rrd_args, {}))
+            manifest.recordings.append(parts["rrd"].name)
+        return specs
 
-    def save_manifest() -> None:
-        """manifest.json rewritten mid-run (it folds the journal in and removes it: a new one follows)."""
-        try:
-            manifest.save(out)
-            journal.reopen()
-        except OSError as exc:
-            out_of_storage(cannot_write(out / MANIFEST_NAME, exc))
-
-    def journal_move(entry: InputEntry) -> None:
-        try:
-            journal.append(entry)
-        except OSError as exc:
-            out_of_storage(cannot_write(exc.filename or out / JOURNAL_NAME, exc))
-
-    def journal_entry(frame: Frame, rec: dict) -> None:
-        size, mtime = frame.meta.get("identity") or (-1, -1)
-        entry = InputEntry(frame.meta["input_key"], size, mtime, frame.meta["stem"], frame.id, config_id, rec,
-                           frame.meta.get("sha256", ""))
-        try:
-            manifest.entries[entry.path] = entry
-            journal.append(entry)
-        except OSError as exc:
-            out_of_storage(cannot_write(exc.filename or out / JOURNAL_NAME, exc))
-
-    def stored(name: str, rec: dict) -> bool:
-        """The frame's record put in the store; False (and the run stops) when the folder takes no more."""
-        try:
-            store.put_record(name, rec)
-            return True
-        except OSError as exc:
-            out_of_storage(cannot_write(exc.filename, exc))
-            return False
-
-    def drop_record(name: str) -> None:
-        try:
-            store.drop_record(name)
-        except OSError:
-            pass  # the store takes no more either: the run is stopping, and says why already
-
-    def done(frame: Frame) -> None:
-        if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
-            frame.drop_data()
-            return
-        if frame.skipped:
-            if not stored(frame.meta["stem"], frame.meta["previous"]):
-                return
-            save_summary()
-            progress.update(True)
-            return
-        if _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
-            out_of_storage(frame.status)
-            frame.drop_data()
-            return
-        if storage:  # finished after the run stopped taking data: not journaled, so --resume redoes it
-            frame.drop_data()  # and summary.json does not call it done
-            return
-        rec = summary_record(frame)
-        if not stored(frame.meta["stem"], rec):  # (taken again, as a watched file that changed: the newer record)
-            frame.drop_data()
-            return
-        worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
-        if worker_parts:
-            new_parts = [p for p in worker_parts if p not in manifest.recordings]
-            if new_parts:  # listed at once, so a killed run's parts are still read as the job's
-                manifest.recordings.extend(new_parts)
-                save_manifest()
-        failed = frame.meta.pop("recording_error", None)
-        if failed is None and recorder is not None and worker_parts is None:
-            recorder.frame_done(frame.id, rec, wait=True)  # recorded before the journal says done
-            if recorder.error is not None:
-                failed = f"recording failed ({recorder.error})"
-        if failed is not None:  # --resume redoes the frame: summary.json does not call it done
-            out_of_storage(f"{out}: {failed}")
-            drop_record(frame.meta["stem"])
-            frame.drop_data()
-            return
-        if not storage:
-            journal_entry(frame, rec)
-        save_summary()
-        progress.update(frame.ok)
-        for line in status_lines(rec):
-            progress.write(line)
-        frame.drop_data()  # the frame's arrays are on disk now: free them
-        trim_heap()
-
-    if client is None:
-        pipeline = Pipeline(stages, queue_size=run.queue_size, on_done=done, frame_timeout=run.frame_timeout)
-    else:
+    def _pipeline(self):
+        """The engine: this machine's threads, or the Dask cluster of ``client``."""
+        run = self.run
+        if self.client is None:
+            after = (RecordNode(self.model, self.recorder),) if self.recorder is not None else ()
+            nodes = [*photo_nodes(self.model, self.options, self.observer, after=after),
+                     WriteNode(self.model, self.out, self.protected)]
+            stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
+            return Pipeline(stages, queue_size=run.queue_size, on_done=self.done, frame_timeout=run.frame_timeout)
         from ...flow.distributed import DaskPipeline
         from .cluster import WorkerChain
 
-        chain = WorkerChain(options, out.resolve(), frozenset(protected), tuple(run.record), run.record_options,
-                            recording_id if "rerun" in run.record else "")
-        pipeline = DaskPipeline(client, chain, shared=model, on_done=done, frame_timeout=run.frame_timeout)
-    report: Path | None = None
-    try:
-        with one_blas_thread():
-            for _ in pipeline.run(frames(), handle_signals=True):
-                pass
-    finally:
-        progress.close()
-        journal.close()
-        if recorder is not None:
+        chain = WorkerChain(self.options, self.out.resolve(), frozenset(self.protected), tuple(run.record),
+                            run.record_options, self.recording_id if "rerun" in run.record else "")
+        return DaskPipeline(self.client, chain, shared=self.model, on_done=self.done, frame_timeout=run.frame_timeout)
+
+    # -- storage: the first failure stops the run -------------------------------------------------
+
+    def out_of_storage(self, why: str) -> None:
+        if self.storage is None:
+            self.storage = why
+            print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
+        if self.pipeline is not None:
+            self.pipeline.stop()
+
+    def save_summary(self, force: bool = False) -> None:
+        """summary.json, rewritten whole: at the end, and meanwhile no more often than keeps its cost
+        under 5 % of the run (the journal already holds every finished frame)."""
+        clock = self.summary_clock
+        now = time.monotonic()
+        if not force and now - clock["last"] < max(1.0, 20.0 * clock["cost"]):
+            return
+        t0 = time.perf_counter()
+        try:
+            write_summary(self.out, self.store.records)
+        except OSError as exc:
+            self.out_of_storage(cannot_write(self.out / "summary.json", exc))
+        clock.update(last=time.monotonic(), cost=time.perf_counter() - t0)
+
+    def save_manifest(self) -> None:
+        """manifest.json rewritten mid-run (it folds the journal in and removes it: a new one follows)."""
+        try:
+            self.manifest.save(self.out)
+            self.journal.reopen()
+        except OSError as exc:
+            self.out_of_storage(cannot_write(self.out / MANIFEST_NAME, exc))
+
+    def journal_append(self, entry: InputEntry) -> None:
+        try:
+            self.manifest.entries[entry.path] = entry
+            self.journal.append(entry)
+        except OSError as exc:
+            self.out_of_storage(cannot_write(exc.filename or self.out / JOURNAL_NAME, exc))
+
+    def journal_entry(self, frame: Frame, rec: dict) -> None:
+        size, mtime = frame.meta.get("identity") or (-1, -1)
+        self.journal_append(InputEntry(frame.meta["input_key"], size, mtime, frame.meta["stem"], frame.id,
+                                       self.config_id, rec, frame.meta.get("sha256", "")))
+
+    def stored(self, name: str, rec: dict) -> bool:
+        """The frame's record put in the store; False (and the run stops) when the folder takes no more."""
+        try:
+            self.store.put_record(name, rec)
+            return True
+        except OSError as exc:
+            self.out_of_storage(cannot_write(exc.filename, exc))
+            return False
+
+    def drop_record(self, name: str) -> None:
+        try:
+            self.store.drop_record(name)
+        except OSError:
+            pass  # the store takes no more either: the run is stopping, and says why already
+
+    # -- the inputs as frames ---------------------------------------------------------------------
+
+    def frames(self) -> Iterator[Frame]:
+        """The inputs as frames; a store that takes no more ends them."""
+        try:
+            yield from self.named_frames()
+        except OSError as exc:
+            self.out_of_storage(cannot_write(exc.filename, exc))
+
+    def named_frames(self) -> Iterator[Frame]:
+        """Each input with its output name and frame id (the names taken and this run's choices
+        are kept in the store)."""
+        taken = self.store.names
+        taken |= self.manifest.names()
+        self._next_id = self.manifest.next_frame()
+        self._gone: dict[str, str] | None = None  # the earlier inputs no longer at their paths, by fingerprint
+        for path in self.paths:
+            key, identity = input_key(path), file_identity(path)
+            named = self._name(path, key, identity)
+            if named is not None:
+                yield self._frame(path, key, identity, *named)
+
+    def _name(self, path: str, key: str, identity) -> tuple[str, int, InputEntry | None] | None:
+        """``(output name, frame id, the earlier run's entry to reuse or None)`` of the input ``path`` (its
+        input key and identity); None when this run has taken it already as it is."""
+        manifest, assigned = self.manifest, self.store.assigned
+        earlier = manifest.entries.get(key)
+        given = assigned.get(key)  # this run's: name, id, identity
+        if given is None and earlier is None:
+            earlier = self._moved_here(path, key, identity)
+        if given is not None:
+            if given[2] == identity:
+                self.note(f"{path}: given more than once; processed once")
+                return None
+            name, fid = given[:2]  # changed since this run took it (a watched folder): redone
+            earlier = None
+        elif earlier is not None:
+            name, fid = earlier.name, earlier.frame
+            self.store.names.add(name.lower())
+        else:
+            name, fid = safe_stem(path, self.store.names), self._next_id
+            self._next_id += 1
+        assigned.put(key, name, fid, identity)
+        self.protected.add(real_path(path))
+        return name, fid, earlier
+
+    def _moved_here(self, path: str, key: str, identity) -> InputEntry | None:
+        """With ``--resume``, the earlier entry of an input moved to ``path`` (a renamed folder: its old
+        path gone, its content the same), re-keyed here with its name, frame id and outputs; else None."""
+        if not (self.run.resume and identity is not None and self.manifest.entries):
+            return None
+        if self._gone is None:
+            self._gone = self.manifest.gone()
+        old = self._gone.pop(input_fingerprint(path), None) if self._gone else None
+        if old is None:
+            return None
+        moved = self.manifest.move(old, key, identity)
+        self.journal_append(moved)
+        return moved
+
+    def _frame(self, path: str, key: str, identity, name: str, fid: int, earlier: InputEntry | None) -> Frame:
+        """The frame of ``path``: skipped (its earlier record reused) when ``--resume`` finds its outputs
+        complete and made from the same input under the same configuration."""
+        frame = Frame(fid, path)
+        frame.meta.update(stem=name, input_key=key, identity=identity)
+        clash = run_file_clash(path, self.out)
+        if clash:  # (a watched folder's newcomer: a listed one refused the run before it began)
+            frame.fail("load", clash)
+            return frame
+        fingerprint = input_fingerprint(path)  # what the frame is made from, for a later --resume to recognise
+        frame.meta["sha256"] = fingerprint
+        reusable = (self.run.resume and earlier is not None and earlier.record is not None
+                    and earlier.record.get("status") == "ok" and earlier.config == self.config_id)
+        if reusable:  # (a changed configuration was said once, before the run)
+            if not earlier.same_file(identity, fingerprint):
+                self.note(f"note: {path} changed since the earlier run: redone")
+            elif complete(self.out / name, self.options.extra_lights):
+                frame.skipped = True
+                frame.meta["previous"] = {**earlier.record, "source": str(path)}
+        return frame
+
+    # -- each finished frame ----------------------------------------------------------------------
+
+    def done(self, frame: Frame) -> None:
+        """A frame the pipeline is done with, in input order: recorded, journaled, summarised."""
+        if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
+            frame.drop_data()
+        elif frame.skipped:
+            if self.stored(frame.meta["stem"], frame.meta["previous"]):
+                self.save_summary()
+                self.progress.update(True)
+        elif _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
+            self.out_of_storage(frame.status)
+            frame.drop_data()
+        elif self.storage is not None:  # finished after the run stopped taking data: not journaled, so
+            frame.drop_data()  # --resume redoes it, and summary.json does not call it done
+        else:
+            self._finished(frame)
+
+    def _finished(self, frame: Frame) -> None:
+        rec = summary_record(frame)
+        if not self.stored(frame.meta["stem"], rec):  # (taken again, as a watched file that changed: the newer record)
+            frame.drop_data()
+            return
+        failed = self._recorded(frame, rec)
+        if failed is not None:  # --resume redoes the frame: summary.json does not call it done
+            self.out_of_storage(f"{self.out}: {failed}")
+            self.drop_record(frame.meta["stem"])
+            frame.drop_data()
+            return
+        if self.storage is None:
+            self.journal_entry(frame, rec)
+        self.save_summary()
+        self.progress.update(frame.ok)
+        for line in status_lines(rec):
+            self.progress.write(line)
+        frame.drop_data()  # the frame's arrays are on disk now: free them
+        self.trim_heap()
+
+    def _recorded(self, frame: Frame, rec: dict) -> str | None:
+        """The frame's recording closed with its record (before the journal says it is done), or why it
+        could not be; a Dask worker's recording parts listed in the manifest at once."""
+        worker_parts = frame.meta.pop("recording_parts", None)  # recorded on a Dask worker, in these
+        if worker_parts:
+            new_parts = [p for p in worker_parts if p not in self.manifest.recordings]
+            if new_parts:  # listed at once, so a killed run's parts are still read as the job's
+                self.manifest.recordings.extend(new_parts)
+                self.save_manifest()
+        failed = frame.meta.pop("recording_error", None)
+        if failed is None and self.recorder is not None and worker_parts is None:
+            self.recorder.frame_done(frame.id, rec, wait=True)
+            if self.recorder.error is not None:
+                failed = f"recording failed ({self.recorder.error})"
+        return failed
+
+    # -- the run ----------------------------------------------------------------------------------
+
+    def execute(self) -> RunResult:
+        """Stream every input through the pipeline, then close the recordings and write the summary, the
+        manifest and the report."""
+        self.pipeline = self._pipeline()
+        report = None
+        try:
+            with one_blas_thread():
+                for _ in self.pipeline.run(self.frames(), handle_signals=True):
+                    pass
+        finally:
+            report = self._close()
+        lost = getattr(self.pipeline, "lost", None)
+        if lost:
+            print(f"error: {lost}; finished frames are written; run again with --resume to complete the job",
+                  file=sys.stderr)
+        frames_done, not_ok = self.store.records.counts()
+        stopped = self.pipeline.stopped and self.storage is None
+        return RunResult(self.out, frames_done, not_ok, stopped, self.storage, lost, report)
+
+    def _report(self) -> Path | None:
+        """``report.html`` written, or None (with a note) when it could not be."""
+        out = self.out
+        try:
+            return write_report(out, self.store.records, out if "mcap" in self.run.record else None,
+                                series=self.tap.series() if self.tap is not None else None)
+        except OSError as exc:  # the outputs and the summary are written: the report is a view of them
+            print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
+            return None
+
+    def _close(self) -> Path | None:
+        """The run's files closed and written, whatever ended it; the report's path, if it was written."""
+        out, manifest = self.out, self.manifest
+        self.progress.close()
+        self.journal.close()
+        if self.recorder is not None:
             try:
-                recorder.close()
+                self.recorder.close()
             except RuntimeError as exc:
-                if not storage:
+                if self.storage is None:
                     raise
                 print(f"note: {exc}", file=sys.stderr)
-        save_summary(force=True)
-        for sink in sinks:  # a long run's .rrd goes on in segment files: the job's parts too
+        self.save_summary(force=True)
+        for sink in self.sinks:  # a long run's .rrd goes on in segment files: the job's parts too
             for path in sink.paths:
                 if path.name not in manifest.recordings:
                     manifest.recordings.append(path.name)
@@ -520,20 +599,8 @@ def _run_stored(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
             manifest.save(out)
         except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both
             print(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})", file=sys.stderr)
-        if not storage:
-            try:
-                write_report(out, store.records, out if "mcap" in run.record else None,
-                             series=tap.series() if tap is not None else None)
-                report = out / REPORT_NAME
-            except OSError as exc:  # the outputs and the summary are written: the report is a view of them
-                print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
-        if pipeline.stopped and not storage:  # shown even under --quiet: the job is not complete
+        report = self._report() if self.storage is None else None
+        if self.pipeline.stopped and self.storage is None:  # shown even under --quiet: the job is not complete
             print("stopped: finished frames are written; run again with --resume to complete the job",
                   file=sys.stderr)
-    lost = getattr(pipeline, "lost", None)
-    if lost:
-        print(f"error: {lost}; finished frames are written; run again with --resume to complete the job",
-              file=sys.stderr)
-    frames_done, not_ok = store.records.counts()
-    return RunResult(out, frames_done, not_ok, pipeline.stopped and not storage, storage[0] if storage else None,
-                     lost, report)
+        return report
