@@ -9,6 +9,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -207,68 +208,92 @@ def run_options(args: argparse.Namespace) -> RunOptions:
                       frame_timeout=args.frame_timeout or None, dask=args.dask)
 
 
-def cmd_run(args: argparse.Namespace) -> int:
+def _given_eyes(text: str) -> np.ndarray | None:
+    """``--eyes``: None for auto or centre, else the (2, 2) eye centres of ``X1,Y1,X2,Y2``."""
+    if text in ("auto", "centre"):
+        return None
+    try:
+        eyes = np.array([float(t) for t in text.split(",")], np.float64).reshape(2, 2)
+    except ValueError:
+        raise ValueError(f"--eyes {text!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
+    if not np.all(np.isfinite(eyes)) or np.linalg.norm(eyes[1] - eyes[0]) < 1.0:
+        raise ValueError(f"--eyes {text!r}: four finite numbers, two distinct eye centres")
+    return eyes
 
+
+def method_options(args: argparse.Namespace) -> MethodOptions:
+    """What the method computes, from ``run``'s arguments (checked by ``MethodOptions`` itself)."""
+    light: str | np.ndarray = args.light if args.light in ("auto", "yaleb") else parse_light(args.light)
+    fit = _fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds, args.cone_trust)
+    return MethodOptions(fit=fit,
+                         integrator=args.integrator, remap=args.remap, light=light, eyes=_given_eyes(args.eyes),
+                         find_faces=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
+                         face_length=_face_length(args.face_length),
+                         extra_lights=tuple(parse_light(x) for x in args.relight or ()),
+                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
+                         eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
+                         encoding=args.encoding)
+
+
+def _no_input(args: argparse.Namespace) -> str | None:
+    """Why ``run``'s named inputs hold no image (a pattern matching nothing, a folder without images), or
+    None; asked before ``--out`` is made, so such a run writes nothing."""
+    inputs = list(args.inputs)
+    if not inputs or args.watch:
+        return None
+    notes: list[str] = []
+    if expand_inputs(inputs, notes.append):
+        return None
+    unmatched = [n for n in notes if n.endswith("no file matches")]
+    return unmatched[0] if len(inputs) == 1 and unmatched else f"{' '.join(inputs)} holds no image file"
+
+
+def _input_stream(args: argparse.Namespace, inputs: list[str],
+                  note) -> tuple[Iterable[str], int | None, FolderWatch | None]:
+    """The paths to run (a list, or the named ones then a watched folder's newcomers), their number when
+    known, and the watch."""
+    if not args.watch:
+        paths = expand_inputs(inputs, note)
+        return paths, len(paths), None
+    paths = expand_inputs(inputs, note) if inputs else []
+    watch = FolderWatch(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit, settle=args.settle)
+    return (p for src in (paths, watch) for p in src), None, watch
+
+
+def _run_exit_code(result, watch_error: str | None) -> int:
+    """130 stopped by a signal; 0 every frame done; 1 a frame failed or is doubtful, the folder took no more,
+    the cluster or the watched folder went away (said here for the watch)."""
+    if watch_error:
+        print(f"error: {watch_error}", file=sys.stderr)
+    if result.stopped:
+        return 130
+    fine = result.not_ok == 0 and result.storage_error is None and result.cluster_error is None and not watch_error
+    return 0 if fine else 1
+
+
+def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     _check_run_arguments(args)  # before any work or any file is written
-    eyes = None
-    if args.eyes not in ("auto", "centre"):
-        try:
-            eyes = np.array([float(t) for t in args.eyes.split(",")], np.float64).reshape(2, 2)
-        except ValueError:
-            raise ValueError(f"--eyes {args.eyes!r}: give auto, centre or four numbers X1,Y1,X2,Y2") from None
-        if not np.all(np.isfinite(eyes)) or np.linalg.norm(eyes[1] - eyes[0]) < 1.0:
-            raise ValueError(f"--eyes {args.eyes!r}: four finite numbers, two distinct eye centres")
-    inputs = list(args.inputs)
-    if inputs and not args.watch:  # before --out is made: a pattern matching nothing writes nothing
-        notes: list[str] = []
-        if not expand_inputs(inputs, notes.append):
-            unmatched = [n for n in notes if n.endswith("no file matches")]
-            why = unmatched[0] if len(inputs) == 1 and unmatched else f"{' '.join(inputs)} holds no image file"
-            print(f"shadowflow run: no input image: {why}", file=sys.stderr)
-            return 2
+    options = method_options(args)
+    why = _no_input(args)
+    if why is not None:
+        print(f"shadowflow run: no input image: {why}", file=sys.stderr)
+        return 2
     check_writable(out)
-    if args.demo:
-        inputs = write_demo_inputs(out / "demo-inputs") + inputs
+    inputs = (write_demo_inputs(out / "demo-inputs") if args.demo else []) + list(args.inputs)
     if not inputs and not args.watch:
         print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
         return 2
     note = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     run = run_options(args)
-    record = run.record
-    light: str | np.ndarray = args.light
-    if args.light not in ("auto", "yaleb"):
-        light = parse_light(args.light)
     model = _load_model(args.model)
-    options = MethodOptions(fit=_fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds,
-                                            args.cone_trust),
-                            integrator=args.integrator, remap=args.remap, light=light, eyes=eyes,
-                            find_faces=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
-                            face_length=_face_length(args.face_length),
-                            extra_lights=tuple(parse_light(x) for x in args.relight or ()),
-                            novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
-                            eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
-                            encoding=args.encoding)
-    watch = None
-    if args.watch:
-        paths = expand_inputs(inputs, note) if inputs else []
-        watch = FolderWatch(Path(args.watch), IMAGE_SUFFIXES, args.idle_exit, settle=args.settle)
-        stream = (p for src in (paths, watch) for p in src)
-        total = None
-    else:
-        stream = expand_inputs(inputs, note)
-        total = len(stream)
+    stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
-    failures = result.not_ok
-    note(f"{result.frames - failures} of {result.frames} done in {time.perf_counter() - t0:.1f} s"
+    note(f"{result.frames - result.not_ok} of {result.frames} done in {time.perf_counter() - t0:.1f} s"
          + (f"; report: {result.report}" if result.report is not None else "")
-         + (f"; recordings: {', '.join(record)} in {out}" if record else ""))
-    watch_error = watch.error if watch is not None else None
-    if watch_error:
-        print(f"error: {watch_error}", file=sys.stderr)
-    fine = failures == 0 and result.storage_error is None and result.cluster_error is None and not watch_error
-    code = 130 if result.stopped else 0 if fine else 1
+         + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
+    code = _run_exit_code(result, watch.error if watch is not None else None)
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
         print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
         sys.stdout.flush()
