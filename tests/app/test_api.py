@@ -20,6 +20,7 @@ def _readme_python_example() -> str:
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 
+@pytest.mark.slow
 def test_the_readme_python_example_runs(tmp_path):
     """Run as a user would paste it, in a fresh interpreter, in an empty folder."""
     proc = subprocess.run([sys.executable, "-c", _readme_python_example()], cwd=tmp_path, capture_output=True,

@@ -122,6 +122,7 @@ def test_train_and_eval_commands(tmp_path, capsys):
     assert "model floor" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_watch_processes_files_that_arrive_then_exits_when_idle(tmp_path, demo_run):
     import threading
     import time
@@ -145,6 +146,7 @@ def test_watch_processes_files_that_arrive_then_exits_when_idle(tmp_path, demo_r
     assert [r["stem"] for r in summary] == ["first", "second"] and all(r["status"] == "ok" for r in summary)
 
 
+@pytest.mark.slow
 def test_watch_waits_for_a_slow_copy_and_takes_a_changed_file_again(tmp_path, demo_run, capsys):
     """A file copied in slowly was read half-written and failed; one that failed was never retried."""
     import threading
@@ -179,6 +181,7 @@ def test_watch_waits_for_a_slow_copy_and_takes_a_changed_file_again(tmp_path, de
     assert err.count("stall.png: corrupt or truncated") == 1 and "slow.png: corrupt" not in err
 
 
+@pytest.mark.slow
 def test_watch_stops_with_one_line_when_its_folder_is_removed(tmp_path, demo_run, capsys):
     import threading
     import time

@@ -17,6 +17,7 @@ from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 
 distributed = pytest.importorskip("distributed")
+pytestmark = pytest.mark.slow  # each case runs whole CLI processes (and clusters)
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 FAST = ["--max-iterations", "12", "--record", "mcap,rerun", "--quiet"]
 

@@ -172,6 +172,7 @@ def _normals_by_source(out: Path) -> dict[str, np.ndarray]:
             for r in summary if r["status"] == "ok"}
 
 
+@pytest.mark.slow
 def test_a_stream_of_hostile_inputs_fails_each_alone_and_keeps_good_faces_exact(tmp_path):
     prefix = _unprivileged()
     good_dir = tmp_path / "good"
@@ -285,6 +286,7 @@ def _limit_file_size(limit: int):
     return apply
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("record", ["none", "mcap"])
 def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_path, record):
     src = _faces(tmp_path / "in", 3, seed=3)
@@ -378,6 +380,7 @@ def test_the_run_store_names_itself_when_the_disk_is_full(tmp_path):
     assert int(errno_) > 0
 
 
+@pytest.mark.slow
 def test_an_input_whose_name_is_not_utf8_runs_and_resumes(tmp_path):
     src = _faces(tmp_path / "in", 1, seed=4)
     for suffix in (".png", ".json"):  # bytes that are no UTF-8 in the name
@@ -427,6 +430,7 @@ def _mcap_with(path: Path, encoding: str, data: bytes) -> None:
         w.finish()
 
 
+@pytest.mark.slow
 def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
     import struct
 
@@ -553,6 +557,7 @@ def test_links_planted_in_out_are_never_written_through(tmp_path):
     assert list(elsewhere.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_odd_images_are_read_on_their_real_scale_or_refused_with_the_reason(tmp_path):
     """A float TIFF in 0-255, 32-bit integer and 64-bit float TIFFs and a 40 x 40000 PNG gave
     internal errors or 'corrupt'; an output folder named like an input was listed on every run."""
@@ -587,6 +592,7 @@ def test_odd_images_are_read_on_their_real_scale_or_refused_with_the_reason(tmp_
         assert np.nanmax(err) < 0.5, (name, np.nanmax(err))
 
 
+@pytest.mark.slow
 def test_a_33_megapixel_jpeg_is_read_reduced_and_memory_stays_bounded(tmp_path):
     """A 33 MP JPEG took 10.1 GB and 116 s: photos over --max-megapixels (4) are decoded reduced
     (libjpeg's 1/2 scale, then area-averaged), their sidecar eyes scaled with them."""

@@ -34,6 +34,7 @@ def test_the_watch_idle_clock_starts_when_the_last_file_is_handed_on(tmp_path):
     assert len(taken) == 12
 
 
+@pytest.mark.slow
 def test_inputs_named_like_the_runs_own_files_get_folders_of_their_own(tmp_path):
     """Inputs named summary.json.png, report.html.png, manifest.json.png, run.mcap.png, run.rrd.png:
     their output folders collided with the run's files ("free space" errors, no report), and

@@ -211,6 +211,7 @@ def test_foxglove_copies_decode_with_the_files_own_protobuf_schemas(demo):
             "/relight/relit/foxglove", "/load/grid_image/foxglove"} <= shown
 
 
+@pytest.mark.slow
 def test_replay_and_diff_commands(demo, tmp_path):
     cli = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
     out = subprocess.run(cli + ["replay", str(demo / "run.mcap"), "--plot", str(tmp_path / "c.png"),
@@ -342,6 +343,7 @@ def test_truncated_and_hostile_files(demo, tmp_path):
         decode_array(b"SFA1" + struct.pack("<I", 20) + b'{"dtype": "|O"}' + b" " * 5)
 
 
+@pytest.mark.slow
 def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     """A run killed hard mid-stream leaves readable recordings of its finished frames, and
     --resume finishes the job without redoing them; the outputs equal an uninterrupted run's."""
@@ -392,6 +394,7 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
     assert alone.returncode == 1 and "frame only in B" in alone.stdout  # the merge is what makes them equal
 
 
+@pytest.mark.slow
 def test_sigterm_stops_cleanly_with_complete_recordings(tmp_path):
     src = tmp_path / "in"
     src.mkdir()

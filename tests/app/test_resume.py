@@ -15,6 +15,7 @@ from shadowflow.flow.manifest import MANIFEST_NAME, RunManifest
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 
+pytestmark = pytest.mark.slow  # each case runs whole CLI processes (and clusters)
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 FAST = ["--max-iterations", "8", "--record", "mcap", "--light", "0.5,0,0.87"]
 

@@ -92,6 +92,7 @@ def _chromium(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
                            "--virtual-time-budget=20000", *args], capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_the_page_relights_each_face_as_the_product_does_in_chromium(astronaut_png, tmp_path):
     """The page opened in headless Chromium at three lights draws the face within three grey levels
     (mean, inside the face) of the product's relit files for those lights; its slider shows the

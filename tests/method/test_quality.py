@@ -195,6 +195,7 @@ def test_a_frontally_lit_face_is_explained_once_its_dark_features_are_discounted
     assert explained_variance(noise, shading, use, huber_weights((noise - 0.6 * shading) / 0.02, 1.0)) < 0.3
 
 
+@pytest.mark.slow
 def test_yaleb_photos_are_not_flagged(tmp_path):
     """Real photos of all five shared subjects at (0, 0), (+-10, 0), (+-25, 0) and (+-50, 0), eyes
     found and light estimated: a frontally lit face is the commonest good photo."""

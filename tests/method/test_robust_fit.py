@@ -58,6 +58,7 @@ def test_fit_recovers_an_in_model_face_through_a_cast_shadow(procedural_model):
     np.testing.assert_allclose(res.normals[lit] @ s, I[lit], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(procedural_model):
     """The Gauss-Newton steps and the paper's alternation have the same fixed point (equal
     gradient); the steps that ignore motion along the cones get there in far fewer iterations,
@@ -75,6 +76,7 @@ def test_gauss_newton_reaches_the_alternations_answer_in_fewer_iterations(proced
         assert np.mean(gn["iterations"]) < 0.5 * np.mean(alt["iterations"]), (angle, res)
 
 
+@pytest.mark.slow
 def test_exact_irls_beats_the_papers_one_step_formula(procedural_model):
     """The same alternation, every other choice the paper's: the exact weighted least squares per
     pass against the one-step formula (3). Measured at 60 deg: 5.0 against 12.0 deg; IRLS with
