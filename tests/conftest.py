@@ -13,10 +13,15 @@ SFM_MODEL = SHARED / "data" / "sfm" / "sfm_shape_3448.bin"
 
 
 @pytest.fixture(autouse=True, scope="session")
-def _private_cache(tmp_path_factory):
-    """Keep the default-model cache of the test run away from the user's."""
+def _private_cache(tmp_path_factory, pytestconfig):
+    """Keep the default-model cache of the test run away from the user's: in pytest's own cache folder
+    (``.pytest_cache``, so a second run does not build the model again: 14 s), else a fresh folder. The
+    built-in models are deterministic and a damaged entry is rebuilt, so sharing it between runs and
+    between ``-n`` workers is safe."""
     old = os.environ.get("SHADOWFLOW_CACHE")
-    os.environ["SHADOWFLOW_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    cache = getattr(pytestconfig, "cache", None)
+    folder = cache.mkdir("shadowflow-models") if cache is not None else tmp_path_factory.mktemp("cache")
+    os.environ["SHADOWFLOW_CACHE"] = str(folder)
     yield
     if old is None:
         os.environ.pop("SHADOWFLOW_CACHE", None)

@@ -43,9 +43,15 @@ def train_from_recipe(recipe: dict) -> ShapeModel:
     """Train the model a recipe describes (``source``, ``n``, ``seed``, ``modes``, ``size``, and
     optionally ``expressions``: an ICT face's chance of each expression blendshape)."""
 
+    from threadpoolctl import threadpool_limits
+
     grid = tuple(recipe["size"])
-    depths, mouth = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid, recipe.get("expressions", 0.0))
-    return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True), mouth=mouth)
+    # on one BLAS thread, always: the decomposition's last bits depend on BLAS's threads, and a model built
+    # under two of them differed in one of its 915,600 mode values from one built under one (so did the fits)
+    with threadpool_limits(limits=1, user_api="blas"):
+        depths, mouth = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid,
+                                       recipe.get("expressions", 0.0))
+        return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True), mouth=mouth)
 
 
 def _cache_key(recipe: dict) -> str:

@@ -118,6 +118,7 @@ def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_reli
     assert saved.shape == (h, w, 3)
 
 
+@pytest.mark.slow
 def test_fit_of_a_colour_array_is_fit_of_the_file_holding_it(tmp_path):
     """The astronaut (scikit-image, public domain) as a uint8 array and as the PNG of it: the same
     numbers out, bit for bit (they differed by up to 0.59 on 0.5 % of the relit pixels)."""

@@ -527,6 +527,7 @@ def test_resume_over_a_mangled_summary_redoes_what_it_cannot_trust(tmp_path, sum
     assert [r["status"] for r in records] == ["ok"] and (out / "face" / "normals.npy").is_file()
 
 
+@pytest.mark.slow
 def test_links_planted_in_out_are_never_written_through(tmp_path):
     """A run.mcap, run.rrd or OUT/<stem> that is a symbolic link to a file or folder outside --out
     was followed, and what it named overwritten."""

@@ -19,6 +19,7 @@ def _face(path, seed=3, az=30):
     return write_shadowed_face(path, np.random.default_rng(seed), light_from_angles(az))
 
 
+@pytest.mark.slow
 def test_the_watch_idle_clock_starts_when_the_last_file_is_handed_on(tmp_path):
     """``--watch --idle-exit S`` ended with photos still waiting (34 of 160 processed) when the run took
     longer than S over a burst: the clock ran from when the burst was listed."""

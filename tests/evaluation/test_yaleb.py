@@ -59,6 +59,7 @@ def test_yaleb_faces_are_found_under_side_light():
         assert off.max() < 0.13 and np.median(off) < 0.05, (folder.name, np.round(off, 3))
 
 
+@pytest.mark.slow
 def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb_subject):
     """Subject 01 at (+-50, 0) and (+-70, 0) with the default (ICT) model and the Yale light."""
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
@@ -106,6 +107,7 @@ def test_yaleb_light_auto_is_within_8_degrees_at_every_side_light():
     assert all(m < 8.0 for m in means.values()), means
 
 
+@pytest.mark.slow
 def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
     """At (+-70, 0) both eyes' albedo is filled (one in shadow, one lit too obliquely to divide
     by); the lit eye's detail must bring the irises back. The darkest 5 % of each relit eye's
@@ -151,6 +153,7 @@ def test_yaleb_a_frontal_photo_relit_frontally_is_itself(yaleb_subject):
     assert r["psnr"] > 50.0 and r["gradient_energy"] > 0.99, r
 
 
+@pytest.mark.slow
 def test_yaleb_dividing_out_the_smooth_albedo_helps_the_default_model(yaleb_subject):
     """One albedo round (the default, ``--albedo-rounds 1``) against the paper's one albedo
     everywhere (``--albedo-rounds 0``), subject 01, default (ICT) model."""

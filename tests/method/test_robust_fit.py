@@ -169,6 +169,7 @@ def test_first_pass_shortcut_equals_theweighted_solve(procedural_model):
         np.testing.assert_allclose(unit_weight_solve(P32, released, r0), exact, rtol=1e-4, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_a_diverging_gauss_newton_step_falls_back_to_the_alternation(procedural_model, monkeypatch):
     """Steps three times too long blow the residual scale up; the fit must notice, continue by the
     alternation (which cannot diverge) and end near its answer. Measured: 0.37 / 0.26 deg against
