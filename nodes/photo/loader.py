@@ -230,83 +230,124 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
     """
     p = Path(path)
     data = _read_file(p)
-    colour = None
     if p.suffix.lower() == ".npy":
         img = _load_npy(p, data)
         small = shrunk(img, max_pixels)
         return Photo(small, None, small.shape[1] / img.shape[1], (img.shape[1], img.shape[0]))
-    tiff = data[:4] in TIFF_MAGIC
+    header = _header(p, data)
+    raw = _decoded(p, data, header, max_pixels)
+    del data
+    grey, colour = _samples(p, raw)
+    return _photo(p, grey, colour, header, max_pixels, encoding)
+
+
+@dataclass(frozen=True)
+class _Header:
+    """What an image file's header says: its size (as stored), its format, and for a TIFF its sample type
+    and whether its channels are planes."""
+
+    width: int
+    height: int
+    kind: str
+    tiff_dtype: np.dtype | None = None
+    tiff_planar: bool = False
+
+
+def _header(p: Path, data: bytes) -> _Header:
+    """The file's header, checked (size, proportions, a JPEG's scans) before anything is decoded."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
-            if tiff:
-                width, height, tiff_dtype, tiff_planar = _tiff_header(data)
-                kind = "TIFF"
+            if data[:4] in TIFF_MAGIC:
+                width, height, dtype, planar = _tiff_header(data)
+                header = _Header(width, height, "TIFF", dtype, planar)
             else:
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
-                    width, height = probe.size
-                    kind = probe.format or "image"
+                    header = _Header(*probe.size, probe.format or "image")
     except Image.DecompressionBombError:
         raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
                          "downscale it first") from None
     except (OSError, ValueError, SyntaxError, IndexError, KeyError):
         raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF, BMP, WebP or GIF)") from None
-    check_size(p, width, height)
-    if kind == "JPEG" and (scans := jpeg_scans(data)) > MAX_JPEG_SCANS:
+    check_size(p, header.width, header.height)
+    if header.kind == "JPEG" and (scans := jpeg_scans(data)) > MAX_JPEG_SCANS:
         raise InputError(f"{p}: a progressive JPEG of {scans} scans, over the {MAX_JPEG_SCANS}-scan limit "
                          "(encoders write at most about 10; each costs a pass over the whole photo)")
-    pnm = _read_binary_pnm(data) if data[:2] in (b"P5", b"P6") else None
-    if data[:2] in (b"P2", b"P3"):  # plain PNM: read here, whatever its maxval (OpenCV scales only 8 and 16 bits)
-        if width * height > MAX_PLAIN_PNM_PIXELS:
-            raise InputError(f"{p}: a plain (ASCII) PNM of {width}x{height} pixels; over "
-                             f"{MAX_PLAIN_PNM_PIXELS // 1_000_000} megapixels, save it as a binary one")
-        pnm = _read_ascii_pnm(data, width, height)
-        if pnm is None:
-            raise InputError(f"{p}: corrupt or truncated plain PNM data")
-    reduce = 1
+    return header
+
+
+def _decoded(p: Path, data: bytes, header: _Header, max_pixels: int | None) -> np.ndarray:
+    """The file's samples as decoded: (H, W) or (H, W, C) BGR(A), any type; a PNM by its own maxval (a
+    float in [0, 1] when it is neither 255 nor 65535), a large JPEG already reduced by libjpeg."""
+    pnm = _pnm(p, data, header) if data[:2] in (b"P2", b"P3", b"P5", b"P6") else None
     if pnm is not None:  # by its own maxval: OpenCV reads 10- and 12-bit PNM with the bytes swapped
         raw, maxval = pnm
-        if maxval not in (255, 65535):
-            raw = (raw.astype(np.float32) / maxval).astype(np.float32)
+        return raw if maxval in (255, 65535) else (raw.astype(np.float32) / maxval).astype(np.float32)
+    flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
+    if header.kind == "JPEG" and max_pixels:  # libjpeg decodes straight to 1/2, 1/4, 1/8 of the size
+        reduce = 1
+        while reduce < 8 and header.width * header.height / (2 * reduce) ** 2 >= max_pixels:
+            reduce *= 2
+        flags = {1: flags, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
+                 8: cv2.IMREAD_REDUCED_COLOR_8}[reduce]
+    # OpenCV reads only these TIFF types, and planar 16-bit RGB with its planes mixed up
+    if header.kind == "TIFF" and (header.tiff_planar or header.tiff_dtype not in (np.uint8, np.uint16, np.float32)):
+        raw = _read_tiff(p, data)
     else:
-        flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
-        if kind == "JPEG" and max_pixels:  # libjpeg decodes straight to 1/2, 1/4, 1/8 of the size
-            while reduce < 8 and width * height / (2 * reduce) ** 2 >= max_pixels:
-                reduce *= 2
-            flags = {1: flags, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
-                     8: cv2.IMREAD_REDUCED_COLOR_8}[reduce]
-        # OpenCV reads only these types, and planar 16-bit RGB with its planes mixed up
-        if tiff and (tiff_planar or tiff_dtype not in (np.uint8, np.uint16, np.float32)):
-            raw = _read_tiff(p, data)
-        else:
-            with decoder_messages_dropped():  # libpng's and libjpeg's own lines: the frame's error says it
-                raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+        with decoder_messages_dropped():  # libpng's and libjpeg's own lines: the frame's error says it
+            raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     if raw is None:
-        raise InputError(f"{p}: corrupt or truncated {kind} data")
-    del data
-    colour_raw = None
+        raise InputError(f"{p}: corrupt or truncated {header.kind} data")
+    return raw
+
+
+def _pnm(p: Path, data: bytes, header: _Header) -> tuple[np.ndarray, int] | None:
+    """A binary or plain (ASCII) PNM's samples and maxval, read here whatever its maxval; None for a binary
+    one this cannot read (OpenCV then says what is wrong with it)."""
+    if data[:2] in (b"P5", b"P6"):
+        return _read_binary_pnm(data)
+    if header.width * header.height > MAX_PLAIN_PNM_PIXELS:
+        raise InputError(f"{p}: a plain (ASCII) PNM of {header.width}x{header.height} pixels; over "
+                         f"{MAX_PLAIN_PNM_PIXELS // 1_000_000} megapixels, save it as a binary one")
+    pnm = _read_ascii_pnm(data, header.width, header.height)
+    if pnm is None:
+        raise InputError(f"{p}: corrupt or truncated plain PNM data")
+    return pnm
+
+
+def _samples(p: Path, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(grey (H, W), colour (H, W, 3) RGB or None) of decoded samples: alpha dropped, a grey image stored
+    as RGB kept grey; NaN, infinities and non-numeric types refused."""
+    colour = None
     if raw.ndim == 3:
         if raw.shape[2] == 4:
             raw = raw[..., :3]
         if raw.shape[2] == 3 and not (np.array_equal(raw[..., 0], raw[..., 1])
                                       and np.array_equal(raw[..., 1], raw[..., 2])):
-            colour_raw = raw[..., ::-1]  # BGR -> RGB; a grey image stored as RGB stays grey
-        raw = raw[..., 0] if colour_raw is None else _grey(raw)
+            colour = raw[..., ::-1]  # BGR -> RGB
+        raw = raw[..., 0] if colour is None else _grey(raw)
     if raw.dtype.kind == "f" and not np.all(np.isfinite(raw)):
         raise InputError(f"{p}: image holds NaN or infinite values")
     if raw.dtype.kind not in "uif":
         raise InputError(f"{p}: unsupported pixel type {raw.dtype}")
+    return raw, colour
+
+
+def _photo(p: Path, raw: np.ndarray, colour_raw: np.ndarray | None, header: _Header, max_pixels: int | None,
+           encoding: str) -> Photo:
+    """The ``Photo`` of the samples: on their real range, reduced to ``max_pixels``, in the encoding asked."""
     full = sample_range(raw if colour_raw is None else colour_raw)
     raw, colour_raw = shrunk(raw, max_pixels), None if colour_raw is None else shrunk(colour_raw, max_pixels)
     lo, hi = float(raw.min()) / full, float(raw.max()) / full
     if hi - lo < 1.0 / 255.0:
         raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
+    width, height = header.width, header.height
     scale = max(raw.shape) / max(width, height)  # EXIF may turn it
     if width != height and (raw.shape[1] > raw.shape[0]) != (width > height):
         width, height = height, width  # turned a quarter by its EXIF orientation: the size as it stands
     # a JPEG is sRGB-encoded whatever its channels (a black-and-white photo too); other grey files (Yale B's PGMs,
     # the project's renders) are taken as linear
-    if resolve(encoding, 3 if colour_raw is not None or kind == "JPEG" else 1) == "srgb":
+    if resolve(encoding, 3 if colour_raw is not None or header.kind == "JPEG" else 1) == "srgb":
         encoded = raw if colour_raw is None else colour_raw
         rgb8 = encoded if encoded.dtype == np.uint8 and full == 255.0 else \
             (np.clip(encoded.astype(np.float32) / np.float32(full), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
@@ -316,9 +357,7 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
             return Photo(linear, None, scale, (width, height), "srgb", np.repeat(rgb8[..., None], 3, axis=-1))
         return Photo(linear_luminance(linear), linear, scale, (width, height), "srgb", np.ascontiguousarray(rgb8))
     img = np.clip(raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
-    if colour_raw is not None:
-        colour = np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
-    del raw, colour_raw
+    colour = None if colour_raw is None else np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     return Photo(img, colour, scale, (width, height))
 
 
