@@ -183,7 +183,6 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.ticker import MaxNLocator
 
     series = list(series)
     labels = labels or {}
@@ -197,42 +196,65 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(keys), squeeze=False)[0]
     cmap = colormaps["tab10"]
-    handles = {}  # frame -> its first line: the legend's entries, given explicitly (a label starting
+    handles: dict = {}  # frame -> its first line: the legend's entries, given explicitly (a label starting
     # with "_" would otherwise be left out of it)
     for ax, key in zip(axes, keys):
-        plotted = []
-        for k, (label, s) in enumerate(series):
-            pts = [(i, _number(s[i].get(key))) for i in sorted(i for i in s if i is not None)]
-            pts = np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
-            if not len(pts):
-                continue
-            plotted.append(pts)
-            if many and k not in marked:
-                ax.plot(pts[:, 0], pts[:, 1], color="0.7", lw=0.5, alpha=0.6, zorder=1)
-                continue
-            colour = cmap((marked.index(k) if many else k) % 10)
-            line, = ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.3, marker="." if len(pts) < 3 else None, zorder=3)
-            handles.setdefault(k, (line, plot_label(str(label))))
-        if many and plotted:  # the crowd's median per iteration
-            iters = np.unique(np.concatenate([p[:, 0] for p in plotted]))
-            med = [np.median([p[p[:, 0] == i, 1][0] for p in plotted if (p[:, 0] == i).any()]) for i in iters]
-            line, = ax.plot(iters, med, color="k", lw=1.6, zorder=2)
-            handles.setdefault(-1, (line, f"median of {len(series)}"))
-        if plotted and all((p[:, 1] > 0).all() for p in plotted):
-            ax.set_yscale("log")
+        _panel(ax, key, series, many, marked, cmap, handles)
         ax.set_title(labels.get(key, key), fontsize=10)
-        ax.set_xlabel("iteration")
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.grid(True, alpha=0.3)  # major lines only: minor ones on a log axis were most of the drawing time
-        if not plotted:
-            ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, color="grey")
-    if handles and (not many or marked):
-        entries = [handles[k] for k in sorted(handles, key=lambda k: (k < 0, k))]  # the median last
-        axes[-1].legend([h for h, _ in entries], [t for _, t in entries], loc="upper left", bbox_to_anchor=(1.02, 1),
-                        fontsize=8, title="frame", frameon=False)
-    elif handles:
-        axes[-1].legend([handles[-1][0]], [handles[-1][1]], loc="upper right", fontsize=8, frameon=False)
+    _legend(axes[-1], handles, many, marked)
     return fig
+
+
+def _points(s: Mapping, key: str) -> np.ndarray:
+    """(n, 2) iteration and value of ``key`` in one frame's ``{iteration: scalars}``, finite numbers only."""
+    pts = [(i, _number(s[i].get(key))) for i in sorted(i for i in s if i is not None)]
+    return np.array([(i, v) for i, v in pts if v is not None and np.isfinite(v)], float).reshape(-1, 2)
+
+
+def _panel(ax, key: str, series: list, many: bool, marked: list[int], cmap, handles: dict) -> None:
+    """One scalar's panel of ``convergence_figure``: a line per frame (the crowd grey, with its median)."""
+    from matplotlib.ticker import MaxNLocator
+
+    plotted = []
+    for k, (label, s) in enumerate(series):
+        pts = _points(s, key)
+        if not len(pts):
+            continue
+        plotted.append(pts)
+        if many and k not in marked:
+            ax.plot(pts[:, 0], pts[:, 1], color="0.7", lw=0.5, alpha=0.6, zorder=1)
+            continue
+        colour = cmap((marked.index(k) if many else k) % 10)
+        line, = ax.plot(pts[:, 0], pts[:, 1], color=colour, lw=1.3, marker="." if len(pts) < 3 else None, zorder=3)
+        handles.setdefault(k, (line, plot_label(str(label))))
+    if many and plotted:  # the crowd's median per iteration
+        handles.setdefault(-1, (_median_line(ax, plotted), f"median of {len(series)}"))
+    if plotted and all((p[:, 1] > 0).all() for p in plotted):
+        ax.set_yscale("log")
+    ax.set_xlabel("iteration")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.grid(True, alpha=0.3)  # major lines only: minor ones on a log axis were most of the drawing time
+    if not plotted:
+        ax.text(0.5, 0.5, "no values", ha="center", va="center", transform=ax.transAxes, color="grey")
+
+
+def _median_line(ax, plotted: list[np.ndarray]):
+    """The median of the frames' values at each iteration, drawn black over the crowd; its line."""
+    iters = np.unique(np.concatenate([p[:, 0] for p in plotted]))
+    med = [np.median([p[p[:, 0] == i, 1][0] for p in plotted if (p[:, 0] == i).any()]) for i in iters]
+    line, = ax.plot(iters, med, color="k", lw=1.6, zorder=2)
+    return line
+
+
+def _legend(ax, handles: dict, many: bool, marked: list[int]) -> None:
+    """The frames' legend right of the last panel (the median last); a crowd without marked frames: the
+    median's alone."""
+    if handles and (not many or marked):
+        entries = [handles[k] for k in sorted(handles, key=lambda k: (k < 0, k))]
+        ax.legend([h for h, _ in entries], [t for _, t in entries], loc="upper left", bbox_to_anchor=(1.02, 1),
+                  fontsize=8, title="frame", frameon=False)
+    elif handles:
+        ax.legend([handles[-1][0]], [handles[-1][1]], loc="upper right", fontsize=8, frameon=False)
 
 
 def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,
@@ -299,56 +321,79 @@ def diff_streams(a: Iterable[FrameRecording], b: Iterable[FrameRecording], atol:
     finite and not negative (``ValueError``)."""
     if not (np.isfinite(atol) and np.isfinite(rtol) and atol >= 0 and rtol >= 0):
         raise ValueError(f"tolerances must be finite and not negative, not atol={atol!r} rtol={rtol!r}")
+    diff = _Comparison(atol, rtol, stage or (lambda channel: 0))
     key = key or (lambda fr: fr.frame)
-    stage = stage or (lambda channel: 0)
+    pending = _pair_streams(iter(a), iter(b), key, diff)
+    if fallback is not None:  # what the key left: paired by the fallback, in the order they came
+        pending = _pair_left(pending, key, fallback, diff)
+    for side, label in ((0, "A"), (1, "B")):
+        for k, frs in pending[side].items():
+            for fr in frs:
+                diff.out.append(((fr.frame, -1, -2, ""), Difference(k, None, "*", float("inf"),
+                                                                   f"frame only in {label}")))
+    diff.out.sort(key=lambda od: od[0])
+    return DiffReport([d for _, d in diff.out], diff.compared, diff.iterations)
+
+
+class _Comparison:
+    """The differences of the frame pairs compared so far, with their sort keys, and how many frames and
+    iterations were compared."""
+
+    def __init__(self, atol: float, rtol: float, stage: Callable[[str], int]):
+        self.atol, self.rtol, self.stage = atol, rtol, stage
+        self.out: list[tuple[tuple, Difference]] = []
+        self.compared = self.iterations = 0
+
+    def __call__(self, k, fa: FrameRecording, fb: FrameRecording) -> None:
+        self.compared += 1
+        self.iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
+                                if i is not None})
+        self.out += [((fa.frame, self.stage(d.channel)) + _order(d), d)
+                     for d in _diff_frame(k, fa, fb, self.atol, self.rtol)]
+
+
+def _pair_streams(a: Iterator[FrameRecording], b: Iterator[FrameRecording], key: Callable,
+                  compare: _Comparison) -> tuple[dict, dict]:
+    """Read both streams in step, comparing each frame with the other side's of its key as soon as both
+    came; returns the frames left unpaired, per side, by key (two frames with one key pair up in order)."""
     pending: tuple[dict, dict] = ({}, {})
-    out: list[tuple[tuple, Difference]] = []
-    compared = iterations = 0
-    streams = [iter(a), iter(b)]
+    streams: list[Iterator[FrameRecording] | None] = [a, b]
     while any(s is not None for s in streams):
         for side in (0, 1):
-            if streams[side] is None:
-                continue
-            fr = next(streams[side], None)
+            stream = streams[side]
+            fr = next(stream, None) if stream is not None else None
             if fr is None:
                 streams[side] = None
                 continue
             k = key(fr)
             waiting = pending[1 - side].get(k)
             if not waiting:
-                pending[side].setdefault(k, []).append(fr)  # two frames with one key pair up in order
+                pending[side].setdefault(k, []).append(fr)
                 continue
             other = waiting.pop(0)
-            fa, fb = (fr, other) if side == 0 else (other, fr)
-            compared += 1
-            iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
-                               if i is not None})
-            out += [((fa.frame, stage(d.channel)) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
-    if fallback is not None:  # what the key left: paired by the fallback, in the order they came
-        left = [[fr for frs in pending[side].values() for fr in frs] for side in (0, 1)]
-        pending = ({}, {})
-        by_b: dict = {}
-        for fr in left[1]:
-            by_b.setdefault(fallback(fr), []).append(fr)
-        for fa in left[0]:
-            k = fallback(fa)
-            if by_b.get(k):
-                fb = by_b[k].pop(0)
-                compared += 1
-                iterations += len({i for kind in (fa.arrays, fa.scalars) for by_it in kind.values() for i in by_it
-                                   if i is not None})
-                out += [((fa.frame, stage(d.channel)) + _order(d), d) for d in _diff_frame(k, fa, fb, atol, rtol)]
-            else:
-                pending[0].setdefault(key(fa), []).append(fa)
-        for frs in by_b.values():
-            for fr in frs:
-                pending[1].setdefault(key(fr), []).append(fr)
-    for side, label in ((0, "A"), (1, "B")):
-        for k, frs in pending[side].items():
-            for fr in frs:
-                out.append(((fr.frame, -1, -2, ""), Difference(k, None, "*", float("inf"), f"frame only in {label}")))
-    out.sort(key=lambda od: od[0])
-    return DiffReport([d for _, d in out], compared, iterations)
+            compare(k, *((fr, other) if side == 0 else (other, fr)))
+    return pending
+
+
+def _pair_left(pending: tuple[dict, dict], key: Callable, fallback: Callable,
+               compare: _Comparison) -> tuple[dict, dict]:
+    """The frames ``key`` left unpaired, paired by ``fallback`` in the order they came; returns those still
+    left."""
+    left = [[fr for frs in pending[side].values() for fr in frs] for side in (0, 1)]
+    still: tuple[dict, dict] = ({}, {})
+    by_b: dict = {}
+    for fr in left[1]:
+        by_b.setdefault(fallback(fr), []).append(fr)
+    for fa in left[0]:
+        k = fallback(fa)
+        if by_b.get(k):
+            compare(k, fa, by_b[k].pop(0))
+        else:
+            still[0].setdefault(key(fa), []).append(fa)
+    for frs in by_b.values():
+        for fr in frs:
+            still[1].setdefault(key(fr), []).append(fr)
+    return still
 
 
 def _order(d: Difference) -> tuple:
@@ -376,24 +421,30 @@ def _diff_frame(fid, fa: FrameRecording, fb: FrameRecording, atol: float, rtol: 
         if va is None or vb is None:
             out.append(Difference(fid, itv, ch, float("inf"), f"only in {'B' if va is None else 'A'}"))
             continue
-        if kind == "scalars":
-            names = sorted(set(va) | set(vb))
-            if set(va) != set(vb):
-                out.append(Difference(fid, itv, ch, float("inf"), "different scalar names"))
-                continue
-            xa = np.array([np.nan if va[n] is None else va[n] for n in names], float)
-            xb = np.array([np.nan if vb[n] is None else vb[n] for n in names], float)
-        else:
-            xa, xb = va, vb
-            if xa.shape != xb.shape or xa.dtype != xb.dtype:
-                out.append(Difference(fid, itv, ch, float("inf"), f"{xa.dtype}{list(xa.shape)} vs {xb.dtype}{list(xb.shape)}"))
-                continue
-        d = _max_violation(np.asarray(xa, np.float64), np.asarray(xb, np.float64), atol, rtol)
+        pair = _comparable(va, vb, kind)
+        if isinstance(pair, str):
+            out.append(Difference(fid, itv, ch, float("inf"), pair))
+            continue
+        d = _max_violation(*pair, atol, rtol)
         if d is not None:
             out.append(Difference(fid, itv, ch, d))
     if (fa.record or {}).get("status") != (fb.record or {}).get("status"):
         out.append(Difference(fid, None, "frames", float("inf"), "status differs"))
     return out
+
+
+def _comparable(va, vb, kind: str) -> tuple[np.ndarray, np.ndarray] | str:
+    """Two recorded values as float64 arrays to compare, or why they cannot be (other scalar names, another
+    shape or type)."""
+    if kind == "scalars":
+        if set(va) != set(vb):
+            return "different scalar names"
+        names = sorted(va)
+        return (np.array([np.nan if va[n] is None else va[n] for n in names], float),
+                np.array([np.nan if vb[n] is None else vb[n] for n in names], float))
+    if va.shape != vb.shape or va.dtype != vb.dtype:
+        return f"{va.dtype}{list(va.shape)} vs {vb.dtype}{list(vb.shape)}"
+    return np.asarray(va, np.float64), np.asarray(vb, np.float64)
 
 
 def _max_violation(a: np.ndarray, b: np.ndarray, atol: float, rtol: float) -> float | None:
