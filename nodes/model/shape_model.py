@@ -249,10 +249,9 @@ def check_grid(grid, what: str = "grid") -> tuple[int, int]:
     return h, w
 
 
-def load_model(path: str | os.PathLike) -> ShapeModel:
-    """Read a model written by ``save_model`` without trusting it: a regular file, an intact zip
-    whose members declare no more than ``MAX_MODEL_BYTES`` in all, numeric arrays (no pickles) of
-    the shapes the grid and mask imply, all finite. Raises ``ValueError`` naming what is wrong."""
+def _model_arrays(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The arrays of a model file: a regular file, an intact zip whose members declare no more than
+    ``MAX_MODEL_BYTES`` in all, read without pickles."""
     import zipfile
     import zlib
 
@@ -265,9 +264,13 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
             if declared > MAX_MODEL_BYTES:
                 raise ValueError(f"its members unpack to {declared} bytes, over the {MAX_MODEL_BYTES}-byte limit")
         with np.load(p, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
+            return {k: z[k] for k in z.files}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"{path}: not a readable model file ({exc})") from None
+
+
+def _check_members(path, data: dict[str, np.ndarray]) -> None:
+    """Every member a model needs is there, numeric, and its format is not newer than this code's."""
     required = ("grid", "eyes", "mask", "mean_normals", "mean_proj", "modes", "eigenvalues")
     missing = [k for k in required if k not in data]
     if missing:
@@ -280,7 +283,11 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
         raise ValueError(f"{path}: 'version' must be one integer")
     if int(version) > MODEL_FORMAT_VERSION:
         raise ValueError(f"{path}: model format {int(version)} is newer than this shadowflow ({MODEL_FORMAT_VERSION})")
-    mask = data["mask"].astype(bool)
+
+
+def _check_shapes(path, data: dict[str, np.ndarray], mask: np.ndarray) -> None:
+    """The grid within its limits and matching the mask; every array of the shape the mask and the modes
+    imply, all finite."""
     n = int(mask.sum())
     grid = data["grid"]
     if grid.shape != (2,) or tuple(int(x) for x in grid) != mask.shape:
@@ -297,6 +304,16 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
     for name in expected:
         if not np.all(np.isfinite(data[name])):
             raise ValueError(f"{path}: '{name}' holds NaN or infinite values")
+
+
+def load_model(path: str | os.PathLike) -> ShapeModel:
+    """Read a model written by ``save_model`` without trusting it: a regular file, an intact zip
+    whose members declare no more than ``MAX_MODEL_BYTES`` in all, numeric arrays (no pickles) of
+    the shapes the grid and mask imply, all finite. Raises ``ValueError`` naming what is wrong."""
+    data = _model_arrays(path)
+    _check_members(path, data)
+    mask = data["mask"].astype(bool)
+    _check_shapes(path, data, mask)
     mouth = data.get("mouth")
     if mouth is not None and (mouth.shape != (2,) or not np.all(np.isfinite(mouth))):
         raise ValueError(f"{path}: 'mouth' must be two finite numbers [x, y]")
