@@ -143,53 +143,12 @@ class FrameStream:
         self.path, self.arrays, self.truncated = Path(path), arrays, False
 
     def __iter__(self) -> Iterator[FrameRecording]:
-        from mcap.exceptions import EndOfFile
-
-        path = self.path
         open_frames: dict[int, FrameRecording] = {}
         held = {"bytes": 0}
         closing: set[int] = set()  # frames whose closing record has come
-        seen_any = False
-        try:
-            fh = open(path, "rb")
-        except OSError as exc:
-            raise RecordingError(f"{path}: cannot open ({exc.strerror or exc})") from None
-        with fh:
-            if fh.read(8) != b"\x89MCAP0\r\n":
-                raise RecordingError(f"{path}: not an MCAP file")
-            fh.seek(0)
-            messages = McapMessages(fh, MAX_CHUNK_BYTES)
-            it = iter(messages)  # file order: stream, never buffer the file
-            while True:
-                try:
-                    channel, message = next(it)
-                except StopIteration:
-                    break
-                except MemoryError:
-                    raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
-                except ChunkError as exc:
-                    raise RecordingError(f"{path}: {exc}") from None
-                except EndOfFile as exc:  # cut short (a kill, a full disk): what came before it stands
-                    if not (seen_any or messages.started):
-                        raise RecordingError(f"{path}: unreadable MCAP (EndOfFile: {exc})") from None
-                    self.truncated = True
-                    break
-                except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors...: all mean a bad file
-                    if not seen_any:
-                        raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
-                    self.truncated = True
-                    break
-                seen_any = True
-                try:
-                    current, closed = _take(open_frames, held, channel.topic, channel.message_encoding, message.data,
-                                   self.arrays)
-                except MemoryError:
-                    raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
-                except (ValueError, KeyError, TypeError, OverflowError) as exc:
-                    raise RecordingError(f"{path}: bad message on {channel.topic} ({exc})") from None
-                if held["bytes"] > MAX_OPEN_BYTES:
-                    raise RecordingError(f"{path}: frames still open hold over {MAX_OPEN_BYTES >> 30} GiB of "
-                                         "arrays; refusing to read further")
+        with self._opened() as fh:
+            for channel, message in self._messages(fh):
+                current, closed = self._take(open_frames, held, channel, message)
                 for fid in [f for f in closing if current is not None and f != current]:  # its record came, and then another frame
                     closing.discard(fid)
                     fr = open_frames.pop(fid)
@@ -201,6 +160,63 @@ class FrameStream:
             yield open_frames.pop(fid)
         for fid in sorted(open_frames):
             yield open_frames.pop(fid)
+
+    def _opened(self):
+        """The file, open at its start, once it is known to be an MCAP file."""
+        try:
+            fh = open(self.path, "rb")
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot open ({exc.strerror or exc})") from None
+        if fh.read(8) != b"\x89MCAP0\r\n":
+            fh.close()
+            raise RecordingError(f"{self.path}: not an MCAP file")
+        fh.seek(0)
+        return fh
+
+    def _messages(self, fh) -> Iterator[tuple[object, object]]:
+        """``(channel, message)`` in file order (a stream: the file is never buffered); a file cut short
+        ends them (``truncated``) once anything was read, a bad one raises ``RecordingError``."""
+        from mcap.exceptions import EndOfFile
+
+        path, seen_any = self.path, False
+        messages = McapMessages(fh, MAX_CHUNK_BYTES)
+        it = iter(messages)
+        while True:
+            try:
+                item = next(it)
+            except StopIteration:
+                return
+            except MemoryError:
+                raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
+            except ChunkError as exc:
+                raise RecordingError(f"{path}: {exc}") from None
+            except EndOfFile as exc:  # cut short (a kill, a full disk): what came before it stands
+                if not (seen_any or messages.started):
+                    raise RecordingError(f"{path}: unreadable MCAP (EndOfFile: {exc})") from None
+                self.truncated = True
+                return
+            except Exception as exc:  # noqa: BLE001 - McapError, zstd/lz4 errors...: all mean a bad file
+                if not seen_any:
+                    raise RecordingError(f"{path}: unreadable MCAP ({type(exc).__name__}: {exc})") from None
+                self.truncated = True
+                return
+            seen_any = True
+            yield item
+
+    def _take(self, open_frames: dict[int, FrameRecording], held: dict, channel, message) -> tuple[int | None, bool]:
+        """One message into its frame (``_take``), its errors as ``RecordingError``; the frames still open
+        may hold at most ``MAX_OPEN_BYTES``."""
+        path = self.path
+        try:
+            taken = _take(open_frames, held, channel.topic, channel.message_encoding, message.data, self.arrays)
+        except MemoryError:
+            raise RecordingError(f"{path}: out of memory while reading it (not a truncated file)") from None
+        except (ValueError, KeyError, TypeError, OverflowError) as exc:
+            raise RecordingError(f"{path}: bad message on {channel.topic} ({exc})") from None
+        if held["bytes"] > MAX_OPEN_BYTES:
+            raise RecordingError(f"{path}: frames still open hold over {MAX_OPEN_BYTES >> 30} GiB of "
+                                 "arrays; refusing to read further")
+        return taken
 
 
 def read_mcap(path: str | Path) -> Recording:
