@@ -54,43 +54,56 @@ def decode_array(data: bytes, check_only: bool = False) -> tuple[dict, np.ndarra
     """Inverse of ``encode_array`` (a masked message comes back as the full array); raises
     ``ValueError`` on anything malformed. ``check_only``: validate the whole message the same
     way, but build no array (None)."""
-    if len(data) < 8 or data[:4] != ARRAY_MAGIC:
-        raise ValueError("not a shadowflow array message")
-    (hlen,) = struct.unpack("<I", data[4:8])
-    if hlen > 4096 or 8 + hlen > len(data):
-        raise ValueError("array header length out of range")
-    header = json.loads(data[8:8 + hlen])
-    dtype, shape, masked = header.get("dtype"), header.get("shape"), header.get("masked", False)
-    if dtype not in ALLOWED_DTYPES or not isinstance(shape, list) or len(shape) > 8 \
-            or not all(isinstance(d, int) and 0 <= d for d in shape) or masked not in (True, False) \
-            or (masked and len(shape) < 2):
-        raise ValueError(f"bad array header {header!r}")
+    header, hlen = _array_header(data)
+    dtype, shape = header["dtype"], header["shape"]
     itemsize = np.dtype(dtype).itemsize
     full = int(np.prod(shape, dtype=np.int64)) * itemsize
     if full > MAX_ARRAY_BYTES:
         raise ValueError(f"array payload is {len(data) - 8 - hlen} bytes, header says {full}, over the "
                          f"{MAX_ARRAY_BYTES}-byte limit")
     payload = memoryview(data)[8 + hlen:]
-    if not masked:
+    if not header.get("masked", False):
         if full != len(payload):
             raise ValueError(f"array payload is {len(payload)} bytes, header says {full}")
-        if check_only:
-            return header, None
-        return header, np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+        return header, None if check_only else np.frombuffer(payload, dtype=dtype).reshape(shape).copy()
+    return header, _masked_array(payload, dtype, shape, check_only)
+
+
+def _array_header(data: bytes) -> tuple[dict, int]:
+    """An array message's JSON header, checked (an allowed dtype, a shape of at most 8 sizes, a masked
+    flag), and its length in bytes."""
+    if len(data) < 8 or data[:4] != ARRAY_MAGIC:
+        raise ValueError("not a shadowflow array message")
+    (hlen,) = struct.unpack("<I", data[4:8])
+    if hlen > 4096 or 8 + hlen > len(data):
+        raise ValueError("array header length out of range")
+    header = json.loads(data[8:8 + hlen])
+    if not isinstance(header, dict):
+        raise ValueError(f"bad array header {header!r}")
+    dtype, shape, masked = header.get("dtype"), header.get("shape"), header.get("masked", False)
+    if dtype not in ALLOWED_DTYPES or not isinstance(shape, list) or len(shape) > 8 \
+            or not all(isinstance(d, int) and 0 <= d for d in shape) or masked not in (True, False) \
+            or (masked and len(shape) < 2):
+        raise ValueError(f"bad array header {header!r}")
+    return header, hlen
+
+
+def _masked_array(payload: memoryview, dtype: str, shape: list[int], check_only: bool) -> np.ndarray | None:
+    """A masked message's full array (NaN or 0 off its mask), from its packed mask and its values."""
     pixels = shape[0] * shape[1]
     nbits = (pixels + 7) // 8
     if len(payload) < nbits:
         raise ValueError(f"masked array payload is {len(payload)} bytes, its mask alone needs {nbits}")
     mask = np.unpackbits(np.frombuffer(payload[:nbits], np.uint8), count=pixels).astype(bool).reshape(shape[:2])
     per_pixel = int(np.prod(shape[2:], dtype=np.int64))
-    n = int(mask.sum()) * per_pixel * itemsize
+    n = int(mask.sum()) * per_pixel * np.dtype(dtype).itemsize
     if n != len(payload) - nbits:
         raise ValueError(f"masked array values are {len(payload) - nbits} bytes, its mask says {n}")
     if check_only:
-        return header, None
+        return None
     values = np.frombuffer(payload[nbits:], dtype=dtype).reshape((-1, *shape[2:]))
     fill = np.nan if np.dtype(dtype).kind == "f" else 0
-    return header, OnMask(values, mask).grid(fill)
+    return OnMask(values, mask).grid(fill)
 
 
 JSON_SCHEMAS: dict[str, dict] = {
