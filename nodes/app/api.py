@@ -108,18 +108,7 @@ def _as_image(image: np.ndarray, encoding: str = "auto", max_pixels: int | None 
     ``max_pixels``, as a file is). Accepts (H, W) or (H, W, 3) RGB (or (H, W, 4) RGBA), uint8,
     uint16 or floats (on [0, 1], or larger ones on their own range, as a file's). Its size is checked
     as a file's header is (``InputError``)."""
-    a = np.asarray(image)
-    if a.ndim == 3 and a.shape[2] in (3, 4):
-        a = a[..., :3]
-    elif a.ndim != 2:
-        raise InputError(f"{ARRAY_SOURCE}: shape {a.shape} is not (H, W) or (H, W, 3)")
-    check_size(Path(ARRAY_SOURCE), a.shape[1], a.shape[0])
-    if a.dtype.kind not in "uif" and a.dtype != bool:
-        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
-    if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
-        raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
-    if a.dtype == bool:
-        a = a.astype(np.uint8) * 255
+    a = _checked_array(image)
     small = shrunk(a, max_pixels)
     scale = small.shape[0] / a.shape[0]
     a = small
@@ -134,16 +123,37 @@ def _as_image(image: np.ndarray, encoding: str = "auto", max_pixels: int | None 
         raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
     grey_in_colour = f.ndim == 3 and np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2])
     if resolve(encoding, 3 if f.ndim == 3 and not grey_in_colour else 1) == "srgb":
-        # decoded as a file of the same samples is (by a table for 8 and 16 bits): fit(array) is fit(path)
-        rgb8 = a if a.dtype == np.uint8 else (f * 255.0 + 0.5).astype(np.uint8)
-        full = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(a.dtype)
-        linear = decode_samples(a, full) if full else srgb_to_linear(f)
-        rgb8 = rgb8 if rgb8.ndim == 3 else np.repeat(rgb8[..., None], 3, axis=-1)
-        if linear.ndim == 2:
-            return {"image": linear, "rgb8": rgb8}, scale
-        return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}, scale
+        return _srgb_data(a, f), scale
     grey = np.clip(luminance(f), 0.0, 1.0)
     return ({"image": grey} if f.ndim == 2 else {"image": grey, "colour": f}), scale
+
+
+def _checked_array(image) -> np.ndarray:
+    """The array as (H, W) or (H, W, 3) samples (alpha dropped, booleans as 0 and 255), its size, type and
+    values checked as a file's are (``InputError``)."""
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        a = a[..., :3]
+    elif a.ndim != 2:
+        raise InputError(f"{ARRAY_SOURCE}: shape {a.shape} is not (H, W) or (H, W, 3)")
+    check_size(Path(ARRAY_SOURCE), a.shape[1], a.shape[0])
+    if a.dtype.kind not in "uif" and a.dtype != bool:
+        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
+    if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+        raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
+    return a.astype(np.uint8) * 255 if a.dtype == bool else a
+
+
+def _srgb_data(a: np.ndarray, f: np.ndarray) -> dict:
+    """The frame data of sRGB samples ``a`` (``f``: them on [0, 1]), decoded as a file of the same samples
+    is (by a table for 8 and 16 bits), so that fit(array) is fit(path)."""
+    rgb8 = a if a.dtype == np.uint8 else (f * 255.0 + 0.5).astype(np.uint8)
+    full = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(a.dtype)
+    linear = decode_samples(a, full) if full else srgb_to_linear(f)
+    rgb8 = rgb8 if rgb8.ndim == 3 else np.repeat(rgb8[..., None], 3, axis=-1)
+    if linear.ndim == 2:
+        return {"image": linear, "rgb8": rgb8}
+    return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
