@@ -204,12 +204,7 @@ class RunManifest:
             e = _entry(raw)
             if e is not None:
                 entries[e.path] = e
-        frames = {e.frame: e.path for e in entries.values()}
-        for e in read_journal(folder):  # newer than the manifest: an input moved since takes its frame over
-            if frames.get(e.frame, e.path) != e.path:
-                entries.pop(frames[e.frame], None)
-            entries[e.path] = e
-            frames[e.frame] = e.path
+        _apply_journal(entries, read_journal(folder))
         return cls(obj["config"], recordings, _distinct(entries))
 
     def save(self, folder: str | os.PathLike) -> None:
@@ -223,6 +218,17 @@ class RunManifest:
         journal = folder / JOURNAL_NAME
         if journal.is_symlink() or journal.exists():
             journal.unlink()
+
+
+def _apply_journal(entries: dict[str, InputEntry], journal: list[InputEntry]) -> None:
+    """The journal's entries over the manifest's, in order: newer, and an input moved since (a renamed
+    folder) takes its frame over from its old path."""
+    frames = {e.frame: e.path for e in entries.values()}
+    for e in journal:
+        if frames.get(e.frame, e.path) != e.path:
+            entries.pop(frames[e.frame], None)
+        entries[e.path] = e
+        frames[e.frame] = e.path
 
 
 def _distinct(entries: dict[str, InputEntry]) -> dict[str, InputEntry]:

@@ -211,16 +211,7 @@ def serve(fd: int) -> None:
         elif op == "forget":
             masks.pop(msg["key"], None)
         elif error is None:
-            try:
-                for s in sinks:
-                    if op == "event":
-                        s.write(Event(msg["frame"], msg["path"], msg["kind"], msg["value"], msg["iteration"]))
-                    elif op == "name":
-                        s.name_frame(msg["frame"], msg["name"])
-                    elif op == "done":
-                        s.frame_done(msg["frame"])
-            except BaseException as exc:  # noqa: BLE001 - reported at the frame's done
-                error = _describe(exc)
+            error = _deliver(sinks, op, msg)
         if op == "done":
             conn.send_bytes(wire.encode({"op": "done", "frame": msg["frame"], "error": error,
                                          "paths": _paths(sinks)}))
@@ -233,6 +224,21 @@ def serve(fd: int) -> None:
         conn.send_bytes(wire.encode({"op": "closed", "error": error, "paths": _paths(sinks)}))
     except OSError:
         pass  # nobody is listening: the run ended without closing
+
+
+def _deliver(sinks: list[Sink], op: str, msg: dict) -> str | None:
+    """An event, a frame's name or a frame's end given to every sink; the first error, described, or None."""
+    try:
+        for s in sinks:
+            if op == "event":
+                s.write(Event(msg["frame"], msg["path"], msg["kind"], msg["value"], msg["iteration"]))
+            elif op == "name":
+                s.name_frame(msg["frame"], msg["name"])
+            elif op == "done":
+                s.frame_done(msg["frame"])
+    except BaseException as exc:  # noqa: BLE001 - reported at the frame's done
+        return _describe(exc)
+    return None
 
 
 def _paths(sinks: list[Sink]) -> list[str]:

@@ -112,6 +112,10 @@ class MethodOptions:
         for name, (value, allowed) in choices.items():
             if value not in allowed:
                 raise ValueError(f"{name} {value!r}: choose from {', '.join(allowed)}")
+        self._check_ranges()
+        self._check_lights()
+
+    def _check_ranges(self) -> None:
         if not 0.0 <= self.eye_contrast <= 1.0:
             raise ValueError(f"eye_contrast is between 0 (off) and 1, not {self.eye_contrast!r}")
         if not -90.0 <= self.novel_yaw_deg <= 90.0:
@@ -124,6 +128,8 @@ class MethodOptions:
             raise ValueError(f"face_length is auto, off or a factor, not {self.face_length!r}")
         if not isinstance(self.face_length, str) and not 0.5 <= float(self.face_length) <= 2.0:
             raise ValueError(f"face_length is a factor between 0.5 and 2, not {self.face_length!r}")
+
+    def _check_lights(self) -> None:
         if isinstance(self.light, str) and self.light not in ("auto", "yaleb"):
             raise ValueError(f"light {self.light!r}: auto, yaleb, two angles or a vector")
         tags = [light_tag(light) for light in self.extra_lights]
@@ -175,27 +181,41 @@ class LoadNode:
 
     def __call__(self, frame: Frame) -> Frame:
         from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
-        scale = 1.0  # the image's pixels per pixel of the file: eyes given in file pixels follow it
-        if from_file:
-            photo = read_photo(frame.source, self.options.max_pixels, self.options.encoding)
-            frame.data["image"], scale = photo.grey, photo.scale
-            if photo.colour is not None:
-                frame.data["colour"] = photo.colour
-            if photo.rgb8 is not None:  # decoded from sRGB: the file's own values, for the face finder and outputs
-                frame.data["rgb8"] = photo.rgb8
-            frame.meta["encoding"] = photo.encoding
-            if scale != 1.0:
-                frame.meta["reduced"] = {"from": list(photo.size), "to": [photo.grey.shape[1], photo.grey.shape[0]]}
+        scale = self._read(frame) if from_file else 1.0  # the image's pixels per file pixel: given eyes follow it
         image = frame.data["image"]
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
+        self._given_eyes(frame, side, scale)
+        self._known_light(frame, side)
+        return frame
+
+    def _read(self, frame: Frame) -> float:
+        """The file's photo into the frame (grey, colour, its 8-bit values when sRGB, its encoding, and
+        ``reduced`` when it was); returns its pixels per pixel of the file."""
+        photo = read_photo(frame.source, self.options.max_pixels, self.options.encoding)
+        frame.data["image"] = photo.grey
+        if photo.colour is not None:
+            frame.data["colour"] = photo.colour
+        if photo.rgb8 is not None:  # decoded from sRGB: the file's own values, for the face finder and outputs
+            frame.data["rgb8"] = photo.rgb8
+        frame.meta["encoding"] = photo.encoding
+        if photo.scale != 1.0:
+            frame.meta["reduced"] = {"from": list(photo.size), "to": [photo.grey.shape[1], photo.grey.shape[0]]}
+        return photo.scale
+
+    def _given_eyes(self, frame: Frame, side, scale: float) -> None:
+        """Eyes given for the photo, a sidecar's before ``--eyes``, in the photo's pixels, checked."""
         if side is not None and side.eyes is not None:
             frame.data["given_eyes"], frame.meta["eyes_source"] = side.eyes * scale, "sidecar eyes"
         elif self.options.eyes is not None:
             frame.data["given_eyes"], frame.meta["eyes_source"] = np.asarray(self.options.eyes) * scale, "given eyes"
         if "given_eyes" in frame.data:
-            check_eyes(frame.source, frame.data["given_eyes"], image.shape, frame.meta["eyes_source"])
+            check_eyes(frame.source, frame.data["given_eyes"], frame.data["image"].shape, frame.meta["eyes_source"])
+
+    def _known_light(self, frame: Frame, side) -> None:
+        """The light when it is known before any face is: given with the image, a sidecar's, ``--light``, or
+        a Yale B name's; else it is estimated later."""
         if "light" in frame.data:
             frame.meta.setdefault("light_source", "given")
         elif side is not None and side.light is not None:
@@ -204,7 +224,6 @@ class LoadNode:
             frame.data["light"], frame.meta["light_source"] = self.options.light, "given"
         elif self.options.light == "yaleb":
             frame.data["light"], frame.meta["light_source"] = yaleb_light(frame.source), "yaleb name"
-        return frame
 
 
 def check_eyes(source: str, eyes: np.ndarray, shape: tuple[int, int], what: str) -> None:
@@ -470,33 +489,50 @@ class PhotoRelightNode:
         self.iod = float(np.linalg.norm(np.subtract(*model.eyes)))  # model pixels
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m = frame.data, self.model
+        d = frame.data
+        face = _BoxRelight(frame, self.model, self.options, self.iod)
+        layers = [(np.asarray(light, np.float64), face.layer(light))
+                  for light in (self.options.relight_light, *self.options.extra_lights)]
+        d.update(photo_box=face.box, photo_albedo=face.albedo, photo_shadow=face.shadow, photo_layers=layers)
+        d["live"] = face.live_data(frame.meta.get("encoding", "linear"))
+        return frame
+
+
+class _BoxRelight:
+    """One face of a photo relit in the box around it (plus the feather): what every light shares
+    (the box's photo, face, normals, shading, shadows, ambient and albedo, measured once), and ``layer``
+    for each light. Everything happens in the box: a large photo's background costs nothing, and the
+    photo outside it is not touched."""
+
+    def __init__(self, frame: Frame, model: ShapeModel, options: MethodOptions, iod: float):
+        d, m = frame.data, model
+        self.d, self.m = d, m
         full: Alignment = d["alignment"]
         full_photo = d["colour"] if "colour" in d else d["image"][..., None]
-        feather = PHOTO_FEATHER * self.iod * full.scale
-        # everything happens in the box around the face (plus the feather): a large photo's background
-        # costs nothing, and the photo outside the box is not touched
-        y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * feather + 4)
-        al = full.cropped(x0, y0)
-        photo = full_photo[y0:y1, x0:x1]
-        shape = photo.shape[:2]
+        self.feather = PHOTO_FEATHER * iod * full.scale
+        y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * self.feather + 4)
+        self.box = (y0, y1, x0, x1)
+        self.al = al = full.cropped(x0, y0)
+        self.photo = photo = full_photo[y0:y1, x0:x1]
+        self.shape = shape = photo.shape[:2]
         face = mask_to_input(m.mask, al, shape)
         placement: FacePlacement | None = d.get("placement")
         if placement is not None and placement.outlines:  # the face's own outline, at the photo's resolution
             face &= polygon_mask(placement.outlines["oval"][0] - [x0, y0], shape)
-        normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(np.float32)
-        shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32: photo-sized arrays
+        self.face = face
+        self.normals = normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(
+            np.float32)
+        self.shading = shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32
         coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
         # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
-        shadow = photo_shadows(d["image"][y0:y1, x0:x1], shading, face & ~coarse_lit, skin(photo, face))
+        self.shadow = shadow = photo_shadows(d["image"][y0:y1, x0:x1], shading, face & ~coarse_lit, skin(photo, face))
         px = max(al.scale, 1.0)  # photo pixels per model pixel
-        # a shadow's soft edge (penumbra) is not lit skin either
-        lit = face & ~grow(shadow, 1.5 * px)
-        coarse = smooth_coarse(scalar_to_input(d["albedo"], m.mask, al, shape), face, COARSE_SMOOTH * px)
-        measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
-        skin_only = skin(photo, face & lit)
-        lit_skin = skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
-        match_px = PHOTO_MATCH_SIGMA * self.iod * al.scale
+        lit = face & ~grow(shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
+        self.coarse = coarse = smooth_coarse(scalar_to_input(d["albedo"], m.mask, al, shape), face, COARSE_SMOOTH * px)
+        self.measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
+        self.skin_only = skin_only = skin(photo, face & lit)
+        self.lit_skin = skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
+        self.match_px = PHOTO_MATCH_SIGMA * iod * al.scale
         # only eyes the face mesh found in the photo: given or guessed eyes may have no eye to show (a render
         # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
         placed = d.get("eyes_found") in ("detected", "mesh only")
@@ -504,53 +540,54 @@ class PhotoRelightNode:
         # put its iris centres)
         eye_centres = placement.eyes - [x0, y0] if placement is not None and placement.outlines else \
             al.points_to_input(m.eyes)
-        eyes = EyeDetail(photo, shading, lit, eye_centres, self.options.eye_contrast) if placed else None
-
+        self.eyes = EyeDetail(photo, shading, lit, eye_centres, options.eye_contrast) if placed else None
         # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
-        ambient = photo_ambient(d["image"][y0:y1, x0:x1], coarse, shading, face)
-        lighting = with_ambient(shading, ambient)
-
-        def albedo_for(trust: np.ndarray) -> np.ndarray:
-            a = photo_albedo(photo, lighting, trust, coarse, face, match_px, skin_only)
-            return a if eyes is None else eyes.apply(a, trust)
-
+        self.ambient = photo_ambient(d["image"][y0:y1, x0:x1], coarse, shading, face)
+        self.lighting = with_ambient(shading, self.ambient)
         # how far I / lighting is trusted: the lighting with the room's light in it is never darker than the
-        # ambient, so a photo with fill light (the astronaut) keeps its own pixels further round the face
+        # ambient, so a photo with fill light (the astronaut) keeps its own pixels further round the face;
         # what is not skin (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the
         # fitted shading says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
-        not_skin = lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(lit)
+        self.not_skin = lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(lit)
+        self.albedo = self.albedo_for(self.trust_for())
+        self.alpha = inner_alpha(face, self.feather)
 
-        def trust_for(new: np.ndarray | None = None) -> np.ndarray:
-            return measured * np.where(not_skin, np.float32(1.0), shading_trust(lighting, new))
+    def albedo_for(self, trust: np.ndarray) -> np.ndarray:
+        a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
+        return a if self.eyes is None else self.eyes.apply(a, trust)
 
-        albedo = albedo_for(trust_for())
-        layers = []  # (light, FaceLayer)
-        alpha = inner_alpha(face, feather)
-        for light in (self.options.relight_light, *self.options.extra_lights):
-            s = np.asarray(light, np.float64) / np.linalg.norm(light)
-            cast = cast_shadow(d["depth"], al.vector_to_model(s))
-            # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
-            # model pixel's soft ramp, not a staircase of them across the cheek
-            cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, al, shape)), 0.0, 1.0)
-            new_shading = (np.float32(1.0) - cast_in) * np.clip(normals @ s.astype(np.float32), 0.0, None)
-            # the albedo this light can trust: I / S also where S is small but S' is no larger
-            light_albedo = albedo_for(trust_for(with_ambient(new_shading, ambient)))
-            # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
-            # a side light leaves the shadowed side dim, not black
-            unexposed = light_albedo * with_ambient(new_shading, ambient)[..., None]
-            gain = skin_exposure(photo, unexposed, lit_skin, skin_only & (new_shading >= LIT_SHADING))
-            face_image = clipped_floor(np.float32(gain) * unexposed, photo, lighting, with_ambient(new_shading, ambient),
-                                       gain, face)
-            layer = FaceLayer((y0, y1, x0, x1), face, np.clip(face_image, 0.0, 1.0),
-                              outside_gain(photo, face_image, face, feather), alpha)
-            layers.append((np.asarray(light, np.float64), layer))
-        d.update(photo_box=(y0, y1, x0, x1), photo_albedo=albedo, photo_shadow=shadow, photo_layers=layers)
-        d["live"] = live_relight_data(
-            box=(y0, y1, x0, x1), photo=photo, albedo=albedo, normals=normals, face=face, alpha=alpha, skin=skin_only,
-            want=exposure_target(photo, lit_skin), ambient=ambient, photo_light=np.asarray(d["light"], np.float64),
-            clipped=(np.atleast_3d(photo) >= CLIPPED) & face[..., None], depth=d["depth"], grid_mask=m.mask,
-            to_box=al.matrix, encoding=frame.meta.get("encoding", "linear"))
-        return frame
+    def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:
+        return self.measured * np.where(self.not_skin, np.float32(1.0), shading_trust(self.lighting, new))
+
+    def layer(self, light) -> FaceLayer:
+        """The face relit by ``light`` (3,), camera frame: its cast shadow traced on the fit's surface."""
+        d, m, photo, face = self.d, self.m, self.photo, self.face
+        s = np.asarray(light, np.float64) / np.linalg.norm(light)
+        cast = cast_shadow(d["depth"], self.al.vector_to_model(s))
+        # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
+        # model pixel's soft ramp, not a staircase of them across the cheek
+        cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, self.al, self.shape)),
+                          0.0, 1.0)
+        new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
+        new_lighting = with_ambient(new_shading, self.ambient)
+        # the albedo this light can trust: I / S also where S is small but S' is no larger
+        light_albedo = self.albedo_for(self.trust_for(new_lighting))
+        # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
+        # a side light leaves the shadowed side dim, not black
+        unexposed = light_albedo * new_lighting[..., None]
+        gain = skin_exposure(photo, unexposed, self.lit_skin, self.skin_only & (new_shading >= LIT_SHADING))
+        face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face)
+        return FaceLayer(self.box, face, np.clip(face_image, 0.0, 1.0),
+                         outside_gain(photo, face_image, face, self.feather), self.alpha)
+
+    def live_data(self, encoding: str) -> dict:
+        """What the page needs to relight this face live (``live_relight_data``)."""
+        d, photo = self.d, self.photo
+        return live_relight_data(
+            box=self.box, photo=photo, albedo=self.albedo, normals=self.normals, face=self.face, alpha=self.alpha,
+            skin=self.skin_only, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
+            photo_light=np.asarray(d["light"], np.float64),
+            clipped=(np.atleast_3d(photo) >= CLIPPED) & self.face[..., None], depth=d["depth"], grid_mask=self.m.mask, to_box=self.al.matrix, encoding=encoding)
 
 
 class ComposeNode:

@@ -115,19 +115,22 @@ def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
     out = []
     for i, light in enumerate(lights):
         layers = [f.data["photo_layers"][i][1] for f in faces]
-        if encoding != "srgb":
-            out.append((light, compose(photo, layers)))
-            continue
-        # only the faces' boxes are composed and encoded; the rest is the file's values (8 bits)
-        y0, x0 = min(layer.box[0] for layer in layers), min(layer.box[2] for layer in layers)
-        y1, x1 = max(layer.box[1] for layer in layers), max(layer.box[3] for layer in layers)
-        shifted = [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
-                   for layer in layers for b in [layer.box]]
-        image = (d["rgb8"] if d["rgb8"].shape[-1] == photo.shape[-1] else d["rgb8"][..., :1]).astype(np.float32)
-        image /= np.float32(255.0)
-        image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], shifted))
+        image = compose(photo, layers) if encoding != "srgb" else _composed_srgb(photo, d["rgb8"], layers)
         out.append((light, image))
     return out
+
+
+def _composed_srgb(photo: np.ndarray, rgb8: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
+    """An sRGB photo with its faces' layers composed in: only the faces' boxes are composed (in linear light,
+    ``photo``) and encoded; the rest is the file's values (``rgb8``, 8 bits)."""
+    y0, x0 = min(layer.box[0] for layer in layers), min(layer.box[2] for layer in layers)
+    y1, x1 = max(layer.box[1] for layer in layers), max(layer.box[3] for layer in layers)
+    shifted = [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
+               for layer in layers for b in [layer.box]]
+    image = (rgb8 if rgb8.shape[-1] == photo.shape[-1] else rgb8[..., :1]).astype(np.float32)
+    image /= np.float32(255.0)
+    image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], shifted))
+    return image
 
 
 def in_encoding(frame: Frame, linear: np.ndarray) -> np.ndarray:
