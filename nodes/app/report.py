@@ -156,26 +156,15 @@ def _card(out: Path, r: dict) -> str:
     after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
     before = _shown(r.get("source"), None)
     faces = r.get("faces") or []
-    lines = []
-    for k, f in enumerate(faces, 1):
-        status = str(f.get("status", ""))
-        cls = "ok" if status == "ok" else "doubtful"
-        pose = f.get("pose") or {}
-        turn = f", turned {_num(pose.get('yaw'), 2)}°" if isinstance(pose.get("yaw"), (int, float)) else ""
-        lines.append(f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
-                     f"({_text(f.get('found', ''))}{turn})</span>")
+    lines = [_face_line(k, f) for k, f in enumerate(faces, 1)]
     links = (f'<a href="{quote(f"{stem}/{VIEW_NAME}")}">relight live</a> · '
              f'<a href="{quote(f"{stem}/relit.png")}">relit.png</a> · <a href="{quote(stem)}/">files</a>')
     head = (f"<div class=card><h3>{html.escape(stem)}</h3><p class=meta title=\"{_text(r.get('source'))}\">"
             f"{_text(_file_name(r.get('source')))} · {links}</p><ul class=faces>{''.join(lines)}</ul>")
     if after is None or before is None:
         return head + "<p class=meta>(the photo or its relit file cannot be read)</p></div>"
+    before, after = _alike(before, after)
     h, w = after.shape[:2]
-    if before.shape[:2] != (h, w):  # read reduced, as the run did
-        before = cv2.resize(before, (w, h), interpolation=cv2.INTER_AREA)
-    if before.ndim != after.ndim:  # a grey photo relit in grey, or colour: show both alike
-        before = cv2.cvtColor(before, cv2.COLOR_GRAY2BGR) if before.ndim == 2 else before
-        after = cv2.cvtColor(after, cv2.COLOR_GRAY2BGR) if after.ndim == 2 else after
     x0, y0, x1, y1 = faces_crop([f.get("box") for f in faces], (w, h))
     c0, r0, c1, r1 = int(x0), int(y0), int(np.ceil(x1)), int(np.ceil(y1))
     k = min(1.0, LARGE_SIDE / max(c1 - c0, r1 - r0))
@@ -200,6 +189,28 @@ def _card(out: Path, r: dict) -> str:
         f'</svg></div><div class=divider></div><span class=tag style="left: 6px">photo</span>'
         f'<span class=tag style="right: 6px">relit</span>'
         f'<input type=range min=0 max=100 value=50 aria-label="before / after"></div></div>')
+
+
+def _face_line(k: int, f: dict) -> str:
+    """A face's line on its photo's card: its status, how it was found, how far it is turned."""
+    status = str(f.get("status", ""))
+    cls = "ok" if status == "ok" else "doubtful"
+    pose = f.get("pose") or {}
+    turn = f", turned {_num(pose.get('yaw'), 2)}°" if isinstance(pose.get("yaw"), (int, float)) else ""
+    return (f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
+            f"({_text(f.get('found', ''))}{turn})</span>")
+
+
+def _alike(before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The photo and its relit file at one size (the photo is read whole, the run may have reduced it) and
+    both grey or both colour."""
+    h, w = after.shape[:2]
+    if before.shape[:2] != (h, w):  # read reduced, as the run did
+        before = cv2.resize(before, (w, h), interpolation=cv2.INTER_AREA)
+    if before.ndim != after.ndim:  # a grey photo relit in grey, or colour: show both alike
+        before = cv2.cvtColor(before, cv2.COLOR_GRAY2BGR) if before.ndim == 2 else before
+        after = cv2.cvtColor(after, cv2.COLOR_GRAY2BGR) if after.ndim == 2 else after
+    return before, after
 
 
 def _file_name(source) -> str:

@@ -510,15 +510,8 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
         if exc.errno == errno.ENAMETOOLONG:  # a 255-byte image name: its sidecar's name cannot exist
             return Sidecar()
         raise InputError(f"{p}: cannot look for its sidecar {side.name} ({exc.strerror or exc})") from None
+    raw = _sidecar_bytes(p, side)
     try:
-        size = side.stat().st_size
-        if size > MAX_SIDECAR_BYTES:
-            raise InputError(f"{p}: its sidecar {side.name} is {size} bytes, over the {MAX_SIDECAR_BYTES}-byte limit "
-                             "(a sidecar holds a light and two eyes)")
-        with side.open("rb") as fh:  # no more than the limit is read, whatever the file grows to meanwhile
-            raw = fh.read(MAX_SIDECAR_BYTES + 1)
-        if len(raw) > MAX_SIDECAR_BYTES:
-            raise InputError(f"{p}: its sidecar {side.name} is over the {MAX_SIDECAR_BYTES}-byte limit")
         # utf-8-sig: a byte-order mark (some editors write one) is not part of the JSON
         data = json.loads(raw.decode("utf-8-sig"))
         if not isinstance(data, dict):
@@ -529,10 +522,22 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             eyes = np.asarray(data["eyes"], np.float64)
             if eyes.shape != (2, 2) or not np.all(np.isfinite(eyes)):
                 raise ValueError("eyes must be [[x1, y1], [x2, y2]]")
-    except InputError:
-        raise
-    except OSError as exc:
-        raise InputError(f"{p}: its sidecar {side.name} cannot be read ({exc.strerror or exc})") from None
     except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
         raise InputError(f"{p}: malformed sidecar {side.name} ({' '.join(str(exc).split())})") from None
     return Sidecar(light=light, eyes=eyes)
+
+
+def _sidecar_bytes(p: Path, side: Path) -> bytes:
+    """The sidecar's bytes, no more than ``MAX_SIDECAR_BYTES`` of them read whatever it claims or grows to."""
+    try:
+        size = side.stat().st_size
+        if size > MAX_SIDECAR_BYTES:
+            raise InputError(f"{p}: its sidecar {side.name} is {size} bytes, over the {MAX_SIDECAR_BYTES}-byte limit "
+                             "(a sidecar holds a light and two eyes)")
+        with side.open("rb") as fh:
+            raw = fh.read(MAX_SIDECAR_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{p}: its sidecar {side.name} cannot be read ({exc.strerror or exc})") from None
+    if len(raw) > MAX_SIDECAR_BYTES:
+        raise InputError(f"{p}: its sidecar {side.name} is over the {MAX_SIDECAR_BYTES}-byte limit")
+    return raw
