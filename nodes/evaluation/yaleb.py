@@ -53,6 +53,45 @@ class YaleSubject:
         return self.folder / f"{self.name}_P00A{azimuth:+04d}E{elevation:+03d}.pgm"
 
 
+def _unusable(images: np.ndarray, lights: np.ndarray, names: list[str]) -> dict[str, str]:
+    """Exposures left out of the stereo, with why: interference stripes, a light behind the face plane."""
+    excluded: dict[str, str] = {}
+    stripes = np.array([stripe_score(im) for im in images])
+    for i in np.flatnonzero(stripes > 4.0 * np.median(stripes)):
+        excluded[names[i]] = f"interference stripes ({stripes[i] / np.median(stripes):.0f}x the usual row ripple)"
+    for i in np.flatnonzero(lights[:, 2] <= 0.0):
+        excluded.setdefault(names[i], "light behind the face plane")
+    return excluded
+
+
+def _dark(images: np.ndarray, lights: np.ndarray, names: list[str], stereo: StereoResult,
+          excluded: dict[str, str]) -> dict[str, str]:
+    """Exposures far darker than the stereo predicts for their light (the lamp off), with why."""
+    out = {}
+    for i, n in enumerate(names):
+        if n in excluded:
+            continue
+        pred = render(stereo, lights[i])
+        ratio = images[i][stereo.valid].sum() / max(pred[stereo.valid].sum(), 1e-9)
+        if ratio < 0.3:
+            out[n] = f"too dark for its light (lamp off?): {ratio:.2f} of the expected brightness"
+    return out
+
+
+def _registered(images: np.ndarray, lights: np.ndarray, names: list[str], stereo: StereoResult,
+                excluded: dict[str, str], max_shift: float, shifts: dict) -> np.ndarray:
+    """Each used exposure moved onto the stereo's rendering of it (by at most ``max_shift`` pixels; the
+    shifts kept in ``shifts``)."""
+    registered = images.copy()
+    for i, n in enumerate(names):
+        if n in excluded:
+            continue
+        moved, shift = register_translation(images[i], render(stereo, lights[i]))
+        if np.hypot(*shift) <= max_shift:  # larger: a poor rendering to match, not a move
+            registered[i], shifts[n] = moved, shift
+    return registered
+
+
 def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: float = 5.0) -> YaleSubject:
     """Photometric-stereo normals and albedo for one subject folder (see module docstring);
     exposures are moved by at most ``max_shift`` pixels to register them."""
@@ -67,41 +106,20 @@ def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: 
     raw = np.stack([load_image(p) for p in paths])
     images = np.clip(raw - ambient, 0.0, 1.0)
     lights = np.stack([light_from_angles(*yaleb_angles(p)) for p in paths])
-    excluded: dict[str, str] = {}
-
-    stripes = np.array([stripe_score(im) for im in images])
-    for i in np.flatnonzero(stripes > 4.0 * np.median(stripes)):
-        excluded[names[i]] = f"interference stripes ({stripes[i] / np.median(stripes):.0f}x the usual row ripple)"
-    facing = lights[:, 2] > 0.0
-    for i in np.flatnonzero(~facing):
-        excluded.setdefault(names[i], "light behind the face plane")
+    excluded = _unusable(images, lights, names)
 
     def fit(imgs: np.ndarray) -> StereoResult:
         use = np.array([n not in excluded for n in names])
         return photometric_stereo(imgs[use], lights[use])
 
     stereo = fit(images)
-    before = len(excluded)
-    # lamp off: far darker than the fit predicts for its light
-    for i, n in enumerate(names):
-        if n in excluded:
-            continue
-        pred = render(stereo, lights[i])
-        ratio = images[i][stereo.valid].sum() / max(pred[stereo.valid].sum(), 1e-9)
-        if ratio < 0.3:
-            excluded[n] = f"too dark for its light (lamp off?): {ratio:.2f} of the expected brightness"
-    if len(excluded) > before:
+    dark = _dark(images, lights, names, stereo, excluded)
+    if dark:
+        excluded.update(dark)
         stereo = fit(images)
     shifts: dict[str, tuple[float, float]] = {}
     for _ in range(register_rounds):
-        registered = images.copy()
-        for i, n in enumerate(names):
-            if n in excluded:
-                continue
-            moved, shift = register_translation(images[i], render(stereo, lights[i]))
-            if np.hypot(*shift) <= max_shift:  # larger: a poor rendering to match, not a move
-                registered[i], shifts[n] = moved, shift
-        images = registered
+        images = _registered(images, lights, names, stereo, excluded, max_shift, shifts)
         stereo = fit(images)
     frontal = raw[names.index(FRONTAL)] if FRONTAL in names else None
     return YaleSubject(name, folder, stereo, frontal, len(paths), excluded, shifts)
