@@ -247,21 +247,25 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
         s = subjects[-1]
         odd = {k: v for k, v in s.excluded.items() if "behind" not in v}
         moved = sum(np.hypot(*d) > 0.5 for d in s.shifts.values())
-        note(f"{s.name}: stereo from {s.exposures - len(s.excluded)} exposures; left out {odd or 'none besides lights behind the face'}; "
-             f"{moved} registered by > 0.5 px")
-    items = []
-    for i, s in enumerate(subjects):
-        others = [o.stereo.normals for j, o in enumerate(subjects) if j != i and o.stereo.normals.shape == s.stereo.normals.shape]
-        others_mean = None
-        if others:
-            m = np.nanmean(np.stack(others), axis=0)
-            others_mean = m / np.linalg.norm(m, axis=-1, keepdims=True)
-        items.append((s, others_mean))
+        note(f"{s.name}: stereo from {s.exposures - len(s.excluded)} exposures; left out "
+             f"{odd or 'none besides lights behind the face'}; {moved} registered by > 0.5 px")
+    items = [(s, _others_mean(subjects, i)) for i, s in enumerate(subjects)]
     rows, frontal = [], []
     for subject_rows, subject_frontal in mapper(evaluate_one_subject, items, (model, options, lights, estimate_light)):
         rows.extend(subject_rows)
         frontal.append(subject_frontal)
     return {"rows": rows, "frontal": frontal, "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
+
+
+def _others_mean(subjects: list, i: int) -> np.ndarray | None:
+    """The mean needle-map of every subject but the ``i``-th (of the same grid), unit length: the average
+    face a fit must beat; None when there is no other."""
+    own = subjects[i].stereo.normals
+    others = [o.stereo.normals for j, o in enumerate(subjects) if j != i and o.stereo.normals.shape == own.shape]
+    if not others:
+        return None
+    m = np.nanmean(np.stack(others), axis=0)
+    return m / np.linalg.norm(m, axis=-1, keepdims=True)
 
 
 def evaluate_one_subject(shared: tuple, item: tuple) -> tuple[list[dict], dict]:
