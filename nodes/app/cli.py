@@ -483,11 +483,8 @@ def cmd_diff(args: argparse.Namespace) -> int:
     return 1
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="shadowflow", description=__doc__)
-    p.add_argument("--version", action="version", version=f"shadowflow {tool_version()}")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _add_run(sub) -> None:
+    """``shadowflow run``'s arguments."""
     r = sub.add_parser("run", help="recover shape, albedo and shadows of face images")
     r.add_argument("inputs", nargs="*", metavar="INPUT", help="image files, folders or glob patterns")
     r.add_argument("--out", required=True, help="output folder (OUT/<stem>/..., OUT/summary.json)")
@@ -553,6 +550,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress line and no notes; errors still shown")
     r.set_defaults(func=cmd_run)
 
+
+def _add_train(sub) -> None:
+    """``shadowflow train``'s arguments."""
     t = sub.add_parser("train", help="train a needle-map model")
     t.add_argument("--source", default="ict", help=SOURCES_HELP + " (default: ict)")
     t.add_argument("--expressions", type=float, metavar="P",
@@ -564,6 +564,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", required=True, help="the model file to write (.npz); use it with run --model")
     t.set_defaults(func=cmd_train)
 
+
+def _add_eval(sub) -> None:
+    """``shadowflow eval``'s arguments."""
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
     e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb"], default="synthetic",
                    help="synthetic (default): rendered faces of --source; yaleb: real photos in --data")
@@ -595,6 +598,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
                         "the report is the same")
     e.set_defaults(func=cmd_eval)
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="shadowflow", description=__doc__)
+    p.add_argument("--version", action="version", version=f"shadowflow {tool_version()}")
+    sub = p.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+    _add_train(sub)
+    _add_eval(sub)
 
     rp = sub.add_parser("replay", help="convergence table / plot / re-log to Rerun of a recording")
     rp.add_argument("recording", help="run.mcap, or a run's --out folder (its parts merged)")
