@@ -121,6 +121,19 @@ def test_frame_timeout_holds_on_a_cluster(tmp_path):
     assert recorded == {Path(r["source"]).name: r["status"] for r in summary}
 
 
+def _started_run(src: Path, out: Path, address: str, frames: int, timeout: float = 180.0) -> subprocess.Popen:
+    """``run SRC --dask ADDRESS`` started, once its journal holds ``frames`` finished frames (or ``timeout``)."""
+    proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", address] + FAST,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        man = RunManifest.load(out)
+        if man is not None and len(man.entries) >= frames:
+            break
+        time.sleep(0.05)
+    return proc
+
+
 def test_a_worker_killed_mid_run_loses_no_frame_and_writes_none_twice(tmp_path):
     src = tmp_path / "in"
     _inputs(src, 24)
@@ -128,14 +141,7 @@ def test_a_worker_killed_mid_run_loses_no_frame_and_writes_none_twice(tmp_path):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         pids = list(client.run(os.getpid).values())
-        proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", cluster.scheduler_address] + FAST,
-                                stderr=subprocess.PIPE, text=True)
-        deadline = time.time() + 120
-        while time.time() < deadline:
-            man = RunManifest.load(out)
-            if man is not None and len(man.entries) >= 4:
-                break
-            time.sleep(0.05)
+        proc = _started_run(src, out, cluster.scheduler_address, frames=4)
         os.kill(pids[0], signal.SIGKILL)  # a worker dies with frames in hand
         killed_at = len(RunManifest.load(out).entries)
         _, err = proc.communicate(timeout=300)
@@ -207,14 +213,7 @@ def test_the_scheduler_dying_mid_run_ends_in_one_line_and_resume_completes(tmp_p
                                "--nworkers", "1", "--no-dashboard"], **quiet)
     out = tmp_path / "out"
     try:
-        proc = subprocess.Popen(CLI + ["run", str(src), "--out", str(out), "--dask", address] + FAST,
-                                stderr=subprocess.PIPE, text=True)
-        deadline = time.time() + 180
-        while time.time() < deadline:
-            man = RunManifest.load(out)
-            if man is not None and len(man.entries) >= 4:
-                break
-            time.sleep(0.05)
+        proc = _started_run(src, out, address, frames=4)
         scheduler.kill()
         killed_at = len(RunManifest.load(out).entries)
         _, err = proc.communicate(timeout=300)
