@@ -21,11 +21,11 @@ from typing import Iterator
 from ...flow.cluster_host import local_cluster
 from ...flow.frame import Frame
 from ...flow.recording import McapSink, Recorder, RecordOptions
-from ..method.nodes import MethodOptions, photo_nodes
+from ..method.nodes import MethodOptions
 from ..model.shape_model import ShapeModel
-from .outputs import WriteNode, summary_record
 from .blueprint import rerun_sink
-from .record import FitRecorder, RecordNode
+from .chain import run_nodes
+from .outputs import summary_record
 
 DASK_METAVAR = "local[:N]|tcp://HOST:PORT|env"
 DASK_HELP = ("run frames as tasks on Dask: local (a LocalCluster, one worker process per core), local:N "
@@ -53,9 +53,7 @@ class WorkerChain:
     def __call__(self, model: ShapeModel):
         worker_setup()
         recorder, sinks = self._recorder() if self.record else (None, [])
-        observer = FitRecorder(model, recorder) if recorder is not None else None
-        after = (RecordNode(model, recorder),) if recorder is not None else ()
-        nodes = [*photo_nodes(model, self.options, observer, after=after), WriteNode(model, self.out, set(self.protected))]
+        nodes = run_nodes(model, self.options, self.out, set(self.protected), recorder)
 
         def finish(frame: Frame) -> None:
             if recorder is not None:  # recorded before the client's journal says the frame is done

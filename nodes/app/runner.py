@@ -33,12 +33,11 @@ from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.jsonsafe import jsonable
 from ...flow.recording.process import renewed_sink
-from ..method.nodes import MethodOptions, photo_nodes
+from ..method.nodes import MethodOptions
 from ..model.shape_model import ShapeModel
 from .outputs import (
     OUTPUT_FILES,
     RUN_FILES,
-    WriteNode,
     real_path,
     relit_name,
     safe_stem,
@@ -48,8 +47,9 @@ from .outputs import (
 )
 from .process import HeapTrimmer, one_blas_thread, release_large_frees
 from .blueprint import rerun_sink
+from .chain import run_nodes
 from .inputs import input_fingerprint
-from .record import CONVERGENCE, FitRecorder, RecordNode
+from .record import CONVERGENCE
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
 
 
@@ -300,7 +300,7 @@ class StoredRun:
 
     def _open_recordings(self) -> None:
         """The recording's sinks (MCAP, Rerun; on the recording process of their own when it runs here),
-        their parts listed in the manifest, the report's tap, the recorder and the fit's observer."""
+        their parts listed in the manifest, the report's tap and the recorder."""
         own_process = self.run.record_options.own_process and self.client is None
         self.recording_id = str(uuid.uuid4())  # the Rerun recording's id: a distributed run's parts share it
         specs = self._sink_specs(own_process)
@@ -316,7 +316,6 @@ class StoredRun:
         if self.tap is not None:
             self.sinks.append(self.tap)
         self.recorder = Recorder(self.sinks, self.run.record_options) if self.sinks else None
-        self.observer = FitRecorder(self.model, self.recorder) if self.recorder else None
 
     def _sink_specs(self, own_process: bool) -> list[tuple]:
         """The recording's file sinks as ``(factory, args, kwargs)``, their files listed in the manifest."""
@@ -342,9 +341,7 @@ class StoredRun:
         """The engine: this machine's threads, or the Dask cluster of ``client``."""
         run = self.run
         if self.client is None:
-            after = (RecordNode(self.model, self.recorder),) if self.recorder is not None else ()
-            nodes = [*photo_nodes(self.model, self.options, self.observer, after=after),
-                     WriteNode(self.model, self.out, self.protected)]
+            nodes = run_nodes(self.model, self.options, self.out, self.protected, self.recorder)
             stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
             return Pipeline(stages, queue_size=run.queue_size, on_done=self.done, frame_timeout=run.frame_timeout)
         from ...flow.distributed import DaskPipeline

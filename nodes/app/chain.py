@@ -1,0 +1,21 @@
+"""The one chain a run gives each photo, built in one place for the local engine and the Dask workers."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import MutableSet
+
+from ...flow.recording import Recorder
+from ..method.nodes import MethodOptions, photo_nodes
+from ..model.shape_model import ShapeModel
+from .outputs import WriteNode
+from .record import FitRecorder, RecordNode
+
+
+def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: MutableSet[Path],
+              recorder: Recorder | None = None) -> list:
+    """A photo's nodes in a run: load, find its faces, the method on each face (``photo_nodes``), each
+    fit's iterations and each face's products recorded when there is a ``recorder``, and the outputs
+    written under ``out`` (never over a path in ``protected``)."""
+    observer = FitRecorder(model, recorder) if recorder is not None else None
+    after = (RecordNode(model, recorder),) if recorder is not None else ()
+    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected)]
