@@ -83,6 +83,7 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
     def page():  # card by card and row by row: 2,000 frames' embedded pictures are tens of MB
         yield head.encode()
         shown = 0
+        thumbs: dict[str, np.ndarray | None] = {}  # the inputs the cards read, for their rows (read once)
         for r in records:  # read again, a card at a time
             if shown < LARGE_PHOTOS and _written(out, r):
                 if shown == 0:
@@ -90,11 +91,11 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
                            "<p class=meta>Drag across a picture to compare the photo (left) with it relit "
                            "(right); <i>relight live</i> opens the photo to move the light yourself.</p>").encode()
                 shown += 1
-                yield ("\n" + _card(out, r)).encode()
+                yield ("\n" + _card(out, r, thumbs)).encode()
         yield ("\n" + sheet).encode()
         for r in records:  # and again, a row at a time
             if _written(out, r):
-                yield ("\n" + _row(out, r)).encode()
+                yield ("\n" + _row(out, r, thumbs.pop(r["stem"], None))).encode()
         yield f"\n</table><script>{SLIDER_SCRIPT}</script></body></html>\n".encode()
 
     return atomic_write_chunks(out / REPORT_NAME, page())
@@ -106,7 +107,8 @@ def _written(out: Path, record: dict) -> bool:
     return isinstance(stem, str) and bool(stem) and (out / stem / "relit.png").is_file()
 
 
-def _row(out: Path, r: dict) -> str:
+def _row(out: Path, r: dict, thumb: np.ndarray | None = None) -> str:
+    """A frame's row of the contact sheet; ``thumb``: its input's thumbnail when its card made it."""
     stem = r["stem"]
     q = r.get("quality") or {}
     flags = q.get("flags") or []
@@ -120,7 +122,7 @@ def _row(out: Path, r: dict) -> str:
              + f" ({_text(r.get('light_source', ''))})"]
     facts += [f"<span class=flag>{_text(f)}</span>" for f in flags]
     cells = [f"<td class=facts>{'<br>'.join(facts)}",
-             f"<td>{_embedded(_input_thumb(r.get('source')), 'input')}",
+             f"<td>{_embedded(thumb if thumb is not None else _input_thumb(r.get('source')), 'input')}",
              f"<td>{_embedded(_weights_thumb(out / stem / 'weights.npy'), 'weights')}"]
     for name, file in LINKED:
         rel = quote(f"{stem}/{file}")
@@ -148,13 +150,16 @@ def _shown(source, max_pixels: int | None) -> np.ndarray | None:
     return np.ascontiguousarray(np.clip(values * 255 + 0.5, 0, 255).astype(np.uint8))
 
 
-def _card(out: Path, r: dict) -> str:
+def _card(out: Path, r: dict, thumbs: dict | None = None) -> str:
     """A photo large: its faces before and after under a slider (the part of the photo around its
-    faces, at most LARGE_SIDE a side), the faces' boxes and eyes, a line per face, and its links."""
+    faces, at most LARGE_SIDE a side), the faces' boxes and eyes, a line per face, and its links.
+    ``thumbs``: the input's contact-sheet thumbnail is put there under its stem (the input is read once)."""
     stem = r["stem"]
     folder = out / stem
     after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
     before = _shown(r.get("source"), None)
+    if thumbs is not None and before is not None:
+        thumbs[stem] = _fit(before)
     faces = r.get("faces") or []
     lines = [_face_line(k, f) for k, f in enumerate(faces, 1)]
     links = (f'<a href="{quote(f"{stem}/{VIEW_NAME}")}">relight live</a> · '
@@ -230,11 +235,18 @@ def _weights_thumb(path: Path) -> np.ndarray | None:
         w = np.load(path, allow_pickle=False)
     except (OSError, ValueError):
         return None
-    if w.ndim != 2:
+    if w.ndim != 2 or not w.size:
         return None
-    img = cv2.applyColorMap(np.clip(np.nan_to_num(w) * 255 + 0.5, 0, 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)
-    img[~np.isfinite(w)] = 0
-    return _fit(img)
+    # shrunk before it is coloured: values averaged over the face only (NaN off it), black where mostly off it
+    on = np.isfinite(w).astype(np.float32)
+    k = THUMB / max(w.shape)
+    size = (max(1, round(w.shape[1] * k)), max(1, round(w.shape[0] * k)))
+    share = cv2.resize(on, size, interpolation=cv2.INTER_AREA)
+    total = cv2.resize(np.where(on > 0, w, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    mean = total / np.maximum(share, 1e-6)
+    img = cv2.applyColorMap(np.clip(mean * 255 + 0.5, 0, 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)
+    img[share < 0.5] = 0
+    return img
 
 
 def _fit(img: np.ndarray) -> np.ndarray:
