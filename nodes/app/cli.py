@@ -68,6 +68,13 @@ CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the r
                    "blend; 0: the model's normals; albedo and relighting always use the paper's blend)")
 
 
+def _variant(args: argparse.Namespace, fit: str) -> dict:
+    """``--remap`` and ``--albedo-fill`` as given, else as the fit's variant has them (``MethodOptions.paper``
+    for ``--fit paper``, the defaults otherwise)."""
+    base = MethodOptions.paper() if fit == "paper" else MethodOptions()
+    return {"remap": args.remap or base.remap, "albedo_fill": args.albedo_fill or base.albedo_fill}
+
+
 def _fit_config(name: str, modes: int | None, max_iterations: int | None = None,
                 albedo_rounds: int | None = None, cone_trust: float | None = None) -> FitConfig:
     cfg = FitConfig.paper() if name == "paper" else FitConfig(solver=name)
@@ -225,9 +232,9 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
     """What the method computes, from ``run``'s arguments (checked by ``MethodOptions`` itself)."""
     light: str | np.ndarray = args.light if args.light in ("auto", "yaleb") else parse_light(args.light)
     fit = _fit_config(args.fit, args.modes, args.max_iterations, args.albedo_rounds, args.cone_trust)
-    return MethodOptions(fit=fit,
-                         integrator=args.integrator, remap=args.remap, light=light, eyes=_given_eyes(args.eyes),
-                         find_faces=args.eyes == "auto", shadows=args.shadows, albedo_fill=args.albedo_fill,
+    return MethodOptions(fit=fit, **_variant(args, args.fit),
+                         integrator=args.integrator, light=light, eyes=_given_eyes(args.eyes),
+                         find_faces=args.eyes == "auto", shadows=args.shadows,
                          face_length=_face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                          novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
@@ -345,8 +352,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     model = _load_model(args.model)
     options = MethodOptions(fit=_fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
                                             cone_trust=args.cone_trust), light="yaleb",
-                            integrator=args.integrator, remap=args.remap, shadows=args.shadows,
-                            albedo_fill=args.albedo_fill, face_length=_face_length(args.face_length))
+                            integrator=args.integrator, shadows=args.shadows, **_variant(args, args.fit),
+                            face_length=_face_length(args.face_length))
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
@@ -411,8 +418,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         for name in fits:
             opts = MethodOptions(fit=_fit_config(name, None, albedo_rounds=args.albedo_rounds,
                                                  cone_trust=args.cone_trust),
-                                 integrator=args.integrator, remap=args.remap, shadows=args.shadows,
-                                 albedo_fill=args.albedo_fill)
+                                 integrator=args.integrator, shadows=args.shadows, **_variant(args, name))
             res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
             report["results"][name] = res["per_angle"]
             for angle, row in res["per_angle"].items():
@@ -502,16 +508,16 @@ def _add_run(sub) -> None:
     r.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     r.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     r.add_argument("--face-length", default="auto", metavar="auto|off|F", help=FACE_LENGTH_HELP)
-    r.add_argument("--remap", choices=["ratio", "peak"], default="ratio",
+    r.add_argument("--remap", choices=["ratio", "peak"],
                    help="brightness scale: median ratio to the mean face (default) or the brightest point "
-                        "(the paper's; also what --fit paper uses)")
+                        "(the paper's; the default with --fit paper)")
     r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
     r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
                    help="cast shadows traced and checked against the image (default) or traced only (paper)")
-    r.add_argument("--albedo-fill", choices=["ceiling", "mirror"], default="ceiling",
+    r.add_argument("--albedo-fill", choices=["ceiling", "mirror"],
                    help="albedo under shadow: mirrored or interpolated, never brighter than the face's typical "
-                        "measured albedo (default) or mirrored as measured (paper)")
+                        "measured albedo (default) or mirrored as measured (the paper's; the default with --fit paper)")
     r.add_argument("--eyes", default="auto",
                    help="auto (default): find every face by its landmarks (MediaPipe's detector and face mesh); "
                         "centre: take the image as one frontal face framed like the model grid; "
@@ -586,13 +592,13 @@ def _add_eval(sub) -> None:
                    help="synthetic: the test faces' albedo, uniform (default) or varying over the face")
     e.add_argument("--fit", choices=FITS + ["both", "all"], default="gauss-newton",
                    help="both: gauss-newton and paper; all: the three")
-    e.add_argument("--remap", choices=["ratio", "peak"], default="ratio", help="as run --remap")
+    e.add_argument("--remap", choices=["ratio", "peak"], help="as run --remap")
     e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
     e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq", help="as run --integrator")
     e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed", help="as run --shadows")
-    e.add_argument("--albedo-fill", choices=["ceiling", "mirror"], default="ceiling", help="as run --albedo-fill")
+    e.add_argument("--albedo-fill", choices=["ceiling", "mirror"], help="as run --albedo-fill")
     e.add_argument("--json", help="write the report here")
     e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "

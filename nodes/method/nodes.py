@@ -103,6 +103,14 @@ class MethodOptions:
     # "linear"; the method works on linear light and writes images back in the photo's encoding
     encoding: str = "auto"
 
+    @classmethod
+    def paper(cls, **overrides) -> "MethodOptions":
+        """The paper's variant, defined here once: its fit (``FitConfig.paper()``), its brightness scale
+        (``remap="peak"``) and its albedo fill (``albedo_fill="mirror"``); ``overrides`` change any field.
+        Cast shadows and the integrator keep their own switches (the paper's are ``shadows="geometric"``
+        and ``integrator="fc"``)."""
+        return cls(**{"fit": FitConfig.paper(), "remap": "peak", "albedo_fill": "mirror", **overrides})
+
     def __post_init__(self) -> None:
         """Every choice checked where it is defined: a bad one raises ``ValueError`` naming it, from the
         API as from the command line."""
@@ -637,14 +645,13 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
     """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo);
     ``observer`` goes to the fit node."""
     nodes = [
-        RemapNode(model, options.fit.solver != "paper", options.fit.saturation,
-                  scale="peak" if options.fit.solver == "paper" else options.remap),  # the paper's remap
+        RemapNode(model, options.fit.solver != "paper", options.fit.saturation, scale=options.remap),
         SfsInitNode(model, options.fit),
         RobustFitNode(model, options.fit, observer),
         CombineNode(model, options.fit.cone_trust),
         IntegrateNode(model, options.integrator),
         ShadowNode(options.shadows, options.fit.dark_threshold),
-        AlbedoNode(model, "mirror" if options.fit.solver == "paper" else options.albedo_fill),  # the paper's fill
+        AlbedoNode(model, options.albedo_fill),
         QualityNode(model),  # before the relighting: a frame with no face fails without paying for it
     ]
     if with_views:

@@ -281,3 +281,30 @@ def test_a_light_given_by_its_angles_is_the_light_given_by_its_vector(tmp_path):
     rec = json.loads((side / "summary.json").read_text())[0]
     assert rec["light_source"] == "sidecar" and np.allclose(rec["light"], light_from_angles(30, 10), atol=1e-6)
     assert main(["run", str(photo), "--out", str(tmp_path / "bad"), "--quiet", "--light=200,0"]) == 2
+
+
+def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
+    """``--fit paper`` used to swap the brightness scale and the albedo fill inside the chain, whatever was
+    asked: ``--fit paper --remap ratio`` ran with the paper's peak. The variant is ``MethodOptions.paper()``
+    now; an option given explicitly is kept."""
+    from shadowflow.nodes.app.cli import build_parser, method_options
+    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+    from shadowflow.nodes.method.robust_fit import FitConfig
+    from shadowflow.nodes.model.sources import procedural
+    from shadowflow.nodes.model.shape_model import train_shape_model
+
+    paper = MethodOptions.paper()
+    assert (paper.fit, paper.remap, paper.albedo_fill) == (FitConfig.paper(), "peak", "mirror")
+    parse = build_parser().parse_args
+    plain = method_options(parse(["run", "--demo", "--out", "o", "--fit", "paper"]))
+    assert (plain.remap, plain.albedo_fill) == ("peak", "mirror")
+    asked = method_options(parse(["run", "--demo", "--out", "o", "--fit", "paper", "--remap", "ratio",
+                                  "--albedo-fill", "ceiling"]))
+    assert (asked.fit.solver, asked.remap, asked.albedo_fill) == ("paper", "ratio", "ceiling")
+    default = method_options(parse(["run", "--demo", "--out", "o"]))
+    assert (default.remap, default.albedo_fill) == ("ratio", "ceiling")
+    depths, _ = procedural(12, seed=0, grid=(32, 32))
+    model = train_shape_model(depths, 6, source="procedural")
+    for options, scale, ceiling in ((asked, "ratio", True), (plain, "peak", False)):
+        nodes = {type(n).__name__: n for n in method_nodes(model, options, with_views=False)}
+        assert nodes["RemapNode"].scale == scale and (nodes["AlbedoNode"].ceiling is not None) == ceiling
