@@ -54,7 +54,7 @@ from .photo_relight import (
 from .products import relit_photos
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
-from .remap import clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
+from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, shadow_maps
 
@@ -323,7 +323,7 @@ class RemapNode:
 
     name = "remap"
 
-    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = 0.998,
+    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = SATURATION,
                  max_clipped: float = 0.02, scale: str = "peak"):
         if scale not in ("peak", "ratio"):
             raise ValueError(f"unknown remap scale {scale!r}: peak or ratio")

@@ -4,6 +4,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+# brightness at or above this is taken as clipped: only the top of the range (255 of 8 bits is 1.0, 254 is
+# 0.996); such pixels carry no constraint on the shape. ``FitConfig.saturation`` and the remap default to it
+SATURATION = 0.998
+
 
 def lambertian_remap(image: np.ndarray, mask: np.ndarray, window: int = 3,
                      peak_shading: float = 1.0) -> tuple[np.ndarray, float]:
@@ -34,7 +38,7 @@ def expected_peak_shading(mean_normals: np.ndarray, light: np.ndarray) -> float:
     return float(np.max(np.asarray(mean_normals, np.float64) @ np.asarray(light, np.float64)))
 
 
-def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: float = 0.998,
+def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: float = SATURATION,
                 min_shading: float = 0.2, min_intensity: float = 0.02) -> float:
     """Brightness scale of a face whose brightest points are clipped (over-exposed).
 
@@ -50,7 +54,7 @@ def ratio_scale(intensity: np.ndarray, mean_shading: np.ndarray, saturation: flo
     return float(np.median(I[ok] / sh[ok]))
 
 
-def clipped_pixels(intensity: np.ndarray, saturation: float = 0.998, min_fraction: float = 0.02) -> np.ndarray:
+def clipped_pixels(intensity: np.ndarray, saturation: float = SATURATION, min_fraction: float = 0.02) -> np.ndarray:
     """(N,) bool: pixels clipped by over-exposure. A few pixels at the top of the range are
     normal in a well-exposed photo (the brightest point of the face); only when more than
     ``min_fraction`` of them reach ``saturation`` is the photo over-exposed and they are clipped."""

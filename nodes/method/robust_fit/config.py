@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from ..remap import SATURATION
+
 SOLVERS = ("gauss-newton", "irls", "paper")
 
 # Stopping rules (mean normal change per iteration, degrees), when ``FitConfig.tolerance_deg`` is None:
@@ -74,7 +76,7 @@ class FitConfig:
     # 0.005 deg as 0.01, a third fewer iterations); 0.01 for the alternation, which creeps
     tolerance_deg: float | None = None
     n_modes: int | None = None  # use the model's first K modes (None: all)
-    saturation: float = 0.998  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
+    saturation: float = SATURATION  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
     # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
     # (method.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
     # (on by default: with the ICT model and today's other defaults it takes Yale B normals 0.1-0.4 deg lower at
