@@ -258,11 +258,13 @@ def _legend(ax, handles: dict, many: bool, marked: list[int]) -> None:
 
 
 def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds: Mapping[str, Kind] | None = None,
-                   blueprint=None) -> Path:
+                   blueprint=None, left_out: Collection[str] = ()) -> Path:
     """Write frames and their iterations (a ``Recording`` or a stream) into a Rerun ``.rrd`` file,
     one frame at a time. kinds: how to show an array by the last part of its path (e.g.
-    ``{"depth": Kind.DEPTH}``); others are images when 2-D, arrays otherwise."""
+    ``{"depth": Kind.DEPTH}``); others are images when 2-D, arrays otherwise. left_out: path parts
+    whose arrays are not re-logged (the pieces of something only the recording shows whole)."""
     kinds = kinds or {}
+    left = {f"/{part}/" for part in left_out}
     sink = RerunSink(rrd_path, blueprint=blueprint)
     for fr in frames:
         fid = fr.frame
@@ -271,7 +273,7 @@ def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds
             sink.name_frame(fid, stem)
         for path, by_it in fr.arrays.items():
             name = path.rsplit("/", 1)[-1]
-            if "/mesh/" in f"/{path}":
+            if any(part in f"/{path}" for part in left):
                 continue
             for it, arr in sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
                 kind = kinds.get(name, Kind.IMAGE if arr.ndim == 2 else Kind.ARRAY)

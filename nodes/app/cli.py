@@ -48,6 +48,7 @@ from .record import (
     CONVERGENCE_LABELS,
     CONVERGENCE_PLOTS,
     DISPLAY_KINDS,
+    RELOG_LEFT_OUT,
     frame_name,
     frame_source,
     stage_rank,
@@ -454,7 +455,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             yield fr
 
     if args.rrd:
-        relog_to_rerun(tap(stream), args.rrd, DISPLAY_KINDS, default_blueprint())
+        relog_to_rerun(tap(stream), args.rrd, DISPLAY_KINDS, default_blueprint(), RELOG_LEFT_OUT)
     else:
         for _ in tap(stream):
             pass

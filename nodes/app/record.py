@@ -54,6 +54,9 @@ def channel(frame: Frame, path: str) -> str:
 
 
 DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
+# the mesh is recorded as its parts (vertices, triangles, colours: ``Kind.MESH``); re-logged one by one they
+# would show as meaningless images
+RELOG_LEFT_OUT = ("mesh",)
 
 
 class FitRecorder:
