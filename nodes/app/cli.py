@@ -47,6 +47,7 @@ from .record import (
     CONVERGENCE,
     CONVERGENCE_LABELS,
     CONVERGENCE_PLOTS,
+    CONVERGENCE_TABLE,
     DISPLAY_KINDS,
     RELOG_LEFT_OUT,
     frame_name,
@@ -449,7 +450,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     def tap(frames):
         for fr in frames:
-            rows.append(convergence_row(fr, CONVERGENCE))
+            rows.append(convergence_row(fr, CONVERGENCE, CONVERGENCE_TABLE))
             if args.plot:  # a plot needs every frame's curves; a table only its row
                 series.append((frame_name(fr), fr.scalars.get(CONVERGENCE, {})))
             yield fr
@@ -459,7 +460,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     else:
         for _ in tap(stream):
             pass
-    print(format_table(sorted(rows, key=lambda r: r.frame)))
+    print(format_table(sorted(rows, key=lambda r: r.frame), CONVERGENCE_TABLE))
     if stream.truncated:
         print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
     if args.plot:

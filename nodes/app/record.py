@@ -11,6 +11,7 @@ import numpy as np
 
 from ...flow.frame import Frame
 from ...flow.recording import Event, FrameRecording, Kind, OnMask, Recorder
+from ...flow.replay import Column
 from ..method.nodes import (
     AlbedoNode,
     CombineNode,
@@ -34,6 +35,8 @@ CONVERGENCE = "robust_fit/convergence"  # per-iteration scalars of the fit (``Fi
 CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``replay --plot``
 CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
                       "residual_mean": "mean residual (radians)"}
+# the columns of ``replay``'s table: the final robust scale, the mean residual from the first iteration to the last
+CONVERGENCE_TABLE = (Column("sigma", "sigma"), Column("residual first -> last", "residual_mean", ("first", "last")))
 # the method's steps in the order they run: where two recordings split, for ``diff``
 STAGES = tuple(node.name for node in (LoadNode, FacesNode, RemapNode, SfsInitNode, RobustFitNode, CombineNode,
                                      IntegrateNode, ShadowNode, AlbedoNode, QualityNode, RelightNode, PhotoRelightNode))

@@ -76,13 +76,14 @@ def test_diff_refuses_a_tolerance_that_cannot_tell_runs_apart(two_folders, toler
 def test_convergence_table_keeps_one_row_per_frame_whatever_the_file_name():
     """A tab, a newline or a terminal escape in a file name broke the replay table's rows."""
     from shadowflow.flow.replay import ConvergenceRow, format_table
+    from shadowflow.nodes.app.record import CONVERGENCE_TABLE
 
-    rows = [ConvergenceRow(frame=k, source=name, status="ok", iterations=3, final_sigma=0.1, residual_first=1.0,
-                           residual_last=0.5, converged=True)
+    rows = [ConvergenceRow(frame=k, source=name, status="ok", iterations=3, values=((0.1,), (1.0, 0.5)), converged=True)
             for k, name in enumerate(["a\tb.png", "two\nlines.png", "\x1b[31mred.png", "plain.png"])]
-    lines = format_table(rows).splitlines()
+    lines = format_table(rows, CONVERGENCE_TABLE).splitlines()
     assert len(lines) == 1 + len(rows)
-    assert "\x1b" not in format_table(rows) and "a\\tb.png" in lines[1] and "two\\nlines.png" in lines[2]
+    assert "\x1b" not in "\n".join(lines) and "a\\tb.png" in lines[1] and "two\\nlines.png" in lines[2]
+    assert "residual first -> last" in lines[0] and "1 -> 0.5" in lines[1]
 
 
 def test_convergence_figure_draws_names_with_dollars_and_underscores():
@@ -116,12 +117,13 @@ def test_summary_record_writes_a_nan_as_null(tmp_path):
 def test_convergence_table_names_a_doubtful_frame_by_its_file():
     """``replay`` named a doubtful frame by its flags alone: which file to look at was not said."""
     from shadowflow.flow.replay import ConvergenceRow, format_table
+    from shadowflow.nodes.app.record import CONVERGENCE_TABLE
 
     rows = [ConvergenceRow(frame=0, source="/photos/cut-off.png", status="doubtful: 64 % of the face outside the frame",
-                           iterations=15, final_sigma=0.02, residual_first=0.3, residual_last=0.01, converged=True),
-            ConvergenceRow(frame=1, source="/photos/ok.png", status="ok", iterations=12, final_sigma=0.1,
-                           residual_first=0.3, residual_last=0.1, converged=True)]
-    lines = format_table(rows).splitlines()
+                           iterations=15, values=((0.02,), (0.3, 0.01)), converged=True),
+            ConvergenceRow(frame=1, source="/photos/ok.png", status="ok", iterations=12, values=((0.1,), (0.3, 0.1)),
+                           converged=True)]
+    lines = format_table(rows, CONVERGENCE_TABLE).splitlines()
     assert "64 % of the face outside the frame" in lines[1] and "/photos/cut-off.png" in lines[1]
     assert lines[2].endswith("/photos/ok.png")
 
