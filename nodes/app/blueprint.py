@@ -1,6 +1,6 @@
 """How a run looks in the Rerun viewer: its default blueprint, and the run's Rerun sink with it.
 
-Imports only the recording engine and ``rerun``: a recording process (``ProcessSinks``) makes
+Imports only the recording engine, the channel names and ``rerun``: a recording process (``ProcessSinks``) makes
 the sink from here without loading the method.
 """
 from __future__ import annotations
@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...flow.recording.rerun_sink import RerunSink
+from . import channels as ch
 
 
 def rerun_sink(path: str | Path, recording_id: str | None = None, previous_paths: list[str] | None = None) -> RerunSink:
@@ -26,21 +27,19 @@ def default_blueprint():
 
     this_frame = [rrb.VisibleTimeRange("frame", start=rrb.TimeRangeBoundary.cursor_relative(),
                                        end=rrb.TimeRangeBoundary.cursor_relative())]
-    images = [("input", "load/grid_image"), ("weights", "robust_fit/weights"), ("normals", "robust_fit/normals"),
-              ("shadow", "shadow/cast"), ("albedo", "albedo/albedo"), ("relit", "relight/relit")]
-    plots = [("sigma (radians)", "robust_fit/convergence/sigma"),
-             ("mean change (degrees)", "robust_fit/convergence/change_deg"),
-             ("mean residual (radians)", "robust_fit/convergence/residual_mean")]
+    images = [("input", ch.GRID_IMAGE), ("weights", ch.FIT_WEIGHTS), ("normals", ch.FIT_NORMALS),
+              ("shadow", ch.CAST_SHADOW), ("albedo", ch.ALBEDO), ("relit", ch.RELIT)]
+    plots = [(ch.CONVERGENCE_LABELS[k], f"{ch.CONVERGENCE}/{k}") for k in ch.CONVERGENCE_PLOTS]
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.Horizontal(
                 rrb.Grid(*[rrb.Spatial2DView(name=n, origin=f"/{p}", time_ranges=this_frame) for n, p in images]),
-                rrb.Spatial3DView(name="surface", origin="/integrate/mesh", time_ranges=this_frame),
+                rrb.Spatial3DView(name="surface", origin=f"/{ch.MESH}", time_ranges=this_frame),
                 column_shares=[3, 2],
             ),
             rrb.Horizontal(
                 *[rrb.TimeSeriesView(name=n, origin=f"/{p}") for n, p in plots],
-                rrb.BarChartView(name="coefficients b", origin="/robust_fit/b"),
+                rrb.BarChartView(name="coefficients b", origin=f"/{ch.FIT_COEFFICIENTS}"),
             ),
             row_shares=[3, 2],
         ),

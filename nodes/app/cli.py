@@ -43,10 +43,8 @@ from .blueprint import default_blueprint
 from .cluster import DASK_HELP, DASK_METAVAR, dask_client, parse_dask
 from .inputs import FolderWatch, expand_inputs
 from .process import one_blas_thread
+from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS
 from .record import (
-    CONVERGENCE,
-    CONVERGENCE_LABELS,
-    CONVERGENCE_PLOTS,
     CONVERGENCE_TABLE,
     DISPLAY_KINDS,
     RELOG_LEFT_OUT,

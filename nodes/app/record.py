@@ -12,6 +12,8 @@ import numpy as np
 from ...flow.frame import Frame
 from ...flow.recording import Event, FrameRecording, Kind, OnMask, Recorder
 from ...flow.replay import Column
+from . import channels as ch
+from .channels import CONVERGENCE
 from ..method.nodes import (
     AlbedoNode,
     CombineNode,
@@ -30,11 +32,7 @@ from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..model.shape_model import ShapeModel
 
-# The method's channel names, for the engine's replay (``flow/replay.py`` knows none of them).
-CONVERGENCE = "robust_fit/convergence"  # per-iteration scalars of the fit (``FitIteration.scalars``)
-CONVERGENCE_PLOTS = ("sigma", "change_deg", "residual_mean")  # the panels of ``replay --plot``
-CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
-                      "residual_mean": "mean residual (radians)"}
+# The method's channel names (``channels.py``), for the engine's replay (``flow/replay.py`` knows none of them).
 # the columns of ``replay``'s table: the final robust scale, the mean residual from the first iteration to the last
 CONVERGENCE_TABLE = (Column("sigma", "sigma"), Column("residual first -> last", "residual_mean", ("first", "last")))
 # the method's steps in the order they run: where two recordings split, for ``diff``
@@ -95,11 +93,11 @@ class FitRecorder:
         def on_face(values: np.ndarray) -> OnMask:
             return OnMask(np.array(values, np.float32), mask)
 
-        r.emit(Event(fid, channel(frame, "robust_fit/normals"), Kind.NORMALS, on_face(it.normals), k))
-        r.emit(Event(fid, channel(frame, "robust_fit/model_normals"), Kind.NORMALS, on_face(it.model_normals), k))
-        r.emit(Event(fid, channel(frame, "robust_fit/weights"), Kind.IMAGE, on_face(it.weights), k))
-        r.emit(Event(fid, channel(frame, "robust_fit/residuals"), Kind.ARRAY, on_face(it.residuals), k))
-        r.emit(Event(fid, channel(frame, "robust_fit/b"), Kind.ARRAY, np.array(it.b, np.float32), k))
+        r.emit(Event(fid, channel(frame, ch.FIT_NORMALS), Kind.NORMALS, on_face(it.normals), k))
+        r.emit(Event(fid, channel(frame, ch.FIT_MODEL_NORMALS), Kind.NORMALS, on_face(it.model_normals), k))
+        r.emit(Event(fid, channel(frame, ch.FIT_WEIGHTS), Kind.IMAGE, on_face(it.weights), k))
+        r.emit(Event(fid, channel(frame, ch.FIT_RESIDUALS), Kind.ARRAY, on_face(it.residuals), k))
+        r.emit(Event(fid, channel(frame, ch.FIT_COEFFICIENTS), Kind.ARRAY, np.array(it.b, np.float32), k))
         r.emit(Event(fid, channel(frame, CONVERGENCE), Kind.SCALARS, it.scalars(), k))
 
 
@@ -119,18 +117,18 @@ class RecordNode:
         def emit(path: str, kind: Kind, value) -> None:
             self.recorder.emit(Event(fid, channel(frame, path), kind, value))
 
-        emit("load/grid_image", Kind.IMAGE, d["grid_image"].astype(np.float32))
-        emit("remap/remapped", Kind.IMAGE, d["remapped"])
-        emit("sfs_init/normals", Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask))
-        emit("combine/normals", Kind.NORMALS, d["normals"])
-        emit("integrate/depth", Kind.DEPTH, d["depth"])
-        emit("shadow/cast", Kind.IMAGE, d["shadow"].cast.astype(np.float32))
-        emit("shadow/attached", Kind.IMAGE, d["shadow"].attached.astype(np.float32))
-        emit("albedo/albedo", Kind.IMAGE, d["albedo"])
+        emit(ch.GRID_IMAGE, Kind.IMAGE, d["grid_image"].astype(np.float32))
+        emit(ch.REMAPPED, Kind.IMAGE, d["remapped"])
+        emit(ch.INITIAL_NORMALS, Kind.NORMALS, OnMask(np.array(d["initial"], np.float32), m.mask))
+        emit(ch.FINAL_NORMALS, Kind.NORMALS, d["normals"])
+        emit(ch.DEPTH, Kind.DEPTH, d["depth"])
+        emit(ch.CAST_SHADOW, Kind.IMAGE, d["shadow"].cast.astype(np.float32))
+        emit(ch.ATTACHED_SHADOW, Kind.IMAGE, d["shadow"].attached.astype(np.float32))
+        emit(ch.ALBEDO, Kind.IMAGE, d["albedo"])
         if "relit" in d:
-            emit("relight/relit", Kind.IMAGE, d["relit"])
-            emit("relight/novel_view", Kind.IMAGE, d["novel_view"])
-        emit("integrate/mesh", Kind.MESH, surface_mesh(d["depth"], d["albedo"]))
+            emit(ch.RELIT, Kind.IMAGE, d["relit"])
+            emit(ch.NOVEL_VIEW, Kind.IMAGE, d["novel_view"])
+        emit(ch.MESH, Kind.MESH, surface_mesh(d["depth"], d["albedo"]))
         return frame
 
 

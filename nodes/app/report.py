@@ -27,7 +27,8 @@ import numpy as np
 from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
 from ..photo.loader import InputError, read_photo
-from .record import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS, frame_name
+from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS
+from .record import frame_name
 from .view import SLIDER_SCRIPT, SLIDER_STYLE, VIEW_NAME, face_marks, faces_crop
 
 REPORT_NAME = "report.html"

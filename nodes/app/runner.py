@@ -49,7 +49,7 @@ from .process import HeapTrimmer, one_blas_thread, release_large_frees
 from .blueprint import rerun_sink
 from .chain import run_nodes
 from .inputs import input_fingerprint
-from .record import CONVERGENCE
+from .channels import CONVERGENCE
 from .report import PLOT_FRAMES, REPORT_NAME, write_report
 
 
