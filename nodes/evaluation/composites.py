@@ -85,7 +85,6 @@ def paste(scene: np.ndarray, crop: np.ndarray, where: Pasted, edge_px: float = 3
     head, which the face detector finds only larger."""
     h, w = where.shape
     if head:
-        outline = np.zeros((h, w), np.float32)
         pad = int(round(0.4 * w))
         big = np.zeros((h + 2 * pad, w + 2 * pad), np.float32)
         cv2.ellipse(big, (pad + w // 2, pad + int(0.42 * h)), (int(0.62 * w), int(0.66 * h)), 0, 0, 360, 1.0, -1)
