@@ -65,3 +65,34 @@ def rrd_rows(path: Path, entity: str, component: str) -> dict[int, object]:
             for it, value in zip(rb.column("iteration").to_pylist(), rb.column(component).to_pylist()):
                 rows[int(it)] = value
     return rows
+
+
+@pytest.fixture
+def shadowed_faces():
+    """``make(folder, count, seed)``: ``count`` rendered faces (a 45-degree light) with sidecars in a new
+    ``folder``; returns the folder."""
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    def make(folder: Path, count: int, seed: int) -> Path:
+        folder.mkdir()
+        rng = np.random.default_rng(seed)
+        for i in range(count):
+            write_shadowed_face(folder / f"f{i}.png", rng, light_from_angles(45, 0))
+        return folder
+
+    return make
+
+
+@pytest.fixture
+def unprivileged() -> list[str]:
+    """A command prefix that makes file permissions bind even for root (CI runs as root)."""
+    import shutil
+
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("running as root without setpriv: file permissions cannot be tested")
+    return [setpriv, "--bounding-set", "-dac_override,-dac_read_search"]
+

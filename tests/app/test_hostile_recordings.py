@@ -3,10 +3,16 @@ equal runs are equal whatever the order and folders of their inputs, and a toler
 says. Each case failed as described before its fix."""
 import json
 import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from shadowflow.nodes.app.cli import main
+
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -203,3 +209,53 @@ def test_train_and_eval_arguments_that_cannot_work_are_refused_in_one_line(tmp_p
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
     assert not (tmp_path / "m.npz").exists()
+
+
+def _mcap_with(path: Path, encoding: str, data: bytes) -> None:
+    """A well-formed MCAP file holding one message of ``encoding`` with body ``data``."""
+    from mcap.writer import Writer
+
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema("other.Thing", "jsonschema", b"{}")
+        cid = w.register_channel("/thing", encoding, sid)
+        w.add_message(cid, log_time=1, data=data, publish_time=1)
+        w.finish()
+
+
+@pytest.mark.slow
+def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
+    import struct
+
+    from shadowflow.flow.recording import Event, McapSink
+    from shadowflow.flow.recording.codec import ARRAY_ENCODING
+
+    good = tmp_path / "good.mcap"
+    sink = McapSink(good)
+    sink.write(Event(0, "fit/w", "array", np.ones((4, 4), np.float32), 1))
+    sink.frame_done(0)
+    sink.close()
+    data = good.read_bytes()
+    header = b'{"frame": 0, "iteration": 1, "dtype": "<f8", "shape": [1048576, 1048576]}'
+    cases = {
+        "garbage.mcap": b"\x00\x01garbage" * 50,
+        "magic-only.mcap": data[:8],
+        "cut.mcap": data[:40],
+        "huge-length.mcap": data[:9] + (2**62).to_bytes(8, "little") + data[17:],
+    }
+    for name, blob in cases.items():
+        (tmp_path / name).write_bytes(blob)
+    _mcap_with(tmp_path / "foreign.mcap", "json", b'{"x": 1.0}')  # another tool's recording
+    _mcap_with(tmp_path / "huge-array.mcap", ARRAY_ENCODING, b"SFA1" + struct.pack("<I", len(header)) + header)
+    _mcap_with(tmp_path / "pickled.mcap", ARRAY_ENCODING, b"SFA1" + struct.pack("<I", 15) + b'{"dtype": "|O"}')
+    _mcap_with(tmp_path / "odd-encoding.mcap", "cdr", b"\x00" * 16)
+    (tmp_path / "empty-dir").mkdir()
+    for name in [*cases, "foreign.mcap", "huge-array.mcap", "pickled.mcap", "odd-encoding.mcap",
+                 "missing.mcap", "empty-dir"]:
+        path = tmp_path / name
+        for cmd in (["replay", str(path)], ["diff", str(path), str(good)]):
+            proc = subprocess.run(CLI + cmd, capture_output=True, text=True, cwd=REPO, timeout=60)
+            assert proc.returncode == 2, (name, cmd[0], proc.stdout, proc.stderr)
+            lines = proc.stderr.strip().splitlines()
+            assert len(lines) == 1 and name in lines[0], (name, proc.stderr)

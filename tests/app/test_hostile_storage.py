@@ -1,0 +1,163 @@
+"""Hostile storage under a run: a full disk or file-size limit, a store that takes no more, an unwritable
+``--out``, links planted in it. Every file is complete or absent, the run stops with one line naming the
+file, and ``--resume`` completes the job. Moved here from the app's hostile suite (storage is its layer)."""
+import json
+import os
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shadowflow.flow.manifest import RunManifest
+
+CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _limit_file_size(limit: int):
+    def apply() -> None:  # Python ignores SIGXFSZ, so writes past the limit fail with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("record", ["none", "mcap"])
+def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_path, record, shadowed_faces):
+    src = shadowed_faces(tmp_path / "in", 3, seed=3)
+    out = tmp_path / "out"
+    cmd = CLI + ["run", str(src), "--out", str(out), "--record", record, "--max-iterations", "10"]
+    limit = 60_000 if record == "none" else 400_000  # normals.npy (196 KB) / a frame of MCAP won't fit
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=300,
+                          preexec_fn=_limit_file_size(limit))
+    assert proc.returncode == 1
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and "File too large" in errors[0] and "--resume" in errors[0], proc.stderr
+    # the last line names no report: none was written
+    assert "done in" in proc.stderr.splitlines()[-1] and "report" not in proc.stderr.splitlines()[-1], proc.stderr
+    assert not (out / "report.html").exists()
+    # no file is left half-written under its real name: each is complete or absent
+    for p in out.rglob("*"):
+        assert not p.name.endswith(".tmp"), p
+        if p.suffix == ".npy":
+            np.load(p, allow_pickle=False)
+    done = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else []
+    # summary.json calls done exactly the frames --resume will reuse: not the one whose output or
+    # recording failed, nor any that finished after the run stopped taking data
+    journaled = RunManifest.load(out)
+    assert sorted(r["stem"] for r in done) == sorted(e.name for e in journaled.entries.values())
+    assert len(done) < 3
+    resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert [r["status"] for r in summary] == ["ok"] * 3
+    if record == "mcap":  # issue 39 #8: the cut part does not make the job's recording unreadable
+        replay = subprocess.run(CLI + ["replay", str(out)], capture_output=True, text=True, cwd=REPO, timeout=300)
+        assert replay.returncode == 0, replay.stderr
+        assert all(r["stem"] in replay.stdout for r in summary), replay.stdout
+        fresh = tmp_path / "fresh"
+        made = subprocess.run([str(fresh) if x == str(out) else x for x in cmd], capture_output=True, text=True, cwd=REPO, timeout=300)
+        assert made.returncode == 0, made.stderr
+        diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, cwd=REPO,
+                              timeout=300)
+        assert diff.returncode == 0 and diff.stdout.startswith("same: 3 frames"), diff.stdout + diff.stderr
+
+
+def test_a_run_store_that_takes_no_more_stops_the_run_and_resume_finishes(tmp_path, monkeypatch, capsys,
+                                                                          procedural_model, shadowed_faces):
+    """The records' store (``OUT/.run.sqlite``) failing as a full disk does: the same as any output."""
+    import errno
+
+    import shadowflow
+    from shadowflow.flow.runstore import RunStore
+
+    src = shadowed_faces(tmp_path / "in", 3, seed=5)
+    out = tmp_path / "out"
+    put, calls = RunStore.put_record, []
+
+    def full_on_the_second(self, name, record):
+        calls.append(name)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "database or disk is full", str(self.path))
+        put(self, name, record)
+
+    monkeypatch.setattr(RunStore, "put_record", full_on_the_second)
+    result = shadowflow.run([src], out, model=procedural_model, record=())
+    err = capsys.readouterr().err
+    assert result.storage_error == f"{out / '.run.sqlite'}: cannot be written (database or disk is full)"
+    assert f"error: {result.storage_error}; stopping" in err and not result.stopped
+    summary = json.loads((out / "summary.json").read_text())
+    assert result.frames == len(summary) < 3 and all(r["status"] == "ok" for r in summary)
+    assert calls[1] not in [r["stem"] for r in summary]
+    # frames that finish after the stop are not recorded as done: --resume redoes them
+    assert len(calls) == 2
+    assert sorted(r["stem"] for r in summary) == sorted(e.name for e in RunManifest.load(out).entries.values())
+    assert not (out / ".run.sqlite").exists()
+    monkeypatch.setattr(RunStore, "put_record", put)
+    again = shadowflow.run([src], out, model=procedural_model, record=(), resume=True)
+    assert again.storage_error is None and [r["status"] for r in again.records] == ["ok"] * 3
+
+
+def test_the_run_store_names_itself_when_the_disk_is_full(tmp_path):
+    """A real write limit (RLIMIT_FSIZE, as a full disk): ``OSError`` naming the store's file."""
+    code = ("import resource, sys\n"
+            "from shadowflow.flow.runstore import RunStore\n"
+            "store = RunStore(sys.argv[1])\n"
+            "resource.setrlimit(resource.RLIMIT_FSIZE, (40_000, 40_000))\n"
+            "try:\n"
+            "    for i in range(10_000):\n"
+            "        store.put_record(f'r{i}', {'x': 'y' * 200})\n"
+            "except OSError as exc:\n"
+            "    print(exc.errno, exc.filename, exc.strerror, sep='|')\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=120)
+    errno_, filename, why = proc.stdout.strip().split("|")
+    assert filename == str(tmp_path / ".run.sqlite") and why, proc.stderr
+    assert int(errno_) > 0
+
+
+def test_an_unwritable_out_is_refused_before_any_work(tmp_path, unprivileged):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    proc = subprocess.run(CLI + ["run", "--demo", "--out", str(blocker / "out")], capture_output=True, text=True,
+                          cwd=REPO, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"shadowflow run: --out {blocker / 'out'}: cannot write there (Not a directory)"
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    os.chmod(ro, 0o555)
+    proc = subprocess.run(unprivileged + CLI + ["run", "--demo", "--out", str(ro)], capture_output=True,
+                          text=True, cwd=REPO, timeout=120)
+    assert proc.returncode == 2 and "cannot write there (Permission denied)" in proc.stderr
+    assert list(ro.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_links_planted_in_out_are_never_written_through(tmp_path):
+    """A run.mcap, run.rrd or OUT/<stem> that is a symbolic link to a file or folder outside --out
+    was followed, and what it named overwritten."""
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src = tmp_path / "in"
+    src.mkdir()
+    write_shadowed_face(src / "face.png", np.random.default_rng(2), light_from_angles(30))
+    victim = tmp_path / "precious.txt"
+    victim.write_text("keep me")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    for planted in ("run.mcap", "run.rrd"):
+        out = tmp_path / f"out-{planted}"
+        out.mkdir()
+        (out / planted).symlink_to(victim)
+        proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--quiet"], capture_output=True, text=True,
+                              timeout=300)
+        assert proc.returncode == 2 and "symbolic link" in proc.stderr, proc.stderr
+        assert victim.read_text() == "keep me"
+    out = tmp_path / "out-stem"
+    out.mkdir()
+    (out / "face").symlink_to(elsewhere, target_is_directory=True)
+    proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--quiet", "--record", "none"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "symbolic link" in proc.stderr, proc.stderr
+    assert list(elsewhere.iterdir()) == []
