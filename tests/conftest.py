@@ -96,3 +96,25 @@ def unprivileged() -> list[str]:
         pytest.skip("running as root without setpriv: file permissions cannot be tested")
     return [setpriv, "--bounding-set", "-dac_override,-dac_read_search"]
 
+
+
+def run_cli(args: list[str]):
+    """``shadowflow ARGS`` run in this process (no interpreter start, no imports again): a
+    ``subprocess.CompletedProcess`` with its exit status and what it printed. For commands that are not
+    killed or signalled; those run as processes of their own."""
+    import contextlib
+    import io
+    import subprocess
+
+    from shadowflow.nodes.app.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return subprocess.CompletedProcess(["shadowflow", *map(str, args)], code, out.getvalue(), err.getvalue())
+
+
+@pytest.fixture
+def cli():
+    """``run_cli``: the command line in this process."""
+    return run_cli

@@ -3,16 +3,13 @@ equal runs are equal whatever the order and folders of their inputs, and a toler
 says. Each case failed as described before its fix."""
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from shadowflow.nodes.app.cli import main
 
-CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
-REPO = Path(__file__).resolve().parents[2]
+from conftest import run_cli
 
 
 @pytest.fixture(scope="module")
@@ -255,7 +252,7 @@ def test_replay_and_diff_refuse_hostile_recordings_with_exit_2(tmp_path):
                  "missing.mcap", "empty-dir"]:
         path = tmp_path / name
         for cmd in (["replay", str(path)], ["diff", str(path), str(good)]):
-            proc = subprocess.run(CLI + cmd, capture_output=True, text=True, cwd=REPO, timeout=60)
+            proc = run_cli(cmd)
             assert proc.returncode == 2, (name, cmd[0], proc.stdout, proc.stderr)
             lines = proc.stderr.strip().splitlines()
             assert len(lines) == 1 and name in lines[0], (name, proc.stderr)

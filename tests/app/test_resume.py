@@ -5,7 +5,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +14,9 @@ from shadowflow.flow.manifest import MANIFEST_NAME, RunManifest
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 
-pytestmark = pytest.mark.slow  # each case runs whole CLI processes (and clusters)
-CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
+from conftest import run_cli
+
+pytestmark = pytest.mark.slow  # each case runs the whole command line several times
 FAST = ["--max-iterations", "8", "--record", "mcap", "--light", "0.5,0,0.87"]
 
 
@@ -25,8 +25,7 @@ def _face(path: Path, seed: int) -> Path:
 
 
 def _run(inputs, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(CLI + ["run", *map(str, inputs), "--out", str(out), *FAST, *extra],
-                          capture_output=True, text=True, timeout=300)
+    return run_cli(["run", *map(str, inputs), "--out", str(out), *FAST, *extra])
 
 
 def _mtimes(out: Path) -> dict[str, int]:
@@ -65,19 +64,17 @@ def test_resume_after_changing_the_options_redoes_every_frame_and_says_why(tmp_p
     before = _mtimes(out)
     same = _run([src], out, "--resume")
     assert same.returncode == 0 and _mtimes(out) == before  # nothing changed: nothing redone
-    changed = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--record", "mcap",
-                                    "--max-iterations", "9", "--light", "0.5,0,0.87"],
-                             capture_output=True, text=True, timeout=300)
+    changed = run_cli(["run", str(src), "--out", str(out), "--resume", "--record", "mcap",
+                                    "--max-iterations", "9", "--light", "0.5,0,0.87"])
     assert changed.returncode == 0, changed.stderr
     assert "differ from the earlier run" in changed.stderr and "options.fit.max_iterations" in changed.stderr
     assert all(_mtimes(out)[k] > before[k] for k in before)  # both redone under the new options
     model = tmp_path / "other.npz"
-    trained = subprocess.run(CLI + ["train", "--source", "procedural", "--n", "12", "--modes", "6", "--size", "64,64",
-                                    "--out", str(model)], capture_output=True, text=True, timeout=300)
+    trained = run_cli(["train", "--source", "procedural", "--n", "12", "--modes", "6", "--size", "64,64",
+                                    "--out", str(model)])
     assert trained.returncode == 0, trained.stderr
-    again = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--record", "mcap", "--max-iterations",
-                                  "9", "--light", "0.5,0,0.87", "--model", str(model)],
-                           capture_output=True, text=True, timeout=300)
+    again = run_cli(["run", str(src), "--out", str(out), "--resume", "--record", "mcap", "--max-iterations",
+                                  "9", "--light", "0.5,0,0.87", "--model", str(model)])
     assert again.returncode == 0 and "config.model" not in again.stderr and "model" in again.stderr, again.stderr
 
 
@@ -106,7 +103,7 @@ def test_resume_knows_inputs_by_identity_not_by_sort_order(tmp_path):
     # a fresh run numbers them in sort order; diff pairs frames by name, so the runs are the same
     fresh = tmp_path / "fresh"
     assert _run([src], fresh).returncode == 0
-    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    diff = run_cli(["diff", str(out), str(fresh)])
     assert diff.returncode == 0 and diff.stdout.startswith("same: 4 frames"), diff.stdout + diff.stderr
     # an input replaced under the same name is redone, under its old name and frame id
     shutil.copy(src / "m.png", tmp_path / "m-old.png")
@@ -140,10 +137,10 @@ def test_folder_diff_merges_only_the_parts_of_its_own_job(tmp_path):
     assert _run([src / "face.png"], out).returncode == 0
     fresh = tmp_path / "fresh"
     assert _run([src / "face.png"], fresh).returncode == 0
-    diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    diff = run_cli(["diff", str(out), str(fresh)])
     assert diff.returncode == 0 and diff.stdout.startswith("same: 1 frames"), diff.stdout + diff.stderr
     (out / MANIFEST_NAME).unlink()  # without a manifest every .mcap of the folder is merged in
-    merged = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, timeout=300)
+    merged = run_cli(["diff", str(out), str(fresh)])
     assert merged.returncode == 1
 
 
