@@ -1,0 +1,86 @@
+"""The command line's shared arguments: help texts and the checks and conversions several commands use."""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+from ...method.nodes import MethodOptions
+from ...method.robust_fit import FitConfig
+from ...model.default_model import resolve_model
+from ...model.shape_model import check_grid
+
+FITS = ["gauss-newton", "irls", "paper"]
+
+
+MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "
+              "the project's anthropometric generator) | a model .npz written by 'shadowflow train'")
+
+
+ALBEDO_ROUNDS_HELP = ("real skin: after the fit converges, divide out the smooth albedo its shape implies and fit on, "
+                      "N times (default 1; 0 is the paper's one albedo everywhere, see README)")
+
+
+FACE_LENGTH_HELP = ("auto (default): a found face's length (eyes to mouth) from its landmarks; off: the model's; "
+                    "a number: stretch the model's face by it")
+
+
+CONE_TRUST_HELP = ("output normals: blend on-cone and model normals by C x the robust weights (default 0.5; 1: the paper's "
+                   "blend; 0: the model's normals; albedo and relighting always use the paper's blend)")
+
+
+def fit_variant(args: argparse.Namespace, fit: str) -> dict:
+    """``--remap`` and ``--albedo-fill`` as given, else as the fit's variant has them (``MethodOptions.paper``
+    for ``--fit paper``, the defaults otherwise)."""
+    base = MethodOptions.paper() if fit == "paper" else MethodOptions()
+    return {"remap": args.remap or base.remap, "albedo_fill": args.albedo_fill or base.albedo_fill}
+
+
+def fit_config(name: str, modes: int | None, max_iterations: int | None = None,
+                albedo_rounds: int | None = None, cone_trust: float | None = None) -> FitConfig:
+    cfg = FitConfig.paper() if name == "paper" else FitConfig(solver=name)
+    if cone_trust is not None:
+        if not 0.0 <= cone_trust <= 1.0:
+            raise ValueError(f"--cone-trust is a fraction in [0, 1], not {cone_trust}")
+        cfg = dataclasses.replace(cfg, cone_trust=cone_trust)
+    if albedo_rounds is not None:
+        if albedo_rounds < 0:
+            raise ValueError(f"--albedo-rounds must be 0 or more, not {albedo_rounds}")
+        cfg = dataclasses.replace(cfg, albedo_rounds=albedo_rounds)
+    if modes is not None:
+        cfg = dataclasses.replace(cfg, n_modes=modes)
+    if max_iterations is not None:
+        cfg = dataclasses.replace(cfg, max_iterations=max_iterations)
+    return cfg
+
+
+def face_length(text: str) -> str | float:
+    """``--face-length``: auto, off or a stretch factor in [0.5, 2]."""
+    if text in ("auto", "off"):
+        return text
+    try:
+        f = float(text)
+    except ValueError:
+        f = float("nan")
+    if not 0.5 <= f <= 2.0:
+        raise ValueError(f"--face-length takes auto, off or a factor between 0.5 and 2, not {text!r}")
+    return f
+
+
+def model_arg(spec: str | None):
+
+    return resolve_model(spec)
+
+
+def grid_size(text: str) -> tuple[int, int]:
+    """``--size H,W``: a model grid (``shape_model.check_grid``)."""
+    try:
+        h, w = (int(t) for t in text.split(","))
+    except ValueError:
+        raise ValueError(f"--size is H,W, two whole numbers of pixels, not {text!r}") from None
+    return check_grid((h, w), "--size")
+
+
+def at_least(value: int, least: int, flag: str) -> int:
+    if value < least:
+        raise ValueError(f"{flag} must be {least} or more, not {value}")
+    return value

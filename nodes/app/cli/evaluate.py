@@ -1,0 +1,176 @@
+"""``shadowflow eval``: accuracy on rendered held-out faces, or on Yale B photos."""
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import time
+from contextlib import contextmanager
+
+from ....flow.distributed import local_map, ordered_map
+from ....flow.files import atomic_write_bytes
+from ...evaluation.synthetic import evaluate, model_floor
+from ...evaluation.yaleb_benchmark import evaluate_yaleb, summarise
+from ...method.nodes import MethodOptions
+from ...model.default_model import train_from_recipe
+from ...model.sources import load_source
+from ..cluster import DASK_METAVAR, dask_client, parse_dask
+from .arguments import (
+    ALBEDO_ROUNDS_HELP,
+    CONE_TRUST_HELP,
+    FACE_LENGTH_HELP,
+    FITS,
+    at_least,
+    face_length,
+    fit_config,
+    fit_variant,
+    grid_size,
+    model_arg,
+)
+
+
+def _light_angles(text: str) -> list[float]:
+    """``--angles``: light angles from the view axis, degrees, each in [0, 90)."""
+    try:
+        angles = [float(t) for t in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--angles is a list of degrees such as 45,60,75, not {text!r}") from None
+    bad = [a for a in angles if not 0.0 <= a < 90.0]  # also NaN
+    if bad:
+        raise ValueError(f"--angles: {bad[0]:g} is not a light angle from the view axis (0 to below 90 degrees)")
+    return angles
+
+
+def _write_report(path: str | None, report: dict) -> None:
+    """The JSON report of ``eval``, written atomically, if ``--json`` asked for one."""
+    if path:
+        atomic_write_bytes(path, (json.dumps(report, indent=2) + "\n").encode())
+        print(f"written: {path}")
+
+
+@contextmanager
+def _mapper(spec: str | None):
+    """How ``eval`` runs its items: here, or on the Dask cluster ``--dask SPEC`` names."""
+    if spec is None:
+        yield local_map
+        return
+    with dask_client(spec) as client:
+        yield functools.partial(ordered_map, client)
+
+
+def cmd_eval_yaleb(args: argparse.Namespace) -> int:
+
+    if not args.data:
+        raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
+    model = model_arg(args.model)
+    options = MethodOptions(fit=fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
+                                            cone_trust=args.cone_trust), light="yaleb",
+                            integrator=args.integrator, shadows=args.shadows, **fit_variant(args, args.fit),
+                            face_length=face_length(args.face_length))
+    t0 = time.perf_counter()
+    print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
+          "ground truth: photometric stereo of each subject's exposures")
+    with _mapper(args.dask) as mapper:
+        report = evaluate_yaleb(args.data, model, options, mapper=mapper)
+    cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
+            ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
+            ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("relit_level", "relit level"),
+            ("shadow_iou", "shadow IoU"),
+            ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
+            ("light_err_deg", "auto light"), ("iterations", "iterations")]
+    print("per subject and light (errors in degrees):")
+    print(f"{'subject':8} {'A,E':>7} " + " ".join(f"{t:>12}" for _, t in cols))
+    for r in report["rows"]:
+        print(f"{r['subject']:8} {r['light']:>7} " + " ".join(f"{r[k]:12.2f}" for k, _ in cols))
+    print("means over the subjects:")
+    summary = summarise(report["rows"])
+    for s in summary:
+        print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
+    for f in report["frontal"]:
+        print(f"{f['subject']:8} frontal photo relit frontally: {f['psnr']:.2f} dB, "
+              f"{100 * f['gradient_energy']:.1f} % of its gradient energy")
+    report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
+                  seconds=time.perf_counter() - t0)
+    _write_report(args.json, report)
+    return 0
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    if args.dask is not None:
+        parse_dask(args.dask)  # before any work
+    if args.benchmark == "yaleb":
+        return cmd_eval_yaleb(args)
+
+    size = grid_size(args.size)
+    at_least(args.n_test, 1, "--n-test")
+    at_least(args.n_train, 2, "--n-train")
+    angles = _light_angles(args.angles)
+    t0 = time.perf_counter()
+    if args.model:
+        model = model_arg(args.model)
+        trained_on = f"model {args.model}"
+    else:
+        train_src = args.train_source or args.source
+        model = train_from_recipe({"source": train_src, "n": args.n_train, "seed": args.train_seed,
+                                   "modes": args.modes or 60, "size": list(size)})
+        trained_on = f"{args.n_train} faces of {train_src} (seed {args.train_seed})"
+    test, albedo = load_source(args.source, args.n_test, args.test_seed, model.grid)
+    if args.albedo == "constant":
+        albedo = None
+    fits = {"both": ["gauss-newton", "paper"], "all": FITS}.get(args.fit, [args.fit])
+    report = {"source": args.source, "test_faces": args.n_test, "test_seed": args.test_seed,
+              "model": trained_on, "modes": model.n_modes, "grid": list(model.grid), "albedo": args.albedo,
+              "albedo_rounds": args.albedo_rounds or 0, "model_floor_deg": model_floor(model, test), "results": {}}
+    print(f"model: {trained_on}, K={model.n_modes}, grid {model.grid[0]}x{model.grid[1]}; "
+          f"test: {args.n_test} faces of {args.source} (seed {args.test_seed}), {args.albedo} albedo")
+    print(f"model floor (true normals projected on the modes): {report['model_floor_deg']:.2f} deg")
+    cols = ["err_all", "err_lit", "err_cast", "err_attached", "cast_iou", "shadow_iou", "depth_rmse",
+            "iterations", "seconds_per_face"]
+    print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
+    with _mapper(args.dask) as mapper:  # one cluster for every fit compared
+        for name in fits:
+            opts = MethodOptions(fit=fit_config(name, None, albedo_rounds=args.albedo_rounds,
+                                                 cone_trust=args.cone_trust),
+                                 integrator=args.integrator, shadows=args.shadows, **fit_variant(args, name))
+            res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
+            report["results"][name] = res["per_angle"]
+            for angle, row in res["per_angle"].items():
+                print(f"{name:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
+    report["seconds"] = time.perf_counter() - t0
+    _write_report(args.json, report)
+    return 0
+
+
+def add_parser(sub) -> None:
+    """``shadowflow eval``'s arguments."""
+    e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb"], default="synthetic",
+                   help="synthetic (default): rendered faces of --source; yaleb: real photos in --data")
+    e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders")
+    e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
+    e.add_argument("--model", help="ict | procedural | a model .npz (synthetic default: train one from "
+                   "--train-source; yaleb default: ict)")
+    e.add_argument("--train-source", help="training faces (default: --source)")
+    e.add_argument("--n-train", type=int, default=100, help="synthetic: training faces (default 100)")
+    e.add_argument("--n-test", type=int, default=20, help="synthetic: held-out test faces (default 20)")
+    e.add_argument("--train-seed", type=int, default=0, help="synthetic: seed of the training faces (default 0)")
+    e.add_argument("--test-seed", type=int, default=1, help="synthetic: seed of the test faces (default 1)")
+    e.add_argument("--modes", type=int, help="modes to train (synthetic, default 60) or to use (yaleb)")
+    e.add_argument("--size", default="128,128", help="synthetic: H,W of the model grid and the renders")
+    e.add_argument("--angles", default="45,60,75", help="light angles from the view axis, degrees")
+    e.add_argument("--albedo", choices=["constant", "varied"], default="constant",
+                   help="synthetic: the test faces' albedo, uniform (default) or varying over the face")
+    e.add_argument("--fit", choices=FITS + ["both", "all"], default="gauss-newton",
+                   help="both: gauss-newton and paper; all: the three")
+    e.add_argument("--remap", choices=["ratio", "peak"], help="as run --remap")
+    e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
+    e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
+    e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
+    e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq", help="as run --integrator")
+    e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed", help="as run --shadows")
+    e.add_argument("--albedo-fill", choices=["ceiling", "mirror"], help="as run --albedo-fill")
+    e.add_argument("--json", help="write the report here")
+    e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
+                   help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
+                        "the report is the same")
+    e.set_defaults(func=cmd_eval)
