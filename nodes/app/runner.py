@@ -426,19 +426,20 @@ class StoredRun:
         self._next_id = self.manifest.next_frame()
         self._gone: dict[str, str] | None = None  # the earlier inputs no longer at their paths, by fingerprint
         for path in self.paths:
-            key, identity = input_key(path), file_identity(path)
-            named = self._name(path, key, identity)
+            # what the input is made of, read once: to know it again if it moved here, and for a later --resume
+            key, identity, fingerprint = input_key(path), file_identity(path), input_fingerprint(path)
+            named = self._name(path, key, identity, fingerprint)
             if named is not None:
-                yield self._frame(path, key, identity, *named)
+                yield self._frame(path, key, identity, fingerprint, *named)
 
-    def _name(self, path: str, key: str, identity) -> tuple[str, int, InputEntry | None] | None:
+    def _name(self, path: str, key: str, identity, fingerprint: str) -> tuple[str, int, InputEntry | None] | None:
         """``(output name, frame id, the earlier run's entry to reuse or None)`` of the input ``path`` (its
-        input key and identity); None when this run has taken it already as it is."""
+        input key, identity and fingerprint); None when this run has taken it already as it is."""
         manifest, assigned = self.manifest, self.store.assigned
         earlier = manifest.entries.get(key)
         given = assigned.get(key)  # this run's: name, id, identity
         if given is None and earlier is None:
-            earlier = self._moved_here(path, key, identity)
+            earlier = self._moved_here(key, identity, fingerprint)
         if given is not None:
             if given[2] == identity:
                 self.note(f"{path}: given more than once; processed once")
@@ -455,21 +456,22 @@ class StoredRun:
         self.protected.add(real_path(path))
         return name, fid, earlier
 
-    def _moved_here(self, path: str, key: str, identity) -> InputEntry | None:
-        """With ``--resume``, the earlier entry of an input moved to ``path`` (a renamed folder: its old
+    def _moved_here(self, key: str, identity, fingerprint: str) -> InputEntry | None:
+        """With ``--resume``, the earlier entry of an input moved to ``key`` (a renamed folder: its old
         path gone, its content the same), re-keyed here with its name, frame id and outputs; else None."""
         if not (self.run.resume and identity is not None and self.manifest.entries):
             return None
         if self._gone is None:
             self._gone = self.manifest.gone()
-        old = self._gone.pop(input_fingerprint(path), None) if self._gone else None
+        old = self._gone.pop(fingerprint, None) if self._gone else None
         if old is None:
             return None
         moved = self.manifest.move(old, key, identity)
         self.journal_append(moved)
         return moved
 
-    def _frame(self, path: str, key: str, identity, name: str, fid: int, earlier: InputEntry | None) -> Frame:
+    def _frame(self, path: str, key: str, identity, fingerprint: str, name: str, fid: int,
+               earlier: InputEntry | None) -> Frame:
         """The frame of ``path``: skipped (its earlier record reused) when ``--resume`` finds its outputs
         complete and made from the same input under the same configuration."""
         frame = Frame(fid, path)
@@ -478,7 +480,6 @@ class StoredRun:
         if clash:  # (a watched folder's newcomer: a listed one refused the run before it began)
             frame.fail("load", clash)
             return frame
-        fingerprint = input_fingerprint(path)  # what the frame is made from, for a later --resume to recognise
         frame.meta["sha256"] = fingerprint
         reusable = (self.run.resume and earlier is not None and earlier.record is not None
                     and earlier.record.get("status") == "ok" and earlier.config == self.config_id)

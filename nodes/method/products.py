@@ -18,9 +18,7 @@ def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.nda
     """(H, W) bool over a photo (H, W): the model's face under the frame's alignment, within the
     face's own outline when its landmarks gave one (``placement.outlines["oval"]``)."""
     box = product_box(frame, model, shape)
-    mask = np.zeros(shape, bool)
-    mask[box[0]:box[1], box[2]:box[3]] = _box_mask(frame, model, box)
-    return mask
+    return on_photo(_box_mask(frame, model, box), box, shape)
 
 
 def product_box(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> tuple[int, int, int, int]:
@@ -79,10 +77,7 @@ def face_products(frame: Frame, model: ShapeModel) -> tuple[tuple[int, int, int,
 def on_photo(values: np.ndarray, box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndarray:
     """A box's ``values`` (h, w[, C]) placed in an array of the photo's ``shape`` (H, W): NaN (floats)
     or False / 0 elsewhere."""
-    fill = np.nan if values.dtype.kind == "f" else 0
-    out = np.full(tuple(shape) + values.shape[2:], fill, values.dtype)
-    out[box[0]:box[1], box[2]:box[3]] = values
-    return out
+    return _in_box(values, box, (0, shape[0], 0, shape[1]), np.nan if values.dtype.kind == "f" else 0)
 
 
 def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = None) -> dict[str, np.ndarray]:

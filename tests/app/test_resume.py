@@ -24,6 +24,14 @@ def _face(path: Path, seed: int) -> Path:
     return write_shadowed_face(path, np.random.default_rng(seed), light_from_angles(30, 0))
 
 
+def _faces(folder: Path, n: int) -> Path:
+    """``face0.png`` .. ``face<n-1>.png`` (seeds 0 ..) in a new ``folder``."""
+    folder.mkdir()
+    for k in range(n):
+        _face(folder / f"face{k}.png", k)
+    return folder
+
+
 def _run(inputs, out: Path, *extra: str) -> subprocess.CompletedProcess:
     return run_cli(["run", *map(str, inputs), "--out", str(out), *FAST, *extra])
 
@@ -52,10 +60,7 @@ def test_a_second_run_into_a_busy_out_says_who_holds_it_and_exits_2(tmp_path):
 
 
 def test_resume_after_changing_the_options_redoes_every_frame_and_says_why(tmp_path):
-    src = tmp_path / "in"
-    src.mkdir()
-    for k in range(2):
-        _face(src / f"face{k}.png", k)
+    src = _faces(tmp_path / "in", 2)
     out = tmp_path / "out"
     assert _run([src], out).returncode == 0
     man = json.loads((out / MANIFEST_NAME).read_text())
@@ -197,10 +202,7 @@ def test_resume_redoes_an_input_whose_sidecar_bytes_or_relit_files_changed(tmp_p
 def test_resume_after_the_input_folder_was_renamed_redoes_nothing_and_keeps_the_names(tmp_path):
     """A renamed input folder made ``--resume`` redo every photo under a ``-2`` name: an input is now
     also known by what it is made of when its old path is gone."""
-    src = tmp_path / "in"
-    src.mkdir()
-    for k in range(3):
-        _face(src / f"face{k}.png", k)
+    src = _faces(tmp_path / "in", 3)
     out = tmp_path / "out"
     assert _run([src], out).returncode == 0
     before = _mtimes(out)
