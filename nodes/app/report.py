@@ -158,7 +158,8 @@ def _card(out: Path, r: dict, thumbs: dict | None = None) -> str:
     stem = r["stem"]
     folder = out / stem
     after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
-    before = _shown(r.get("source"), None)
+    # the photo read at the size the run worked at (a 33 MP JPEG decoded reduced, as the run read it), not whole
+    before = _shown(r.get("source"), None if after is None else after.shape[0] * after.shape[1])
     if thumbs is not None and before is not None:
         thumbs[stem] = _fit(before)
     faces = r.get("faces") or []
