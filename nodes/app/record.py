@@ -32,7 +32,7 @@ from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..model.shape_model import ShapeModel
 
-# The method's channel names (``channels.py``), for the engine's replay (``flow/replay.py`` knows none of them).
+# The method's channel names (``channels.py``), for the engine's replay (``flow/replay`` knows none of them).
 # the columns of ``replay``'s table: the final robust scale, the mean residual from the first iteration to the last
 CONVERGENCE_TABLE = (Column("sigma", "sigma"), Column("residual first -> last", "residual_mean", ("first", "last")))
 # the method's steps in the order they run: where two recordings split, for ``diff``
