@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 from .chain import Chain, Node
 from .frame import Frame
-from .pipeline import Stoppable, _install_signal_handlers, _restore_signal_handlers
+from .stream import END, InOrder, Source, Stoppable
 
 _CHAINS: dict[str, tuple[Chain, Callable[[], None] | None]] = {}  # in each worker: run token -> chain, close
 _CHAINS_LOCK = threading.Lock()
@@ -66,78 +66,27 @@ def default_in_flight(client) -> int:
     return max(2, 2 * sum(client.nthreads().values()))
 
 
-class _Source:
-    """The frames of a run, read on a thread of their own (a watched folder may block): ``get`` gives the
-    next ``(seq, frame)``, ``END`` after the last, or None when none came in time; ``errors``: what broke
-    the source (raised by the run after its frames)."""
-
-    END = object()
-
-    def __init__(self, frames: Iterable[Frame], size: int, stop: threading.Event):
-        self.queue: queue.Queue = queue.Queue(maxsize=size)
-        self.errors: list[BaseException] = []
-        self._stop, self._closing = stop, threading.Event()
-        self._thread = threading.Thread(target=self._feed, args=(frames,), name="flow-dask-source", daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def close(self) -> None:
-        """The run is over: the source stops at its next frame."""
-        self._closing.set()
-
-    def _ended(self) -> bool:
-        return self._stop.is_set() or self._closing.is_set()
-
-    def _feed(self, frames: Iterable[Frame]) -> None:
-        try:
-            for item in enumerate(frames):
-                while not self._ended():
-                    try:
-                        self.queue.put(item, timeout=0.2)
-                        break
-                    except queue.Full:
-                        continue
-                if self._ended():
-                    break
-        except BaseException as exc:  # noqa: BLE001 - a broken source ends the stream, reported by the run
-            self.errors.append(exc)
-        finally:
-            self.queue.put(self.END)
-
-    def get(self, timeout: float):
-        try:
-            return self.queue.get(timeout=timeout)
-        except queue.Empty:
-            return None
-
-
-class _Flight:
-    """The frames of a run out at once: ``out`` seq -> a future (its task out) or its Frame (finished,
+class _Flight(InOrder):
+    """The frames of a run out at once: ``pending`` seq -> a future (its task out) or its Frame (finished,
     waiting for its turn); ``given`` seq -> the frame as sent, for failures and cancellation."""
 
     def __init__(self):
-        self.out: dict = {}
+        super().__init__()
         self.given: dict[int, Frame] = {}
-        self.next_seq = 0
         self.exhausted = False
 
+    def finished(self, item) -> bool:
+        return isinstance(item, Frame)
+
     def running(self) -> list:
-        return [f for f in self.out.values() if not isinstance(f, Frame)]
+        return [f for f in self.pending.values() if not isinstance(f, Frame)]
 
     def cancel_all(self) -> None:
         """Every task still out given up: its frame marked cancelled, in its place."""
-        for seq, f in list(self.out.items()):
+        for seq, f in list(self.pending.items()):
             if not isinstance(f, Frame):
                 self.given[seq].cancelled = True
-                self.out[seq] = self.given.pop(seq)
-
-    def ready(self) -> Iterator[Frame]:
-        """The finished frames whose turn has come, in input order."""
-        while self.next_seq in self.out and isinstance(self.out[self.next_seq], Frame):
-            frame = self.out.pop(self.next_seq)
-            self.next_seq += 1
-            yield frame
+                self.pending[seq] = self.given.pop(seq)
 
 
 class DaskPipeline(Stoppable):
@@ -179,32 +128,30 @@ class DaskPipeline(Stoppable):
         # the build and what it shares go to every worker once: a task carries only its frame (the
         # build, holding every input's path, sent with each task made the client grow 250 kB a frame)
         bundle = self.client.scatter((self.build, self.shared), broadcast=True, hash=False)
-        source = _Source(frames, self.in_flight, self._stop)
-        previous = _install_signal_handlers(self.stop) if handle_signals else None
-        source.start()
+        source = Source(frames, queue.Queue(maxsize=self.in_flight), self._stop, name="flow-dask-source")
         flight = _Flight()
-        try:
-            while True:
-                halted = self._advance(flight, source, token, bundle)
-                for frame in flight.ready():  # input order
-                    if self.on_done is not None:
-                        self.on_done(frame)
-                    yield frame
-                if not flight.out and (flight.exhausted or halted):
-                    break
-        finally:
-            source.close()
-            if self.lost is None:  # (a lost cluster has nothing to cancel or close)
-                leftover = flight.running()
-                if leftover:
-                    self.client.cancel(leftover)
-                self._close_workers(token)
-            if previous is not None:
-                _restore_signal_handlers(previous)
+        with self.signals(handle_signals):
+            source.start()
+            try:
+                while True:
+                    halted = self._advance(flight, source, token, bundle)
+                    for frame in flight.ready():  # input order
+                        if self.on_done is not None:
+                            self.on_done(frame)
+                        yield frame
+                    if not flight.pending and (flight.exhausted or halted):
+                        break
+            finally:
+                source.close()
+                if self.lost is None:  # (a lost cluster has nothing to cancel or close)
+                    leftover = flight.running()
+                    if leftover:
+                        self.client.cancel(leftover)
+                    self._close_workers(token)
         if source.errors:
             raise source.errors[0]
 
-    def _advance(self, flight: _Flight, source: _Source, token: str, bundle) -> bool:
+    def _advance(self, flight: _Flight, source: Source, token: str, bundle) -> bool:
         """Tasks submitted while there is room, finished ones collected; on a stop, or when the cluster
         is lost, the tasks still out cancelled and their frames marked so. Returns whether the run halts."""
         halted = self._stop.is_set() or self.lost is not None
@@ -224,23 +171,23 @@ class DaskPipeline(Stoppable):
             flight.cancel_all()
         return halted
 
-    def _submit(self, flight: _Flight, source: _Source, token: str, bundle) -> None:
+    def _submit(self, flight: _Flight, source: Source, token: str, bundle) -> None:
         """Frames from the source as tasks until ``in_flight`` are out (failed or skipped ones pass)."""
-        while not flight.exhausted and len(flight.out) < self.in_flight:
-            item = source.get(timeout=0.05 if flight.out else 0.5)
+        while not flight.exhausted and len(flight.pending) < self.in_flight:
+            item = source.get(timeout=0.05 if flight.pending else 0.5)
             if item is None:
                 return
-            if item is _Source.END:
+            if item is END:
                 flight.exhausted = True
                 return
             seq, frame = item
             if frame.skipped or not frame.ok:
-                flight.out[seq] = frame
+                flight.put(seq, frame)
                 continue
             flight.given[seq] = frame
-            flight.out[seq] = self.client.submit(process_frame, token, bundle, frame, self.frame_timeout,
+            flight.pending[seq] = self.client.submit(process_frame, token, bundle, frame, self.frame_timeout,
                                                  pure=False, key=f"frame-{seq}-{token}")
-            self.max_in_flight = max(self.max_in_flight, len(flight.out))
+            self.max_in_flight = max(self.max_in_flight, len(flight.pending))
 
     def _collect(self, flight: _Flight) -> None:
         """Wait a little for a task to finish, then take every finished one's frame."""
@@ -253,9 +200,9 @@ class DaskPipeline(Stoppable):
             wait(running, timeout=0.2, return_when="FIRST_COMPLETED")
         except TimeoutError:  # none finished yet: look at the source and the stop flag again
             pass
-        for seq, f in list(flight.out.items()):
+        for seq, f in list(flight.pending.items()):
             if not isinstance(f, Frame) and f.done():
-                flight.out[seq] = self._result(f, flight.given[seq])
+                flight.pending[seq] = self._result(f, flight.given[seq])
                 flight.given.pop(seq)
 
     def _close_workers(self, token: str) -> None:

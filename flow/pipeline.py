@@ -12,15 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import queue
-import signal
 import threading
 import time
 from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator
 
 from .frame import Frame
-
-_DONE = object()  # end-of-stream marker, one per worker of the next stage
+from .stream import END, InOrder, Source, Stoppable
 
 
 def run_node(node, frame: Frame, timeout: float | None = None) -> Frame:
@@ -101,22 +99,6 @@ class Stage:
             raise ValueError(f"a stage needs at least one worker, not {self.workers!r}")
 
 
-class Stoppable:
-    """A stream engine's stop flag: ``stop()`` asks it to take no new frames; SIGINT / SIGTERM call it
-    under ``handle_signals``."""
-
-    def __init__(self) -> None:
-        self._stop = threading.Event()
-
-    def stop(self) -> None:
-        """Take no new frames; unfinished frames in flight are emitted ``cancelled``."""
-        self._stop.set()
-
-    @property
-    def stopped(self) -> bool:
-        return self._stop.is_set()
-
-
 class Pipeline(Stoppable):
     """Run frames through stages of nodes concurrently; iterate over ``run`` for results.
 
@@ -135,103 +117,68 @@ class Pipeline(Stoppable):
         self.on_done = on_done
         self.frame_timeout = frame_timeout
         super().__init__()
-        self._closing = threading.Event()  # the consumer is gone: the source must end too
+        self._lock = threading.Lock()
+        self._in_flight = 0
         self.max_in_flight = 0  # observed, for tests and benchmarks
 
     def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
         queues = [queue.Queue(maxsize=self.queue_size) for _ in range(len(self.stages) + 1)]
-        errors: list[BaseException] = []
-        in_flight = [0]
-        lock = threading.Lock()
-
-        def feed() -> None:
-            try:
-                for seq, frame in enumerate(frames):
-                    if self._stop.is_set() or self._closing.is_set():
-                        break
-                    with lock:
-                        in_flight[0] += 1
-                        self.max_in_flight = max(self.max_in_flight, in_flight[0])
-                    queues[0].put((seq, frame))
-            except BaseException as exc:  # noqa: BLE001 - a broken source ends the stream, reported below
-                errors.append(exc)
-            finally:
-                for _ in range(self.stages[0].workers):
-                    queues[0].put(_DONE)
-
-        def work(i: int, stage: Stage, remaining: list[int]) -> None:
-            q_in, q_out = queues[i], queues[i + 1]
-            while True:
-                item = q_in.get()
-                if item is _DONE:
-                    with lock:
-                        remaining[0] -= 1
-                        last = remaining[0] == 0
-                    if last:  # the stage's last worker tells every worker of the next one
-                        nxt = self.stages[i + 1].workers if i + 1 < len(self.stages) else 1
-                        for _ in range(nxt):
-                            q_out.put(_DONE)
-                    return
-                seq, frame = item
-                if self._stop.is_set():
-                    frame.cancel()  # stopped: unfinished frames leave without more work
-                try:
-                    frame = run_node(stage.node, frame, self.frame_timeout)
-                except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
-                    frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
-                    self._stop.set()
-                q_out.put((seq, frame))
-
-        threads = [threading.Thread(target=feed, name="flow-source", daemon=True)]
+        source = Source(frames, queues[0], self._stop, ends=self.stages[0].workers, on_take=self._took)
+        threads = []
         for i, stage in enumerate(self.stages):
             remaining = [stage.workers]
             for k in range(stage.workers):
                 name = f"flow-{getattr(stage.node, 'name', i)}-{k}"
-                threads.append(threading.Thread(target=work, args=(i, stage, remaining), name=name, daemon=True))
-        previous = _install_signal_handlers(self.stop) if handle_signals else None
-        for t in threads:
-            t.start()
-        try:
-            pending: dict[int, Frame] = {}
-            next_seq = 0
-            out = queues[-1]
-            while True:
-                item = out.get()
-                if item is _DONE:
-                    break
-                seq, frame = item
-                pending[seq] = frame
-                while next_seq in pending:  # emit in input order as soon as possible
-                    frame = pending.pop(next_seq)
-                    next_seq += 1
-                    with lock:
-                        in_flight[0] -= 1
-                    if self.on_done is not None:
-                        self.on_done(frame)
-                    yield frame
-        finally:
-            self._closing.set()
-            if previous is not None:
-                _restore_signal_handlers(previous)
-        if errors:
-            raise errors[0]
+                threads.append(threading.Thread(target=self._work, args=(queues, i, remaining), name=name,
+                                                daemon=True))
+        with self.signals(handle_signals):
+            source.start()
+            for t in threads:
+                t.start()
+            try:
+                yield from self._emit(queues[-1])
+            finally:
+                source.close()
+        if source.errors:
+            raise source.errors[0]
 
+    def _took(self) -> None:
+        with self._lock:
+            self._in_flight += 1
+            self.max_in_flight = max(self.max_in_flight, self._in_flight)
 
-def _install_signal_handlers(stop: Callable[[], None]):
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    previous = {}
+    def _work(self, queues: list[queue.Queue], i: int, remaining: list[int]) -> None:
+        """A worker of stage ``i``: each frame through its node, until the stage before has ended; the
+        stage's last worker to end tells every worker of the next one."""
+        stage, q_in, q_out = self.stages[i], queues[i], queues[i + 1]
+        while True:
+            item = q_in.get()
+            if item is END:
+                with self._lock:
+                    remaining[0] -= 1
+                    last = remaining[0] == 0
+                if last:
+                    for _ in range(self.stages[i + 1].workers if i + 1 < len(self.stages) else 1):
+                        q_out.put(END)
+                return
+            seq, frame = item
+            if self._stop.is_set():
+                frame.cancel()  # stopped: unfinished frames leave without more work
+            try:
+                frame = run_node(stage.node, frame, self.frame_timeout)
+            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
+                frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
+                self._stop.set()
+            q_out.put((seq, frame))
 
-    def handler(signum, _frame):
-        if stop.__self__.stopped:  # second signal: stop now
-            raise KeyboardInterrupt
-        stop()
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.signal(sig, handler)
-    return previous
-
-
-def _restore_signal_handlers(previous) -> None:
-    for sig, h in previous.items():
-        signal.signal(sig, h)
+    def _emit(self, out: queue.Queue) -> Iterator[Frame]:
+        """The last stage's frames in input order (``on_done`` first), until it has ended."""
+        order: InOrder[Frame] = InOrder()
+        while (item := out.get()) is not END:
+            order.put(*item)
+            for frame in order.ready():
+                with self._lock:
+                    self._in_flight -= 1
+                if self.on_done is not None:
+                    self.on_done(frame)
+                yield frame

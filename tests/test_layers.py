@@ -17,3 +17,36 @@ def test_the_import_contracts_are_kept():
                           capture_output=True, text=True, cwd=REPO, timeout=120)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
     assert "3 kept, 0 broken" in proc.stdout, proc.stdout[-3000:]
+
+
+def _functions(root: Path):
+    """(file, qualified name, lines) of every function and method under ``root``."""
+    import ast
+
+    for path in sorted(root.rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        stack = [(tree, "")]
+        while stack:
+            node, prefix = stack.pop()
+            for child in ast.iter_child_nodes(node):
+                if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                    name = f"{prefix}{child.name}"
+                    if not isinstance(child, ast.ClassDef):
+                        yield path.relative_to(REPO), name, child.end_lineno - child.lineno + 1
+                    stack.append((child, name + "."))
+
+
+def test_no_function_of_the_product_is_too_long_or_too_branched():
+    """The house stays changeable in one place (issue 40): no function in flow/ or nodes/ longer than 80
+    lines or with a cyclomatic complexity (radon's) above 15."""
+    cc = pytest.importorskip("radon.complexity")
+    long = [f"{f}:{name} ({n} lines)" for root in ("flow", "nodes") for f, name, n in _functions(REPO / root) if n > 80]
+    branched = []
+    for root in ("flow", "nodes"):
+        for path in sorted((REPO / root).rglob("*.py")):
+            for block in cc.cc_visit(path.read_text()):
+                for b in [block, *getattr(block, "methods", []), *getattr(block, "closures", [])]:
+                    if b.complexity > 15:
+                        branched.append(f"{path.relative_to(REPO)}:{b.fullname} ({b.complexity})")
+    assert not long, long
+    assert not branched, branched

@@ -17,22 +17,30 @@ def relog_to_rerun(frames: Iterable[FrameRecording], rrd_path: str | Path, kinds
     left = {f"/{part}/" for part in left_out}
     sink = RerunSink(rrd_path, blueprint=blueprint)
     for fr in frames:
-        fid = fr.frame
-        stem = (fr.record or {}).get("stem")
-        if isinstance(stem, str) and stem:
-            sink.name_frame(fid, stem)
-        for path, by_it in fr.arrays.items():
-            name = path.rsplit("/", 1)[-1]
-            if any(part in f"/{path}" for part in left):
-                continue
-            for it, arr in sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
-                kind = kinds.get(name, Kind.IMAGE if arr.ndim == 2 else Kind.ARRAY)
-                sink.write(Event(fid, path, kind, arr, it))
-        for path, by_it in fr.scalars.items():
-            for it, vals in sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
-                sink.write(Event(fid, path, Kind.SCALARS, vals, it))
-        if fr.record is not None:
-            sink.write(Event(fid, "frames", Kind.FRAME, fr.record))
-        sink.frame_done(fid)
+        _relog_frame(sink, fr, kinds, left)
     sink.close()
     return Path(rrd_path)
+
+
+def _by_iteration(by_it: Mapping) -> list:
+    """``{iteration: value}`` in iteration order, the frame's own value (iteration None) first."""
+    return sorted(by_it.items(), key=lambda kv: -1 if kv[0] is None else kv[0])
+
+
+def _relog_frame(sink: RerunSink, fr: FrameRecording, kinds: Mapping[str, Kind], left: set[str]) -> None:
+    fid = fr.frame
+    stem = (fr.record or {}).get("stem")
+    if isinstance(stem, str) and stem:
+        sink.name_frame(fid, stem)
+    for path, by_it in fr.arrays.items():
+        if any(part in f"/{path}" for part in left):
+            continue
+        name = path.rsplit("/", 1)[-1]
+        for it, arr in _by_iteration(by_it):
+            sink.write(Event(fid, path, kinds.get(name, Kind.IMAGE if arr.ndim == 2 else Kind.ARRAY), arr, it))
+    for path, by_it in fr.scalars.items():
+        for it, vals in _by_iteration(by_it):
+            sink.write(Event(fid, path, Kind.SCALARS, vals, it))
+    if fr.record is not None:
+        sink.write(Event(fid, "frames", Kind.FRAME, fr.record))
+    sink.frame_done(fid)
