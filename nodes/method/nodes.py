@@ -14,57 +14,24 @@ from ...flow.frame import Frame, FrameFailed
 from ...flow.parts import EachPart
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
 from ..geometry.raster import polygon_mask
-from ..model.shape_model import ShapeModel
-from ..photo.align import (
-    IDENTITY,
-    Alignment,
-    face_box,
-    inside_input,
-    mask_to_input,
-    normals_to_input,
-    scalar_to_input,
-    to_model_grid,
-)
 from ..geometry.reflectance import light_tag
+from ..model.shape_model import ShapeModel
+from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar, yaleb_light
 from ..photo.placement import FacePlacement, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
-from .eye_detail import CONTRAST as EYE_CONTRAST, EyeDetail
+from .eye_detail import CONTRAST as EYE_CONTRAST
+from .face_relight import FaceRelight
 from .light import estimate_light, expected_normals
-from .live_relight import live_relight_data
-from .photo_relight import (
-    CLIPPED,
-    LIT_SHADING,
-    FaceLayer,
-    clipped_floor,
-    exposure_target,
-    grow,
-    inner_alpha,
-    lit_weight,
-    outside_gain,
-    photo_ambient,
-    photo_albedo,
-    shading_trust,
-    skin,
-    skin_exposure,
-    smooth_coarse,
-    with_ambient,
-)
+from .photo_relight import skin
 from .products import relit_photos
 from .quality import assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
-from .shadow import cast_shadow, confirm_with_image, far_darker, photo_shadows, shadow_maps
+from .shadow import confirm_with_image, far_darker, shadow_maps
 
-PHOTO_MATCH_SIGMA = 0.08  # photo albedo's level matched over this many interocular distances
-PHOTO_FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
-# the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``). On
-# the five Yale B subjects (frontal relight, dB at +-25 / +-50 / +-70 / +-35+15): 24.50 / 21.89 / 19.18 / 22.14
-# unsmoothed, 24.66 / 22.01 / 19.28 / 22.27 at 1.0, 24.69 / 22.01 / 19.33 / 22.28 at 1.5, 24.69 / 21.92 / 19.34 /
-# 22.19 at 2.5; the staircase seams where its mirrored and measured parts meet are gone
-COARSE_SMOOTH = 1.5
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 
 
@@ -483,12 +450,11 @@ class RelightNode:
 
 
 class PhotoRelightNode:
-    """The face relit at the photo's own resolution, in colour when the input is (``photo_relight``),
+    """The face relit at the photo's own resolution, in colour when the input is (``face_relight``),
     all of it in the box around the face (plus the feather): the albedo and shadows there
     (``photo_albedo``, ``photo_shadow``, ``photo_box``), and one ``FaceLayer`` per light
     (``relight_light``, then each of ``extra_lights``) for ``compose`` to put into the photo. The
-    face's own exposure is kept: the relit face is ``albedo x S'`` with the albedo measured on the
-    photo's own lit skin, and nothing beyond the face's feather changes."""
+    face's own exposure is kept, and nothing beyond the face's feather changes."""
 
     name = "relight_photo"
 
@@ -498,104 +464,29 @@ class PhotoRelightNode:
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
-        face = _BoxRelight(frame, self.model, self.options, self.iod)
+        face = self.face_relight(frame)
         layers = [(np.asarray(light, np.float64), face.layer(light))
                   for light in (self.options.relight_light, *self.options.extra_lights)]
         d.update(photo_box=face.box, photo_albedo=face.albedo, photo_shadow=face.shadow, photo_layers=layers)
         d["live"] = face.live_data(frame.meta.get("encoding", "linear"))
         return frame
 
-
-class _BoxRelight:
-    """One face of a photo relit in the box around it (plus the feather): what every light shares
-    (the box's photo, face, normals, shading, shadows, ambient and albedo, measured once), and ``layer``
-    for each light. Everything happens in the box: a large photo's background costs nothing, and the
-    photo outside it is not touched."""
-
-    def __init__(self, frame: Frame, model: ShapeModel, options: MethodOptions, iod: float):
-        d, m = frame.data, model
-        self.d, self.m = d, m
-        full: Alignment = d["alignment"]
-        full_photo = d["colour"] if "colour" in d else d["image"][..., None]
-        self.feather = PHOTO_FEATHER * iod * full.scale
-        y0, y1, x0, x1 = face_box(m.mask, full, full_photo.shape[:2], margin=2.5 * self.feather + 4)
-        self.box = (y0, y1, x0, x1)
-        self.al = al = full.cropped(x0, y0)
-        self.photo = photo = full_photo[y0:y1, x0:x1]
-        self.shape = shape = photo.shape[:2]
-        face = mask_to_input(m.mask, al, shape)
+    def face_relight(self, frame: Frame) -> FaceRelight:
+        """The frame's entries as ``FaceRelight``'s arrays."""
+        d, m = frame.data, self.model
+        al: Alignment = d["alignment"]
         placement: FacePlacement | None = d.get("placement")
-        if placement is not None and placement.outlines:  # the face's own outline, at the photo's resolution
-            face &= polygon_mask(placement.outlines["oval"][0] - [x0, y0], shape)
-        self.face = face
-        self.normals = normals = np.nan_to_num(normals_to_input(shading_normals(frame), m.mask, al, shape)).astype(
-            np.float32)
-        self.shading = shading = np.clip(normals @ np.asarray(d["light"], np.float32), 0.0, None)  # float32
-        coarse_lit = np.nan_to_num(scalar_to_input(d["shadow"].lit.astype(np.float32), m.mask, al, shape)) >= 0.5
-        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
-        self.shadow = shadow = photo_shadows(d["image"][y0:y1, x0:x1], shading, face & ~coarse_lit, skin(photo, face))
-        px = max(al.scale, 1.0)  # photo pixels per model pixel
-        lit = face & ~grow(shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
-        self.coarse = coarse = smooth_coarse(scalar_to_input(d["albedo"], m.mask, al, shape), face, COARSE_SMOOTH * px)
-        self.measured = lit_weight(photo, lit, face, 1.5 * px)  # the light-independent part of the trust
-        self.skin_only = skin_only = skin(photo, face & lit)
-        self.lit_skin = skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
-        self.match_px = PHOTO_MATCH_SIGMA * iod * al.scale
-        # only eyes the face mesh found in the photo: given or guessed eyes may have no eye to show (a render
-        # without eye texture, whose lit eye's only pattern is the lid's cast shadow)
-        placed = d.get("eyes_found") in ("detected", "mesh only")
-        # the eyes' openings as the face mesh found them (the model's eye points are only where the placement
-        # put its iris centres)
-        eye_centres = placement.eyes - [x0, y0] if placement is not None and placement.outlines else \
-            al.points_to_input(m.eyes)
-        self.eyes = EyeDetail(photo, shading, lit, eye_centres, options.eye_contrast) if placed else None
-        # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
-        self.ambient = photo_ambient(d["image"][y0:y1, x0:x1], coarse, shading, face)
-        self.lighting = with_ambient(shading, self.ambient)
-        # how far I / lighting is trusted: the lighting with the room's light in it is never darker than the
-        # ambient, so a photo with fill light (the astronaut) keeps its own pixels further round the face;
-        # what is not skin (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the
-        # fitted shading says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
-        self.not_skin = lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(lit)
-        self.albedo = self.albedo_for(self.trust_for())
-        self.alpha = inner_alpha(face, self.feather)
-
-    def albedo_for(self, trust: np.ndarray) -> np.ndarray:
-        a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
-        return a if self.eyes is None else self.eyes.apply(a, trust)
-
-    def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:
-        return self.measured * np.where(self.not_skin, np.float32(1.0), shading_trust(self.lighting, new))
-
-    def layer(self, light) -> FaceLayer:
-        """The face relit by ``light`` (3,), camera frame: its cast shadow traced on the fit's surface."""
-        d, m, photo, face = self.d, self.m, self.photo, self.face
-        s = np.asarray(light, np.float64) / np.linalg.norm(light)
-        cast = cast_shadow(d["depth"], self.al.vector_to_model(s))
-        # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
-        # model pixel's soft ramp, not a staircase of them across the cheek
-        cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), m.mask, self.al, self.shape)),
-                          0.0, 1.0)
-        new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
-        new_lighting = with_ambient(new_shading, self.ambient)
-        # the albedo this light can trust: I / S also where S is small but S' is no larger
-        light_albedo = self.albedo_for(self.trust_for(new_lighting))
-        # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
-        # a side light leaves the shadowed side dim, not black
-        unexposed = light_albedo * new_lighting[..., None]
-        gain = skin_exposure(photo, unexposed, self.lit_skin, self.skin_only & (new_shading >= LIT_SHADING))
-        face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face)
-        return FaceLayer(self.box, face, np.clip(face_image, 0.0, 1.0),
-                         outside_gain(photo, face_image, face, self.feather), self.alpha)
-
-    def live_data(self, encoding: str) -> dict:
-        """What the page needs to relight this face live (``live_relight_data``)."""
-        d, photo = self.d, self.photo
-        return live_relight_data(
-            box=self.box, photo=photo, albedo=self.albedo, normals=self.normals, face=self.face, alpha=self.alpha,
-            skin=self.skin_only, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
-            photo_light=np.asarray(d["light"], np.float64),
-            clipped=(np.atleast_3d(photo) >= CLIPPED) & self.face[..., None], depth=d["depth"], grid_mask=self.m.mask, to_box=self.al.matrix, encoding=encoding)
+        meshed = placement is not None and bool(placement.outlines)
+        # only eyes the face mesh found in the photo get their detail back; its eye openings, not the model's
+        # eye points (only where the placement put the iris centres)
+        eyes = None
+        if d.get("eyes_found") in ("detected", "mesh only"):
+            eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
+        return FaceRelight(
+            photo=d["colour"] if "colour" in d else d["image"][..., None], grey=d["image"], alignment=al,
+            mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
+            light=d["light"], iod_px=self.iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
+            eyes=eyes, eye_contrast=self.options.eye_contrast)
 
 
 class ComposeNode:

@@ -1,0 +1,136 @@
+"""One face of a photo relit in the box around it (plus the feather), as a function of arrays.
+
+``FaceRelight`` measures once what every light shares (the box's photo, face, normals, shading,
+shadows, room light and albedo) and gives ``layer(light)`` for each light, a ``FaceLayer`` for
+``photo_relight.compose``. Everything happens in the box: a large photo's background costs nothing,
+and the photo outside the box is not touched. The steps are ``photo_relight``'s; this module says
+which arrays go where.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.raster import polygon_mask
+from ..photo.align import Alignment, face_box, mask_to_input, normals_to_input, scalar_to_input
+from .eye_detail import CONTRAST as EYE_CONTRAST
+from .eye_detail import EyeDetail
+from .live_relight import live_relight_data
+from .photo_relight import (
+    CLIPPED,
+    LIT_SHADING,
+    FaceLayer,
+    clipped_floor,
+    exposure_target,
+    grow,
+    inner_alpha,
+    lit_weight,
+    outside_gain,
+    photo_albedo,
+    photo_ambient,
+    shading_trust,
+    skin,
+    skin_exposure,
+    smooth_coarse,
+    with_ambient,
+)
+from .shadow import cast_shadow, photo_shadows
+
+MATCH_SIGMA = 0.08  # the photo albedo's level is matched over this many interocular distances
+FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
+# the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``):
+# the staircase seams where its mirrored and measured parts meet go (figures: docs/accuracy.md)
+COARSE_SMOOTH = 1.5
+
+
+class FaceRelight:
+    """One face relit in its box.
+
+    photo: (H, W, C) float32 linear RGB (C = 3) or grey (C = 1) in [0, 1]; grey: (H, W) its brightness.
+    alignment: model pixel -> photo pixel. mask: (Hm, Wm) bool, the model's face. normals: (Hm, Wm, 3)
+    the normals that explain the photo's shading (model camera frame, NaN off the face); lit:
+    (Hm, Wm) bool, not in the fit's shadows; albedo: (Hm, Wm) the fit's albedo map; depth: (Hm, Wm)
+    heights in model pixels. light: (3,) unit, the photo's light, camera frame. iod_px: the face's
+    interocular distance in photo pixels. outline: (n, 2) the face's own outline in photo pixels,
+    or None. eyes: (2, 2) the eyes' centres in photo pixels where a face mesh found them, else None
+    (no eye detail: a render without eye texture has no eye to show).
+    """
+
+    def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
+                 normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, depth: np.ndarray, light: np.ndarray,
+                 iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
+                 eye_contrast: float = EYE_CONTRAST):
+        self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
+        self.feather = FEATHER * iod_px
+        y0, y1, x0, x1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * self.feather + 4)
+        self.box = (y0, y1, x0, x1)
+        self.al = al = alignment.cropped(x0, y0)
+        self.photo = photo = photo[y0:y1, x0:x1]
+        self.shape = shape = photo.shape[:2]
+        face = mask_to_input(mask, al, shape)
+        if outline is not None:  # the face's own outline, at the photo's resolution
+            face &= polygon_mask(np.asarray(outline) - [x0, y0], shape)
+        self.face = face
+        self.normals = np.nan_to_num(normals_to_input(normals, mask, al, shape)).astype(np.float32)
+        self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
+        box_grey = grey[y0:y1, x0:x1]
+        coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, al, shape)) >= 0.5
+        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
+        self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, skin(photo, face))
+        px = max(al.scale, 1.0)  # photo pixels per model pixel
+        face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
+        self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
+        self.measured = lit_weight(photo, face_lit, face, 1.5 * px)  # the light-independent part of the trust
+        self.skin_only = skin(photo, face & face_lit)
+        self.lit_skin = self.skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
+        self.match_px = MATCH_SIGMA * iod_px
+        self.eyes = None if eyes is None else EyeDetail(photo, shading, face_lit, np.asarray(eyes) - [x0, y0],
+                                                        eye_contrast)
+        # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
+        self.ambient = photo_ambient(box_grey, coarse, shading, face)
+        self.lighting = with_ambient(shading, self.ambient)
+        # how far I / lighting is trusted: the lighting with the room's light in it is never darker than the
+        # ambient, so a photo with fill light keeps its own pixels further round the face; what is not skin
+        # (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the fitted shading
+        # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
+        self.not_skin = face_lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(face_lit)
+        self.albedo = self.albedo_for(self.trust_for())
+        self.alpha = inner_alpha(face, self.feather)
+
+    def albedo_for(self, trust: np.ndarray) -> np.ndarray:
+        """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere."""
+        a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
+        return a if self.eyes is None else self.eyes.apply(a, trust)
+
+    def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:
+        """(h, w) how far I / lighting is trusted, for a new lighting ``new`` (h, w) (None: any)."""
+        return self.measured * np.where(self.not_skin, np.float32(1.0), shading_trust(self.lighting, new))
+
+    def layer(self, light) -> FaceLayer:
+        """The face relit by ``light`` (3,), camera frame: its cast shadow traced on the fit's surface."""
+        photo, face = self.photo, self.face
+        s = np.asarray(light, np.float64) / np.linalg.norm(light)
+        cast = cast_shadow(self.depth, self.al.vector_to_model(s))
+        # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
+        # model pixel's soft ramp, not a staircase of them across the cheek
+        cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), self.mask, self.al, self.shape)),
+                          0.0, 1.0)
+        new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
+        new_lighting = with_ambient(new_shading, self.ambient)
+        # the albedo this light can trust: I / S also where S is small but S' is no larger
+        light_albedo = self.albedo_for(self.trust_for(new_lighting))
+        # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
+        # a side light leaves the shadowed side dim, not black
+        unexposed = light_albedo * new_lighting[..., None]
+        gain = skin_exposure(photo, unexposed, self.lit_skin, self.skin_only & (new_shading >= LIT_SHADING))
+        face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face)
+        return FaceLayer(self.box, face, np.clip(face_image, 0.0, 1.0),
+                         outside_gain(photo, face_image, face, self.feather), self.alpha)
+
+    def live_data(self, encoding: str) -> dict:
+        """What the page needs to relight this face live (``live_relight_data``)."""
+        photo = self.photo
+        return live_relight_data(
+            box=self.box, photo=photo, albedo=self.albedo, normals=self.normals, face=self.face, alpha=self.alpha,
+            skin=self.skin_only, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
+            photo_light=self.light, clipped=(np.atleast_3d(photo) >= CLIPPED) & self.face[..., None],
+            depth=self.depth, grid_mask=self.mask, to_box=self.al.matrix, encoding=encoding)

@@ -1,0 +1,75 @@
+"""One face relit in its box from arrays alone (``face_relight.FaceRelight``): a textured sphere on a
+small model grid, placed 4x larger in a colour photo, with its true shape and light."""
+import numpy as np
+import pytest
+from shadowflow.nodes.method.face_relight import FaceRelight
+from shadowflow.nodes.method.photo_relight import compose
+from shadowflow.nodes.photo.align import Alignment, mask_to_input, normals_to_input
+
+GRID, R, SCALE, OFFSET = 48, 20.0, 4.0, (30.0, 20.0)
+PHOTO_LIGHT = np.array([-0.6, 0.0, 0.8])  # from the image's left
+
+
+def _sphere():
+    """The model grid's sphere: (Hm, Wm) mask, (Hm, Wm, 3) normals (camera frame, y up, NaN off it), depth."""
+    rows, cols = np.mgrid[0:GRID, 0:GRID].astype(float)
+    x, y = (cols - GRID / 2 + 0.5) / R, -(rows - GRID / 2 + 0.5) / R
+    mask = x**2 + y**2 < 0.95
+    z = np.sqrt(np.clip(1 - x**2 - y**2, 0, None))
+    normals = np.where(mask[..., None], np.dstack([x, y, z]), np.nan).astype(np.float32)
+    return mask, normals, np.where(mask, z * R, np.nan).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    mask, normals, depth = _sphere()
+    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
+    shape = (260, 260)
+    rng = np.random.default_rng(3)
+    face = mask_to_input(mask, al, shape)
+    n_photo = np.nan_to_num(normals_to_input(normals, mask, al, shape))
+    shading = np.clip(n_photo @ PHOTO_LIGHT, 0.0, None)
+    skin = np.array([0.62, 0.48, 0.38]) * (1 + 0.06 * rng.standard_normal(shape))[..., None]  # pores
+    background = np.full(shape + (3,), 0.3) + 0.05 * rng.standard_normal(shape + (3,))
+    photo = np.where(face[..., None], skin * shading[..., None], background).clip(0, 1).astype(np.float32)
+    lit = mask & (np.nan_to_num(normals) @ PHOTO_LIGHT > 0.05)
+    relight = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
+                          albedo=np.where(mask, 0.5, np.nan).astype(np.float32), depth=depth, light=PHOTO_LIGHT,
+                          iod_px=0.9 * R * SCALE)
+    return relight, photo, face, shading
+
+
+def test_the_box_holds_the_face_and_its_feather_and_stays_in_the_photo(scene):
+    relight, photo, face, _ = scene
+    y0, y1, x0, x1 = relight.box
+    rows, cols = np.nonzero(face)
+    assert 0 <= y0 and y1 <= photo.shape[0] and 0 <= x0 and x1 <= photo.shape[1]
+    assert y0 <= rows.min() - relight.feather and rows.max() + relight.feather < y1
+    assert x0 <= cols.min() - relight.feather and cols.max() + relight.feather < x1
+    assert np.array_equal(relight.face, face[y0:y1, x0:x1])
+
+
+def test_the_photos_own_light_gives_the_lit_face_back(scene):
+    relight, photo, face, shading = scene
+    y0, y1, x0, x1 = relight.box
+    layer = relight.layer(PHOTO_LIGHT)
+    lit_skin = (face & (shading > 0.3))[y0:y1, x0:x1]
+    error = np.abs(layer.relit[lit_skin] - photo[y0:y1, x0:x1][lit_skin]) / photo[y0:y1, x0:x1][lit_skin]
+    assert np.median(error) < 0.02, np.median(error)
+
+
+def test_a_frontal_light_brightens_the_dark_side_and_leaves_the_photo_beyond_the_box(scene):
+    relight, photo, face, shading = scene
+    y0, y1, x0, x1 = relight.box
+    layer = relight.layer(np.array([0.0, 0.0, 1.0]))
+    # the sphere's right side, in the photo's attached shadow, is lit by a frontal light: at the same
+    # normals a frontal light gives z, so it comes out several times brighter than it was
+    dark = (face & (shading < 0.05))[y0:y1, x0:x1]
+    lit = (face & (shading > 0.5))[y0:y1, x0:x1]
+    assert dark.sum() > 500 and lit.sum() > 500
+    assert np.median(layer.relit[dark]) > 4 * np.median(photo[y0:y1, x0:x1][dark])
+    out = compose(photo, [layer])
+    beyond = np.ones(photo.shape[:2], bool)
+    beyond[y0:y1, x0:x1] = False
+    assert np.array_equal(out[beyond], photo[beyond])
+    assert not np.allclose(out[y0:y1, x0:x1], photo[y0:y1, x0:x1], atol=0.05)
