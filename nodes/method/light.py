@@ -47,3 +47,12 @@ def expected_normals(mean_normals: np.ndarray, normal_variance: np.ndarray) -> n
     normals leans toward wherever those pixels face (on ICT renders: 2-3.5 deg too high)."""
     var = np.asarray(normal_variance, np.float64)
     return np.asarray(mean_normals, np.float64) * np.exp(-0.5 * var)[:, None]
+
+
+def light_on_face(grid_image: np.ndarray, use: np.ndarray, model) -> np.ndarray:
+    """(3,) the light of a face on the model grid, model camera frame, estimated from the model's expected
+    normals (``expected_normals``) at the pixels ``use`` (Hm, Wm) bool, e.g. the skin the photo shows.
+    grid_image: (Hm, Wm) brightness; model: the ``ShapeModel``."""
+    u = use[model.mask]
+    normals = expected_normals(model.mean_normals[u], model.normal_variance[u])
+    return estimate_light(grid_image[model.mask][u], normals)

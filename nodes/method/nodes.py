@@ -13,17 +13,17 @@ import numpy as np
 from ...flow.frame import Frame, FrameFailed
 from ...flow.parts import EachPart
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
-from ..geometry.raster import polygon_mask
 from ..geometry.reflectance import light_tag
 from ..model.shape_model import ShapeModel
-from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
+from ..photo.align import IDENTITY, Alignment, to_model_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
-from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar, yaleb_light
-from ..photo.placement import FacePlacement, model_box, place_faces
+from ..photo.given import given_eyes, known_light
+from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar
+from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
 from .face_relight import FaceRelight
-from .light import estimate_light, expected_normals
+from .light import light_on_face
 from .photo_relight import skin
 from .products import relit_photos
 from .quality import assess, core_face, explained_variance
@@ -161,8 +161,13 @@ class LoadNode:
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
         side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
-        self._given_eyes(frame, side, scale)
-        self._known_light(frame, side)
+        eyes = given_eyes(frame.source, image.shape, side, self.options.eyes, scale)
+        if eyes is not None:
+            frame.data["given_eyes"], frame.meta["eyes_source"] = eyes
+        if "light" in frame.data:
+            frame.meta.setdefault("light_source", "given")
+        elif (known := known_light(frame.source, side, self.options.light)) is not None:
+            frame.data["light"], frame.meta["light_source"] = known
         return frame
 
     def _read(self, frame: Frame) -> float:
@@ -178,40 +183,6 @@ class LoadNode:
         if photo.scale != 1.0:
             frame.meta["reduced"] = {"from": list(photo.size), "to": [photo.grey.shape[1], photo.grey.shape[0]]}
         return photo.scale
-
-    def _given_eyes(self, frame: Frame, side, scale: float) -> None:
-        """Eyes given for the photo, a sidecar's before ``--eyes``, in the photo's pixels, checked."""
-        if side is not None and side.eyes is not None:
-            frame.data["given_eyes"], frame.meta["eyes_source"] = side.eyes * scale, "sidecar eyes"
-        elif self.options.eyes is not None:
-            frame.data["given_eyes"], frame.meta["eyes_source"] = np.asarray(self.options.eyes) * scale, "given eyes"
-        if "given_eyes" in frame.data:
-            check_eyes(frame.source, frame.data["given_eyes"], frame.data["image"].shape, frame.meta["eyes_source"])
-
-    def _known_light(self, frame: Frame, side) -> None:
-        """The light when it is known before any face is: given with the image, a sidecar's, ``--light``, or
-        a Yale B name's; else it is estimated later."""
-        if "light" in frame.data:
-            frame.meta.setdefault("light_source", "given")
-        elif side is not None and side.light is not None:
-            frame.data["light"], frame.meta["light_source"] = side.light, "sidecar"
-        elif isinstance(self.options.light, np.ndarray):
-            frame.data["light"], frame.meta["light_source"] = self.options.light, "given"
-        elif self.options.light == "yaleb":
-            frame.data["light"], frame.meta["light_source"] = yaleb_light(frame.source), "yaleb name"
-
-
-def check_eyes(source: str, eyes: np.ndarray, shape: tuple[int, int], what: str) -> None:
-    """``InputError`` naming ``source`` when given eyes (2, 2) cannot place a face in a photo (H, W):
-    not finite, one on the other, or outside the photo (by more than its size)."""
-    e = np.asarray(eyes, np.float64)
-    h, w = shape[:2]
-    if e.shape != (2, 2) or not np.all(np.isfinite(e)):
-        raise InputError(f"{source}: {what} must be four finite numbers [[x1, y1], [x2, y2]]")
-    if np.linalg.norm(e[1] - e[0]) < 2.0:
-        raise InputError(f"{source}: {what} are one on the other ({e.tolist()})")
-    if np.any(e[:, 0] < -w) or np.any(e[:, 0] > 2 * w) or np.any(e[:, 1] < -h) or np.any(e[:, 1] > 2 * h):
-        raise InputError(f"{source}: {what} {np.round(e, 1).tolist()} lie far outside the {w}x{h} photo")
 
 
 def photo_rgb8(frame: Frame) -> np.ndarray:
@@ -259,11 +230,7 @@ class FacesNode:
                      meta={"stem": frame.meta.get("stem"), "face": k + 1,
                            "encoding": frame.meta.get("encoding", "linear")})
         al = placement.alignment
-        grid_image = to_model_grid(d["image"], al, m.grid)
-        seen = inside_input(al, d["image"].shape, m.grid)
-        oval = placement.grid_outline("oval")
-        if oval:  # the face's own outline: beyond it (hair, background, a collar) is not the face
-            seen &= polygon_mask(oval[0], m.grid)
+        grid_image, seen = face_on_grid(d["image"], placement, m)
         if "light" in d:
             light, how = np.asarray(d["light"], np.float64), frame.meta.get("light_source", "given")
         else:
@@ -271,9 +238,7 @@ class FacesNode:
             if "colour" in d:  # the skin only: hair over the forehead, brows and eyes are dark but not shaded
                 grid_colour = np.stack([to_model_grid(d["colour"][..., c], al, m.grid) for c in range(3)], axis=-1)
                 use &= skin(grid_colour, use & m.mask)
-            u = use[m.mask]
-            normals = expected_normals(m.mean_normals[u], m.normal_variance[u])
-            light, how = al.vector_to_input(estimate_light(grid_image[m.mask][u], normals)), "estimated"
+            light, how = al.vector_to_input(light_on_face(grid_image, use, m)), "estimated"
         face.data.update(alignment=al, placement=placement, eyes_found=placement.found, grid_image=grid_image,
                          grid_valid=seen, light=light, grid_light=al.vector_to_model(light))
         face.meta.update(alignment=al.how, light=[round(float(x), 6) for x in light], light_source=how,

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
-from .align import Alignment, centred_alignment, eyes_alignment, stretch_vertically
+from .align import Alignment, centred_alignment, eyes_alignment, inside_input, stretch_vertically, to_model_grid
 from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
 
 # the frontal model's reach in yaw: turned further, a face is fitted but doubtful (docs/accuracy.md, "Pose")
@@ -148,3 +149,16 @@ def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | Non
         al = Alignment(al.matrix, "centred crop (asked)")
         return [FacePlacement(al, "centre asked", al.points_to_input(model.eyes), model_box(model, al, shape))]
     return [place_found(model, f, shape, face_length) for f in find_faces(photo_rgb)]
+
+
+def face_on_grid(image: np.ndarray, placement: FacePlacement, model: ShapeModel) -> tuple[np.ndarray, np.ndarray]:
+    """A placed face as the fit sees it: (Hm, Wm) the photo ``image`` (H, W) resampled to the model grid,
+    and (Hm, Wm) bool the model pixels the photo shows, inside the photo and inside the face's own outline
+    when the face mesh drew one (beyond it, hair, background or a collar are not the face)."""
+    al = placement.alignment
+    grid_image = to_model_grid(image, al, model.grid)
+    seen = inside_input(al, image.shape, model.grid)
+    oval = placement.grid_outline("oval")
+    if oval:
+        seen &= polygon_mask(oval[0], model.grid)
+    return grid_image, seen
