@@ -2,7 +2,9 @@
 
 ``Hm, Wm`` = the model grid, ``N`` = the model's face pixels, ``H, W`` = the input photo.
 A node reads only entries of the nodes before it; ``tests/method/test_frame_contract.py`` runs a photo
-and a render through every node and checks that each entry a node writes is listed here.
+and a render through every node and checks that each entry a node writes is listed here, and reads the
+code of ``nodes/`` for every key it names on a frame (``frame.data["..."]``, ``d.get("...")``...): a
+key the table does not list, a typo included, fails it.
 """
 from __future__ import annotations
 
@@ -69,5 +71,9 @@ META: dict[str, tuple[str, str]] = {
     "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
+    "recording_parts": ("the recording files a Dask worker wrote the frame into (taken off by the runner)",
+                        "the Dask worker's finish"),
+    "recording_error": ("why a Dask worker could not record the frame (taken off by the runner)",
+                        "the Dask worker's finish"),
     "timings": ("seconds per node", "the flow engine"),
 }

@@ -50,3 +50,59 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     _check(grid_added)
     # the render's way in gives the method every entry the photo's does, bar the photo's bounds and placement
     assert set(frame.data) - set(grid_frame.data) == {"grid_valid", "eyes_found", "placement"}
+
+
+def _frame_keys_in_code(path):
+    """{("data" | "meta", key)} of every string key the code at ``path`` reads or writes on a frame: on
+    ``<x>.data`` / ``<x>.meta`` directly, and on a local name bound to one (``d = frame.data``)."""
+    import ast
+
+    tree = ast.parse(path.read_text())
+
+    def which(node, aliases):
+        if isinstance(node, ast.Attribute) and node.attr in ("data", "meta"):
+            return node.attr
+        if isinstance(node, ast.Name):
+            return aliases.get(node.id)
+        return None
+
+    found = set()
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        aliases = {}
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Assign):
+                pairs = [(node.targets[0], node.value)]
+                if isinstance(node.targets[0], ast.Tuple) and isinstance(node.value, ast.Tuple):
+                    pairs = list(zip(node.targets[0].elts, node.value.elts))
+                for target, value in pairs:
+                    if isinstance(target, ast.Name) and isinstance(value, ast.Attribute) and value.attr in ("data", "meta"):
+                        aliases[target.id] = value.attr
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) and \
+                    isinstance(node.slice.value, str) and (kind := which(node.value, aliases)):
+                found.add((kind, node.slice.value))
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and \
+                    (kind := which(node.func.value, aliases)):
+                if node.func.attr in ("get", "setdefault", "pop") and node.args and \
+                        isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str):
+                    found.add((kind, node.args[0].value))
+                elif node.func.attr == "update":
+                    found.update((kind, kw.arg) for kw in node.keywords if kw.arg)
+    return found
+
+
+def test_every_frame_key_the_code_names_is_in_the_table():
+    """A key is followed from the table to the code and back: no node, writer or reader uses a frame
+    entry the table does not list (a typo in a bare string would otherwise read as absent)."""
+    from pathlib import Path
+
+    root = Path(keys.__file__).resolve().parents[1]
+    unknown = set()
+    for path in sorted(root.rglob("*.py")):
+        for kind, key in _frame_keys_in_code(path):
+            table = keys.DATA if kind == "data" else keys.META
+            if key not in table:
+                unknown.add(f"{path.relative_to(root)}: {kind}[{key!r}]")
+    assert not unknown, sorted(unknown)
