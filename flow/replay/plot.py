@@ -36,7 +36,7 @@ def convergence_figure(series: Iterable[tuple[object, Mapping]], keys: tuple[str
     labels = labels or {}
     many = len(series) > legend_max
     marked = [k for k, (label, _) in enumerate(series) if many and label in set(highlight)][:legend_max]
-    # fixed margins: a constrained layout measured every tick label again and took half the drawing time
+    # fixed margins: a constrained layout measures every tick label again, which made drawing slow
     side = 2.6 if not many or marked else 0.3  # inches right of the panels: the legend
     width = 4.4 * len(keys) + side
     fig = Figure(figsize=(width, 3.6), dpi=110)

@@ -87,9 +87,9 @@ def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
 
 # errors that fail every later write too: the run stops instead of failing frame after frame
 STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
-# the Rerun sink's process is made anew every this many frames (five of its 100-frame segments):
-# the SDK keeps a few hundred bytes for every entity path a process has logged, about 20 kB a frame
-# here, for the life of the process (benchmarks/bench_soak.py: RSS 330 -> 371 MiB over 2,000 frames)
+# the Rerun sink's process is made anew every this many frames (five of its 100-frame segments): the SDK
+# keeps a few hundred bytes for every entity path a process has logged, for the life of the process
+# (docs/tuning.md, "Streaming")
 RERUN_RENEW_FRAMES = 500
 
 
@@ -309,7 +309,7 @@ class StoredRun:
         else:
             self.sinks = [factory(*args, **kwargs) for factory, args, kwargs in specs]
         # the report's convergence plot from what this run records, instead of reading the recording
-        # back at the end (it decompresses every array: 0.7 s for 12 frames); a resumed or distributed
+        # back at the end (it decompresses every array, docs/tuning.md); a resumed or distributed
         # job's frames are recorded elsewhere too, so its report reads the recording
         self.tap = (ScalarsTap(CONVERGENCE, PLOT_FRAMES) if self.sinks and not self.resumed and self.client is None
                     else None)

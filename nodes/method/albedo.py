@@ -16,17 +16,13 @@ from scipy import ndimage
 from ..geometry.integrate import harmonic_fill
 
 # Shading ``n . s`` below which dividing by it is not trusted: it amplifies errors of the normals and of
-# the ambient light (0.15 -> 0.4 took the frontal relighting of Yale B subjects 02 and 04 at +-50 deg from
-# 18.8 to 20.7 dB). Shared by the output albedo and the fit's smooth-albedo rounds.
+# the ambient light (docs/tuning.md, "Albedo"). Shared by the output albedo and the fit's smooth-albedo rounds.
 MIN_SHADING = 0.4
 # Filled (mirrored or interpolated) albedo is at most this x the median measured albedo. A measured value
 # above the face's typical skin is more often shine or a normal turned too far from the light (a small
 # n . s divided by) than brighter skin, and the other side of the face need not share it; the face's real
-# detail is darker than its skin (brows, eyes, lips, nostrils), which the ceiling keeps. Measured on the
-# five Yale B subjects (frontal relighting, the photo-grid fill built on this map): 21.75 / 18.71 dB at
-# +-50 / +-70 without the ceiling, 21.95 / 19.13 dB with it (exposed on the median then), and better at each
-# of twelve other lights.
-# None: the paper's fill, values as measured.
+# detail is darker than its skin (brows, eyes, lips, nostrils), which the ceiling keeps (docs/tuning.md,
+# "Albedo"). None: the paper's fill, values as measured.
 FILL_CEILING = 1.0
 
 

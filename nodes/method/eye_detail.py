@@ -18,19 +18,17 @@ import numpy as np
 from .photo_relight import smoothstep
 
 # an eye's region: an ellipse of these semi-axes (interocular distances) along and across the eye
-# axis; its skin ring runs out to RING times that. Measured on Yale B: 0.24 x 0.11 covers the opening
-# and lids without the brow
+# axis; its skin ring runs out to RING times that. The ellipse covers the opening and lids without the brow
 EYE_AXES = (0.24, 0.11)
 RING = 1.5
-# the lit eye's pattern at this contrast (1: as the photo shows it, the shading divided out). On the
-# five Yale B subjects relit frontally, dB at (+-50, 0) / (+-70, 0) / (+-35, +15): 21.89 / 19.18 / 22.14
-# at 1, 21.87 / 19.18 / 22.16 at 0.7, 21.81 / 19.12 / 22.13 at 0.5, against 21.91 / 19.11 / 22.16 without
+# the lit eye's pattern at this contrast (1: as the photo shows it, the shading divided out); the relit
+# photo's figures do not tell the contrasts apart, the eyes do (docs/tuning.md, "Eyes")
 CONTRAST = 1.0
 MAX_RATIO = 1.2  # a lit eye's pixel over its skin: brighter is shine on the cornea, not albedo
 MIN_SHADING = 0.1  # the shading divided out is taken as at least this (grazing light: noise, not detail)
 TRUSTED = 0.5  # an eye whose region's mean trust is at least this keeps its measured albedo
-# the source eye's skin ring must be this much out of shadow (at (-70, 0) the nose's shadow covers half
-# of one Yale B subject's lit eye's ring)
+# the source eye's skin ring must be this much out of shadow (under a side light the nose's shadow can cover
+# half of the lit eye's ring)
 MIN_RING_LIT = 0.25
 
 

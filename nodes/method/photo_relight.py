@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 
 # Shading below which I / S is not trusted at all, and above which it is trusted fully (between: a
-# smooth ramp), as the model grid's albedo (``albedo.MIN_SHADING``). On Yale B (+-25 / 50 / 70, frontal
-# relight) a ramp from 0.2 relit 0.3 / 0.3 / 0.0 dB worse: the division amplifies the normals' errors.
+# smooth ramp), as the model grid's albedo (``albedo.MIN_SHADING``): the division amplifies the normals'
+# errors (docs/tuning.md, "Relighting the photo")
 TRUST_SHADING = (0.4, 0.6)
 # where the new light changes the shading little, S' / S under this ramp, I / S is trusted down to
 # MIN_SHADING (``shading_trust``): the division's errors are not amplified by the relighting
@@ -32,13 +32,11 @@ LIT_SHADING = 0.3  # skin with at least this shading (n . s) is lit: the relit f
 MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
 # the share of the light a face's shadowed side keeps (ambient, fill): a face relit from the side has its shadowed
 # side this bright, as a photo's is, not black. Measured from the photo's attached shadow when it shows one
-# (Yale B, a dark room: 0.02-0.09), else the default, a room's fill light. On the five Yale B subjects it costs
-# the frontal relighting 0.3 / 0.15 / 0.1 dB at +-25 / 50 / 70 against the truth of a dark room (the default
-# 0.05: 0.0 at +-25), and gives the frontal photos relit frontally 31.6-40.6 dB against 28.3-38.3
+# (a dark room: a few per cent), else the default, a room's fill light (docs/tuning.md, "Relighting the photo")
 DEFAULT_AMBIENT = 0.15
 AMBIENT_RANGE = (0.0, 0.5)
-# the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): on the
-# five Yale B subjects 0.12 costs 0.07 dB at +-50 and +-70 against none, 0.35 costs 0.4
+# the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
+# wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
 # outside the face the photo follows the face's change of light at most this far (a face's shadowed side
 # brightened 5x would otherwise light its dark background up as a halo)
@@ -103,7 +101,7 @@ def lit_weight(photo: np.ndarray, lit: np.ndarray, face: np.ndarray, feather_px:
     hard = face & lit
     soft = blur(hard.astype(np.float32), feather_px)
     # feather inward only, from the shadows and the face's edge; clipped pixels (specks of shine, mostly)
-    # are cut out without a feather of their own (measured: no change on Yale B to the printed digits)
+    # are cut out without a feather of their own (their own feather changed nothing measurable)
     soft = np.where(hard & ~clipped, soft, 0.0)
     return np.clip(2.0 * soft - 0.5, 0.0, 1.0)
 

@@ -25,18 +25,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# thresholds, measured on the demo faces, procedural renders and Yale B photos (good) against the
-# hostile corpus of tests/method/test_quality.py (bad); see README, "Quality"
-# explained: 213 Yale B photos with eyes found (lights up to 70 deg azimuth, 45 elevation) 0.50-0.91,
-# rendered faces 0.67-0.99; non-faces -54-0.69 (a landscape 0.69), a face upside down 0.57, turned 90 -0.75
-MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness (an upside-down face fitted upright: 0.31)
+# thresholds set between real and rendered faces (good) and the hostile corpus of tests/method/test_quality.py
+# (bad); what each side measured: docs/tuning.md, "Quality"
+MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness
 NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much to count as a face
-# a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a face,
-# 0.2; a real face 0.5-0.91 on Yale B, an upside-down one meshed upright 0.31); under MIN_EXPLAINED, doubtful
+# a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a
+# face); under MIN_EXPLAINED, doubtful
 LEAST_EXPLAINED = 0.25
-MAX_DOWNWEIGHTED = 0.7  # Yale B 0.28-0.48, rendered faces 0.35-0.54
-MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles (the 27 %-clipped face of tests/app/test_hostile.py fits)
-MIN_INSIDE = 0.75  # of the face's core inside the frame: Yale B crops keep 0.88-1, a face cut by the edge 0.32
+MAX_DOWNWEIGHTED = 0.7  # of the seen face's pixels the fit may give a weight under 0.5
+MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles
+MIN_INSIDE = 0.75  # of the face's core inside the frame
 
 
 @dataclass

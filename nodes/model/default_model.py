@@ -20,8 +20,7 @@ from .shape_model import ShapeModel, load_model, save_model, train_shape_model
 from .sources import training_faces
 
 GENERATOR_VERSION = 2  # bump when nodes/synth/facegen.py changes the faces it makes
-# 200 identities, K = 60: K = 20..60 agree to 0.1 deg on Yale B, 400 identities with K = 99 moved it by at most
-# 0.5 deg (README, "Real photographs")
+# 200 identities, K = 60: more of either barely moves the normals (docs/tuning.md, "The default model")
 RECIPES = {
     "ict": {"source": "ict", "n": 200, "seed": 0, "modes": 60, "size": [128, 128]},
     "procedural": {"source": "procedural", "n": 100, "seed": 0, "modes": 60, "size": [128, 128],

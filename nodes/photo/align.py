@@ -144,7 +144,7 @@ def _to_input(values: np.ndarray, al: Alignment, shape: tuple[int, int], interp:
 
 
 # a mask is smoothed over this many model pixels before it is brought to the photo: its border is then a curve,
-# not a staircase of model pixels (2-3 photo pixels each on a Yale B crop, a jagged jaw line in the relit photo)
+# not a staircase of model pixels (several photo pixels each: a jagged jaw line in the relit photo)
 MASK_SMOOTH = 1.0
 # a field is brought to the photo wherever this much of the nearby model pixels are in its mask (renormalised
 # there): a little beyond the smoothed mask, so that mask never reaches a photo pixel the field leaves unknown

@@ -56,7 +56,7 @@ SMALLEST_IOD = 12.0  # found faces smaller than this are left alone: too few pix
 TRACKING_PASSES = 3
 SETTLED = 0.05
 # the photo as one face's crop when the detector finds none: the face mesh's crop this many times the photo's
-# long side (Yale B crops under side light 70-130 deg: one side or the other finds the face)
+# long side (a tight crop under a side light: one size or the other finds the face, docs/tuning.md)
 TIGHT_CROPS = (1.15, 1.5)
 
 

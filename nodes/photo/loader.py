@@ -115,7 +115,7 @@ def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, i
 
 
 # a progressive JPEG is decoded scan by scan, each a pass over the whole image: encoders write 6 (grey) to 10 (colour)
-# scans, a hostile file thousands of tiny ones (1.8 MB took 105 s of CPU). libjpeg-turbo's tools offer such a limit
+# scans, a hostile file thousands of tiny ones (minutes of CPU, docs/faults.md). libjpeg-turbo's tools offer such a limit
 # (djpeg -maxscans) that OpenCV does not expose, so the scans are counted before decoding
 MAX_JPEG_SCANS = 100
 

@@ -36,8 +36,8 @@ MESH_SIZE = 192
 MIN_SCORE = 0.35
 NMS_IOU = 0.3  # boxes overlapping more than this are one face (MediaPipe's weighted NMS)
 ROI_SCALE = 1.5  # the mesh's crop is this many times the face (a tighter crop mis-scales the mesh)
-# a face's box is about 2.1 x its eyes' distance (astronaut 2.16, Yale B crops 2.05); the detector finds boxes
-# down to 0.13 of its view with the head around them and 0.2 without (a crop pasted into a scene)
+# a face's box is about 2.1 x its eyes' distance; the detector finds boxes down to a fifth of its view
+# (docs/tuning.md, "Finding faces")
 BOX_PER_IOD = 2.1
 MIN_BOX_SHARE = 0.2
 TILE_STRIDE = 0.72  # of a tile's side: a face up to 0.28 of a tile (larger ones: the next level) is whole in one

@@ -22,15 +22,14 @@ from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
 
 # the frontal model's reach in yaw: turned further, a face is fitted but doubtful (docs/accuracy.md, "Pose")
 MAX_FRONTAL_YAW = 15.0
-# the landmarks' placement fit leaves at most this much (root-mean-square, in eye distances) on a face:
-# Yale B frontal to 70 deg 0.02-0.03, the smiling astronaut 0.07; concentric rings, which both nets take for a
-# face, 0.15
+# the landmarks' placement fit leaves at most this much (root-mean-square, in eye distances) on a face: real
+# faces well under it, concentric rings (which both nets take for a face) over it (docs/tuning.md)
 MAX_PLACEMENT_RMS = 0.12
 # eyes closer than this share of the model grid's (36 px on the default 128^2 grid) leave the fit too few pixels:
 # the photo is then enlarged more than twice onto the grid
 MIN_FIT_IOD_SHARE = 0.45
-# a face's eyes, brows and lips may run past the frame by this share of their outline points: Yale B's tight
-# crops cut the brows' ends (0-2 %)
+# a face's eyes, brows and lips may run past the frame by this share of their outline points: a tight crop
+# cuts the brows' ends
 MAX_CUT = 0.1
 
 

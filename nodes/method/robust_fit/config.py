@@ -10,8 +10,8 @@ from ..remap import SATURATION
 SOLVERS = ("gauss-newton", "irls", "paper")
 
 # Stopping rules (mean normal change per iteration, degrees), when ``FitConfig.tolerance_deg`` is None:
-# Gauss-Newton's changes shrink by half or more per step, so the rest of the way is below 0.05 too (same
-# errors to 0.005 deg as 0.01, a third fewer iterations); the alternation creeps and needs 0.01.
+# Gauss-Newton's changes shrink by half or more per step, so the rest of the way is below 0.05 too
+# (docs/tuning.md, "The fit"); the alternation creeps and needs 0.01.
 NEWTON_TOLERANCE_DEG = 0.05
 ALTERNATION_TOLERANCE_DEG = 0.01
 
@@ -50,8 +50,8 @@ class FitConfig:
 
     solver: Literal["gauss-newton", "irls", "paper"] = "gauss-newton"  # see the module docstring
     scale: Literal["rayleigh", "mad"] = "rayleigh"
-    # Huber threshold in units of sigma: 1.0 on real photos (Yale B, ICT model) beat 1.5 by up to 0.4 deg at
-    # +-70 with the stronger prior below; clean renders lose 0.1-0.3 deg (README, "Real photographs")
+    # Huber threshold in units of sigma: 1.0 is chosen for real photos, at a small cost on clean renders
+    # (docs/tuning.md, "The fit")
     huber_k: float = 1.0
     init: Literal["mean", "gradient"] = "mean"
     attached_shadow: bool = True  # I <= dark_threshold: n.s <= 0 instead of the 90-degree cone
@@ -61,32 +61,29 @@ class FitConfig:
     prior: float = 0.0  # weight of the Gaussian prior b_k^2 / eigenvalue_k (0: none)
     # weight of the same prior in units of the current residual variance sigma^2 (MAP with
     # correlated residuals): strong when the image fits badly (real skin), nil on clean input
-    # 200 with the ICT model (100 was the procedural model's choice): on Yale B photos with Huber 1.5, 100 and 300
-    # gave 16.5 and 15.8 deg at +-25; with Huber 1.0, 200 was as good as 300 or better at every light (within
-    # 0.02 deg at +-25) and 0.2 deg better on clean SFM renders
+    # 200 with the ICT model (100 was the procedural model's choice; docs/tuning.md, "The fit")
     adaptive_prior: float = 200.0
     # irls: over-relaxation of the coefficients, b <- b_prev + omega (b - b_prev): the loop creeps toward
-    # its fixed point; omega = 1.8 takes 30-45 % fewer iterations to the same or lower error (3 diverges;
-    # a residual scale that jumps switches it off for the rest of the fit)
+    # its fixed point; over-relaxing reaches it in fewer iterations (docs/tuning.md, "The fit"; too much
+    # diverges, so a residual scale that jumps switches it off for the rest of the fit)
     relaxation: float = 1.8
     damping: float = 1e-3  # gauss-newton: Levenberg term added to the K x K system (modes are orthonormal)
     max_iterations: int = 100
     # stop when the mean normal change falls below this (degrees). None: 0.05 for gauss-newton, whose
-    # changes shrink by half or more per step so the rest of the way is below it too (same errors to
-    # 0.005 deg as 0.01, a third fewer iterations); 0.01 for the alternation, which creeps
+    # changes shrink by half or more per step so the rest of the way is below it too; 0.01 for the
+    # alternation, which creeps (docs/tuning.md, "The fit")
     tolerance_deg: float | None = None
     n_modes: int | None = None  # use the model's first K modes (None: all)
     saturation: float = SATURATION  # input brightness at or above this is clipped (255 of 8 bits): no constraint (> 1: off)
     # real skin: when the fit has converged, divide the image by the smooth albedo its shape implies
     # (method.albedo.smooth_albedo) and fit on, this many times (0: one albedo everywhere, the paper)
-    # (on by default: with the ICT model and today's other defaults it takes Yale B normals 0.1-0.4 deg lower at
-    # +-25 / +-50 / +-35+15 and leaves +-70 as it was; 0.7-1.8 deg lower before the mouth line and cone trust)
+    # (on by default: it takes real photos' normals closer to the truth, docs/tuning.md, "The fit")
     albedo_rounds: int = 1
     albedo_sigma: float = 0.08  # that albedo's smoothing, in interocular distances (2.9 px at 128^2)
     # output blend normalize(c w n'' + (1 - c w) n') (``combine``): how far the on-cone normals are trusted
     # where the weights trust their pixel; 1 is the paper's blend. On photos the cones carry the skin's albedo
-    # errors: on Yale B 0.5 is 0.1-0.2 deg better than 1 at +-50 and +-70. The albedo and the relighting keep
-    # the paper's blend, which relit 0.5 dB better (README, "Real photographs")
+    # errors, so the shape trusts them less; the albedo and the relighting keep the paper's blend, which
+    # explains the photo's shading (docs/tuning.md, "The fit")
     cone_trust: float = 0.5
 
     def __post_init__(self) -> None:
