@@ -164,10 +164,6 @@ class EntryStore(MutableMapping):
         for _, _, body in self._store._pages(sql, (-1, b"")):
             yield InputEntry(**json.loads(body))
 
-    def max_frame(self) -> int:
-        """The largest frame id, -1 when empty."""
-        return self._store._execute("SELECT coalesce(max(frame), -1) FROM entries")[0][0]
-
 
 class NameSet(MutableSet):
     """A set of names (the output names taken), in the store."""

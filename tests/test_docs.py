@@ -56,3 +56,19 @@ def test_the_readme_commands_name_options_the_command_line_has():
         known = {opt for a in subparsers[command]._actions for opt in a.option_strings}
         for opt in re.findall(r"(--[a-z][a-z-]*)", rest):
             assert opt in known, (command, opt)
+
+
+def test_every_repository_path_the_code_and_docs_name_exists():
+    """A path like ``nodes/method/light.py`` or ``docs/tuning.md`` named in a docstring, comment or doc is a
+    file of the repository (tests are named from tests/, modules also from nodes/); a stale one fails here."""
+    named = re.compile(r"\b((?:flow|nodes|tests|benchmarks|docs|recordings|app|method|photo|model|geometry|"
+                       r"evaluation)/[\w/]+\.(?:py|md))\b")
+    sources = [p for top in ("flow", "nodes", "tests", "benchmarks", "recordings") for p in (ROOT / top).rglob("*.py")]
+    sources += [ROOT / d for d in DOCS]
+    missing = set()
+    for source in sources:
+        for path in named.findall(source.read_text()):
+            if not any((base / path).exists() for base in (ROOT, ROOT / "tests", ROOT / "nodes")):
+                missing.add(f"{source.relative_to(ROOT)}: {path}")
+    # a removed module the accuracy notes name as removed
+    assert sorted(m for m in missing if "mouth.py" not in m) == []

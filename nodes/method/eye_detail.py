@@ -125,10 +125,3 @@ class EyeDetail:
             detail = blend * level * r["ratio"] + (1.0 - blend) * region
             out[box] = np.where(np.isfinite(region), detail, region).astype(np.float32)
         return out
-
-
-def eye_detail(photo: np.ndarray, albedo: np.ndarray, shading: np.ndarray, trust: np.ndarray, lit: np.ndarray,
-               eyes: np.ndarray, contrast: float = CONTRAST) -> np.ndarray:
-    """(H, W, C) ``albedo`` with the lit eye's detail put into each eye whose albedo was filled:
-    ``EyeDetail(photo, shading, lit, eyes, contrast).apply(albedo, trust)`` (arguments there)."""
-    return EyeDetail(photo, shading, lit, eyes, contrast).apply(albedo, trust)

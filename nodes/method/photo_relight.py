@@ -82,14 +82,6 @@ def weighted_blur(values: np.ndarray, weights: np.ndarray, sigma: float) -> tupl
     return num / (safe[..., None] if v.ndim == 3 else safe), den
 
 
-def trusted_weight(photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, face: np.ndarray,
-                   feather_px: float, new_shading: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) in [0, 1]: how far the measured albedo ``I / S`` is trusted: ``lit_weight`` (where
-    the photo measures skin) times ``shading_trust`` (where ``S`` is large enough to divide by).
-    A caller relighting under several lights takes ``lit_weight`` once and multiplies."""
-    return lit_weight(photo, lit, face, feather_px) * shading_trust(shading, new_shading)
-
-
 def lit_weight(photo: np.ndarray, lit: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
     """(H, W) in [0, 1], whatever the light: how far the photo's own ``I / S`` is kept: zero off the
     face, in cast or attached shadow (``lit`` False) and where any channel is clipped; feathered

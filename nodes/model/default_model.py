@@ -3,7 +3,7 @@
 ``ict`` (the default) is trained from random identities of ICT-FaceKit, a morphable model learnt
 from light-stage scans of real people (MIT licence; its compact face-area basis ships in
 ``nodes/data/``). ``procedural`` is trained from the project's own anthropometric generator
-(``nodes/synth/facegen.py``). Each is built from its recipe on first use (a few seconds) and
+(``nodes/model/faces/facegen.py``). Each is built from its recipe on first use (a few seconds) and
 cached under ``$SHADOWFLOW_CACHE`` (default ``$XDG_CACHE_HOME/shadowflow`` or
 ``~/.cache/shadowflow``), keyed by the recipe and, for ICT, the shipped basis' bytes. No
 download is involved, so both work offline on a fresh machine.
@@ -19,7 +19,7 @@ from .faces.ict import SHIPPED
 from .shape_model import ShapeModel, load_model, save_model, train_shape_model
 from .sources import training_faces
 
-GENERATOR_VERSION = 2  # bump when nodes/synth/facegen.py changes the faces it makes
+GENERATOR_VERSION = 2  # bump when nodes/model/faces/facegen.py changes the faces it makes
 # 200 identities, K = 60: more of either barely moves the normals (docs/tuning.md, "The default model")
 RECIPES = {
     "ict": {"source": "ict", "n": 200, "seed": 0, "modes": 60, "size": [128, 128]},

@@ -62,8 +62,3 @@ def resolve(encoding: str, channels: int) -> str:
     if encoding != "auto":
         return encoding
     return "srgb" if channels == 3 else "linear"
-
-
-def to_encoding(linear: np.ndarray, encoding: str) -> np.ndarray:
-    """Linear values back into a photo's ``encoding`` ("srgb" or "linear")."""
-    return linear_to_srgb(linear) if encoding == "srgb" else np.asarray(linear, np.float32)

@@ -125,15 +125,6 @@ class FoundFace:
         return {"eyes": [p[list(e)] for e in EYES], "brows": [p[list(b)] for b in BROWS], "lips": [p[list(LIPS)]],
                 "mouth": [p[list(MOUTH)]], "oval": [p[list(OVAL)]]}
 
-    def share_outside(self, shape: tuple[int, int]) -> float:
-        """The share of the outline's area (``oval``) outside a photo (H, W)."""
-        o = self.oval.astype(np.float64)
-        area = abs(cv2.contourArea(o.astype(np.float32)))
-        h, w = shape
-        clipped = cv2.intersectConvexConvex(cv2.convexHull(o.astype(np.float32)),
-                                            np.array([[0, 0], [w, 0], [w, h], [0, h]], np.float32))[0]
-        return float(np.clip(1.0 - clipped / max(area, 1e-9), 0.0, 1.0))
-
 
 def find_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:
     """Every face in ``rgb`` (H, W, 3) uint8 RGB that the face mesh confirms, largest first.

@@ -54,7 +54,6 @@ def test_entries_behave_as_a_mapping_and_come_by_frame(tmp_path):
     assert e == _entry(3, frames[3]) and "/in/00003.png" in store.entries and "/in/x.png" not in store.entries
     assert store.entries.get("/in/x.png") is None and len(store.entries) == 1200
     assert [x.frame for x in store.entries.values()] == list(range(1200))
-    assert store.entries.max_frame() == 1199
     assert sorted(store.entries) == sorted(f"/in/{i:05d}.png" for i in range(1200))
     store.entries["/in/00003.png"] = _entry(3, 5000)  # replaced, not added
     assert len(store.entries) == 1200 and store.entries["/in/00003.png"].frame == 5000

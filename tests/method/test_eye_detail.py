@@ -1,7 +1,7 @@
 """The lit eye's detail put into a filled eye (nodes/method/eye_detail.py), on a synthetic photo
 whose eyes and light are known."""
 import numpy as np
-from shadowflow.nodes.method.eye_detail import EYE_AXES, eye_detail
+from shadowflow.nodes.method.eye_detail import EYE_AXES, EyeDetail
 
 H, W = 120, 200
 EYES = np.array([[60.0, 50.0], [140.0, 50.0]])  # image-left eye first; 80 px apart
@@ -32,7 +32,7 @@ def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
     trust[48:53, 45:49] = 1.0  # a few pixels inside the filled eye were measured: they must stay
     filled[48:53, 45:49] = 0.123
     lit = ~left
-    out = eye_detail(photo, filled, shading, trust, lit, EYES, contrast=1.0)
+    out = EyeDetail(photo, shading, lit, EYES, 1.0).apply(filled, trust)
     assert np.all(out[48:53, 45:49] == np.float32(0.123))
     # the left eye's iris comes back where the mirror of the right eye's puts it: toward the nose (+x)
     iris = (60 + 6, 50)
@@ -52,8 +52,8 @@ def test_eye_detail_is_off_at_zero_contrast_and_when_no_eye_is_lit():
     photo, _, shading = _photo()
     filled = np.full((H, W, 1), SKIN, np.float32)
     trust = np.zeros((H, W))
-    assert np.array_equal(eye_detail(photo, filled, shading, trust, np.ones((H, W), bool), EYES, contrast=0.0), filled)
-    assert np.array_equal(eye_detail(photo, filled, shading, trust, np.zeros((H, W), bool), EYES), filled)
+    assert np.array_equal(EyeDetail(photo, shading, np.ones((H, W), bool), EYES, 0.0).apply(filled, trust), filled)
+    assert np.array_equal(EyeDetail(photo, shading, np.zeros((H, W), bool), EYES).apply(filled, trust), filled)
 
 
 def test_the_sockets_own_shading_is_not_taken_for_the_eyes_albedo():
@@ -66,7 +66,7 @@ def test_the_sockets_own_shading_is_not_taken_for_the_eyes_albedo():
     photo = (SKIN * shading)[..., None]
     filled = np.full((H, W, 1), SKIN, np.float32)
     trust = np.where(xx < 100, 0.0, 1.0)
-    out = eye_detail(photo, filled, shading, trust, np.ones((H, W), bool), EYES, contrast=1.0)
+    out = EyeDetail(photo, shading, np.ones((H, W), bool), EYES, 1.0).apply(filled, trust)
     eye = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1
     assert np.abs(out[eye, 0] - SKIN).max() < 0.05 * SKIN, out[eye, 0].min()
 
@@ -81,7 +81,7 @@ def test_a_colour_photos_eye_comes_back_in_its_own_colour():
     left = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1.6**2
     filled = np.where(left[..., None], SKIN * skin_tint, photo3 / shading[..., None]).astype(np.float32)
     trust = np.where(left, 0.0, 1.0)
-    out = eye_detail(photo3, filled, shading, trust, ~left, EYES, contrast=1.0)
+    out = EyeDetail(photo3, shading, ~left, EYES, 1.0).apply(filled, trust)
     assert out.shape == (H, W, 3)
     # the iris over the skin around it, per channel, as the lit eye shows it: 0.3 x iris / skin colour
     assert np.allclose(out[50, 66], 0.3 * SKIN * iris_tint, rtol=0.15), (out[50, 66], 0.3 * SKIN * iris_tint)

@@ -1,4 +1,4 @@
-"""The light estimate for photos whose light nobody wrote down (nodes/light.py)."""
+"""The light estimate for photos whose light nobody wrote down (nodes/method/light.py)."""
 import numpy as np
 from conftest import random_unit
 from shadowflow.nodes.geometry.normals import aep_inverse, angle_deg, tangent_basis

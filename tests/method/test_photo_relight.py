@@ -10,9 +10,15 @@ from shadowflow.nodes.method.photo_relight import (
     skin_exposure,
     photo_albedo,
     smooth_coarse,
-    trusted_weight,
 )
+from shadowflow.nodes.method.photo_relight import lit_weight, shading_trust
 from shadowflow.nodes.method.shadow import far_darker, photo_shadows
+
+
+def trusted_weight(photo, shading, lit, face, feather_px, new_shading=None):
+    """How far I / S is trusted, as ``FaceRelight.trust_for`` takes it on skin: where the photo measures
+    the face (``lit_weight``) times where its shading can be divided by (``shading_trust``)."""
+    return lit_weight(photo, lit, face, feather_px) * shading_trust(shading, new_shading)
 
 
 def _sphere(n=120, r=50.0):

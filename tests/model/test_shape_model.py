@@ -1,4 +1,5 @@
-"""The light estimate for photos whose light nobody wrote down (nodes/light.py)."""
+"""The needle-map shape model (nodes/model/shape_model.py): its modes and variance, files without pickles, damaged
+files and cache entries refused or rebuilt."""
 import numpy as np
 import pytest
 from shadowflow.nodes.geometry.normals import angle_deg

@@ -13,7 +13,7 @@ its eye centres on the grid's canonical eye pixels.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -67,9 +67,6 @@ class FaceParams:
     nasal_bridge: float
     nose_tip_round: float  # 0..1, bulbous vs sharp tip
     skin_albedo: float  # base reflectance of skin, 0..1
-
-    def as_dict(self) -> dict[str, float]:
-        return asdict(self)
 
 
 def sample_face(rng: np.random.Generator) -> FaceParams:
