@@ -24,8 +24,7 @@ from ..method.nodes import MethodOptions, photo_nodes
 from ..method.products import input_grid_products, photo_mesh, relit_photos
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
-from ..photo.encoding import decode_samples, linear_luminance, resolve, srgb_to_linear
-from ..photo.loader import InputError, check_size, checked_light, luminance, parse_light, sample_range, shrunk
+from ..photo.loader import InputError, checked_light, parse_light
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
@@ -42,7 +41,8 @@ class Products:
     normals (H, W, 3) float32 unit; depth (H, W) float32 heights in input pixels; albedo (H, W), or
     (H, W, 3) RGB for a colour photo, at the photo's resolution; weights (H, W) the fit's robust
     weights in [0, 1]; lit (H, W) bool, not in cast or attached shadow under the input light; relit
-    (H, W[, 3]) the whole photo with the face lit from ``MethodOptions.relight_light`` and put back
+    (H, W[, 3]) the whole photo with the face lit from ``MethodOptions.relight_light`` and put back, in
+    three channels when it was given so
     (auto-exposed on the face); relit_extra: ``(light, photo)`` for each of
     ``MethodOptions.extra_lights``; quality: score, flags and signals (``method/quality.py``);
     mask (H, W) bool face; novel_view (Hm, Wm) model grid, the surface turned about the vertical
@@ -100,62 +100,6 @@ class Products:
         return write_outputs(self.photo, self.model, folder)
 
 
-def _as_image(image: np.ndarray, encoding: str = "auto", max_pixels: int | None = None) -> tuple[dict, float]:
-    """An array as the loader gives a file: ``(frame data, scale)``: the frame's ``image`` (H, W)
-    float32 in [0, 1], and ``colour`` (H, W, 3) float32 RGB and ``rgb8`` for a colour one, in linear
-    light (``encoding``: "auto" takes colour as sRGB and grey, or grey in three equal channels, as
-    linear, as for files); scale: its pixels per pixel of the array (under 1 when it was reduced to
-    ``max_pixels``, as a file is). Accepts (H, W) or (H, W, 3) RGB (or (H, W, 4) RGBA), uint8,
-    uint16 or floats (on [0, 1], or larger ones on their own range, as a file's). Its size is checked
-    as a file's header is (``InputError``)."""
-    a = _checked_array(image)
-    small = shrunk(a, max_pixels)
-    scale = small.shape[0] / a.shape[0]
-    a = small
-    if a.dtype == np.uint8:
-        f = a.astype(np.float32) / 255.0
-    elif a.dtype == np.uint16:
-        f = a.astype(np.float32) / 65535.0
-    else:  # floats on [0, 1], or anything else on its own range (a 0-255 float array), as a file's samples
-        f = a.astype(np.float32) / np.float32(sample_range(a))
-    f = np.clip(f, 0.0, 1.0)
-    if float(f.max() - f.min()) < 1.0 / 255.0:
-        raise InputError(f"{ARRAY_SOURCE}: has no contrast: nothing to fit")
-    grey_in_colour = f.ndim == 3 and np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2])
-    if resolve(encoding, 3 if f.ndim == 3 and not grey_in_colour else 1) == "srgb":
-        return _srgb_data(a, f), scale
-    grey = np.clip(luminance(f), 0.0, 1.0)
-    return ({"image": grey} if f.ndim == 2 else {"image": grey, "colour": f}), scale
-
-
-def _checked_array(image) -> np.ndarray:
-    """The array as (H, W) or (H, W, 3) samples (alpha dropped, booleans as 0 and 255), its size, type and
-    values checked as a file's are (``InputError``)."""
-    a = np.asarray(image)
-    if a.ndim == 3 and a.shape[2] in (3, 4):
-        a = a[..., :3]
-    elif a.ndim != 2:
-        raise InputError(f"{ARRAY_SOURCE}: shape {a.shape} is not (H, W) or (H, W, 3)")
-    check_size(Path(ARRAY_SOURCE), a.shape[1], a.shape[0])
-    if a.dtype.kind not in "uif" and a.dtype != bool:
-        raise InputError(f"{ARRAY_SOURCE}: unsupported pixel type {a.dtype}")
-    if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
-        raise InputError(f"{ARRAY_SOURCE}: holds NaN or infinite values")
-    return a.astype(np.uint8) * 255 if a.dtype == bool else a
-
-
-def _srgb_data(a: np.ndarray, f: np.ndarray) -> dict:
-    """The frame data of sRGB samples ``a`` (``f``: them on [0, 1]), decoded as a file of the same samples
-    is (by a table for 8 and 16 bits), so that fit(array) is fit(path)."""
-    rgb8 = a if a.dtype == np.uint8 else (f * 255.0 + 0.5).astype(np.uint8)
-    full = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(a.dtype)
-    linear = decode_samples(a, full) if full else srgb_to_linear(f)
-    rgb8 = rgb8 if rgb8.ndim == 3 else np.repeat(rgb8[..., None], 3, axis=-1)
-    if linear.ndim == 2:
-        return {"image": linear, "rgb8": rgb8}
-    return {"image": linear_luminance(linear), "colour": linear, "rgb8": rgb8}
-
-
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
     return model if isinstance(model, ShapeModel) else resolve_model(None if model is None else str(model))
 
@@ -186,7 +130,7 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     """Recover one face's shape, albedo and shadows, and relight it.
 
     image: a file (any format ``shadowflow run`` reads; a sidecar ``<stem>.json`` beside it is
-    used) or an array (``_as_image``). light: None (a sidecar's, else estimated), "auto", "yaleb"
+    used) or an array (read as a file's samples are, ``photo_from_samples``). light: None (a sidecar's, else estimated), "auto", "yaleb"
     (from an Extended Yale B file name), (3,) toward the light, camera frame, or (2,) its azimuth and
     elevation in degrees (azimuth > 0 toward the image's left, as Yale B's). eyes: None
     (detected, else a centred crop) or (2, 2) eye centres ``[[x, y], [x, y]]`` in input pixels,
@@ -198,22 +142,18 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     opts = _options(options, light, eyes)
     if isinstance(image, (str, os.PathLike)):
         frame = Frame(0, str(image))
-    else:
-        data, scale = _as_image(image, opts.encoding, opts.max_pixels)
-        meta = {"encoding": "srgb" if "rgb8" in data else "linear"}
-        if scale != 1.0:  # reduced as a file would be: its given eyes with it
-            h, w = np.asarray(image).shape[:2]
-            meta["reduced"] = {"from": [w, h], "to": [data["image"].shape[1], data["image"].shape[0]]}
-            if opts.eyes is not None:
-                opts = dataclasses.replace(opts, eyes=np.asarray(opts.eyes) * scale)
-        frame = Frame(0, ARRAY_SOURCE, data=data, meta=meta)
+    else:  # read by the loader as a file's samples are (``photo_from_samples``)
+        frame = Frame(0, ARRAY_SOURCE, data={"samples": image})
     release_large_frees()
     with one_blas_thread():
         photo = Chain(photo_nodes(shape_model, opts)).process(frame)
     if not photo.ok:
         raise InputError(photo.status)
     face = faces_of(photo)[0]
-    p = input_grid_products(face, shape_model, relit_photos(photo))
+    relit = relit_photos(photo)
+    if np.ndim(image) == 3 and "colour" not in photo.data:  # an RGB array of a grey photo: RGB back, as given
+        relit = [(light, np.repeat(np.atleast_3d(img)[..., :1], 3, axis=-1)) for light, img in relit]
+    p = input_grid_products(face, shape_model, relit)
     r = face.data["fit"]
     return Products(normals=p["normals"], depth=p["depth"], albedo=p["albedo"], weights=p["weights"], lit=p["lit"],
                     relit=p["relit"], relit_extra=p["relit_extra"], quality=face.meta["quality"], mask=p["mask"],

@@ -11,6 +11,8 @@ from __future__ import annotations
 # frame.data: key -> (what it holds, the node that writes it)
 DATA: dict[str, tuple[str, str]] = {
     # the photo's frame (its faces are its parts, ``Frame.parts``; a face's frame holds the entries below these)
+    "samples": ("(H, W) or (H, W, 3) an array given for the photo (the API's), read as a file's samples are; "
+                "taken off by load", "given"),
     "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given; faces (a face's, the photo's)"),
     "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given; faces"),
     "given_eyes": ("(2, 2) eye centres given for the photo, photo pixels (sidecar, --eyes)", "load"),

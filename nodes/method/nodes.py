@@ -18,7 +18,7 @@ from ..model.shape_model import ShapeModel
 from ..photo.align import IDENTITY, Alignment, to_model_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.given import given_eyes, known_light
-from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, read_photo, read_sidecar
+from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
 from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
@@ -144,10 +144,11 @@ def shading_normals(frame: Frame) -> np.ndarray:
 
 
 class LoadNode:
-    """Reads the input file (``read_photo``) and its sidecar; an image already in ``frame.data`` (an
-    array, a render) is taken as it is, without a sidecar. Writes the photo (``image``, ``colour``),
-    the light when it is known before any face is (``light``), and eyes given for the photo
-    (``given_eyes``, photo pixels)."""
+    """Reads the input file (``read_photo``) and its sidecar, or the samples given as an array in
+    ``frame.data["samples"]`` (``photo_from_samples``: checked and scaled as a file's, no sidecar); an
+    image already in ``frame.data["image"]`` (a render) is taken as it is. Writes the photo (``image``,
+    ``colour``, ``rgb8``), the light when it is known before any face is (``light``), and eyes given for
+    the photo (``given_eyes``, photo pixels)."""
 
     name = "load"
 
@@ -155,25 +156,31 @@ class LoadNode:
         self.model, self.options = model, options
 
     def __call__(self, frame: Frame) -> Frame:
-        from_file = "image" not in frame.data  # else given (an array, a render): no file, no sidecar
-        scale = self._read(frame) if from_file else 1.0  # the image's pixels per file pixel: given eyes follow it
-        image = frame.data["image"]
+        d, o = frame.data, self.options
+        from_file = "image" not in d and "samples" not in d  # a file: it may have a sidecar
+        scale = 1.0  # the image's pixels per pixel of the file or array: given eyes follow it
+        if "image" not in d:
+            samples = d.pop("samples", None)
+            photo = read_photo(frame.source, o.max_pixels, o.encoding) if samples is None else \
+                photo_from_samples(frame.source, samples, o.max_pixels, o.encoding)
+            scale = self._take(frame, photo)
+        image = d["image"]
         if min(image.shape) < MIN_SIDE:
             raise InputError(f"{frame.source}: image is {image.shape[1]}x{image.shape[0]}, too small for a face")
-        side = read_sidecar(frame.source) if from_file and "light" not in frame.data else None
-        eyes = given_eyes(frame.source, image.shape, side, self.options.eyes, scale)
+        side = read_sidecar(frame.source) if from_file and "light" not in d else None
+        eyes = given_eyes(frame.source, image.shape, side, o.eyes, scale)
         if eyes is not None:
-            frame.data["given_eyes"], frame.meta["eyes_source"] = eyes
-        if "light" in frame.data:
+            d["given_eyes"], frame.meta["eyes_source"] = eyes
+        if "light" in d:
             frame.meta.setdefault("light_source", "given")
-        elif (known := known_light(frame.source, side, self.options.light)) is not None:
-            frame.data["light"], frame.meta["light_source"] = known
+        elif (known := known_light(frame.source, side, o.light)) is not None:
+            d["light"], frame.meta["light_source"] = known
         return frame
 
-    def _read(self, frame: Frame) -> float:
-        """The file's photo into the frame (grey, colour, its 8-bit values when sRGB, its encoding, and
+    @staticmethod
+    def _take(frame: Frame, photo: Photo) -> float:
+        """The photo into the frame (grey, colour, its 8-bit values when sRGB, its encoding, and
         ``reduced`` when it was); returns its pixels per pixel of the file."""
-        photo = read_photo(frame.source, self.options.max_pixels, self.options.encoding)
         frame.data["image"] = photo.grey
         if photo.colour is not None:
             frame.data["colour"] = photo.colour

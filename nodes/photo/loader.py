@@ -241,6 +241,26 @@ def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding:
     return _photo(p, grey, colour, header, max_pixels, encoding)
 
 
+def photo_from_samples(source: str, samples: np.ndarray, max_pixels: int | None = None,
+                       encoding: str = "linear") -> Photo:
+    """The ``Photo`` of samples already decoded (an array given to the API, named ``source`` in errors):
+    (H, W) grey or (H, W, 3) RGB (an alpha channel ignored), of any numeric type or bool, checked, scaled,
+    reduced and encoded exactly as the same samples read from a file are (``read_photo``)."""
+    p = Path(source)
+    a = np.asarray(samples)
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        a = np.ascontiguousarray(a[..., 2::-1])  # RGB(A) -> BGR, as decoders give it
+    elif a.ndim != 2:
+        raise InputError(f"{source}: shape {a.shape} is not (H, W) or (H, W, 3)")
+    check_size(p, a.shape[1], a.shape[0])
+    if a.dtype.kind not in "uif":
+        raise InputError(f"{source}: unsupported pixel type {a.dtype}")
+    grey, colour = _samples(p, a)
+    return _photo(p, grey, colour, _Header(a.shape[1], a.shape[0], "array"), max_pixels, encoding)
+
+
 @dataclass(frozen=True)
 class _Header:
     """What an image file's header says: its size (as stored), its format, and for a TIFF its sample type

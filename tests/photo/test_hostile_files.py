@@ -49,17 +49,17 @@ def test_arrays_given_to_fit_are_checked_and_reduced_as_files_are():
     """``shadowflow.fit`` of a 10000 x 10000 array applied neither the 40 MP limit nor the 4 MP reduction
     (294 s, 8.6 GB, then MemoryError); an empty or 0-255 float array and NaN eyes gave internal errors."""
     import shadowflow
-    from shadowflow.nodes.app.api import _as_image
+    from shadowflow.nodes.photo.loader import photo_from_samples
 
     with pytest.raises(InputError, match="exceeds the 40-megapixel limit"):
-        _as_image(np.lib.stride_tricks.as_strided(np.zeros(1, np.uint8), (10000, 10000), (0, 0)))
+        shadowflow.fit(np.lib.stride_tricks.as_strided(np.zeros(1, np.uint8), (10000, 10000), (0, 0)))
     with pytest.raises(InputError, match="too small"):
         shadowflow.fit(np.zeros((0, 0)))
-    data, scale = _as_image(np.zeros((3000, 3000), np.uint8) + np.arange(3000, dtype=np.uint8)[None, :],
-                            max_pixels=4_000_000)
-    assert scale == pytest.approx(2000 / 3000, abs=1e-3) and data["image"].shape == (2000, 2000)
-    data, _ = _as_image(np.tile(np.linspace(0, 255, 64), (64, 1)))  # floats over 1: on their own range
-    assert data["image"].max() == pytest.approx(1.0) and data["image"][0, 32] == pytest.approx(0.51, abs=0.02)
+    photo = photo_from_samples("<array>", np.zeros((3000, 3000), np.uint8) + np.arange(3000, dtype=np.uint8)[None, :],
+                               max_pixels=4_000_000)
+    assert photo.scale == pytest.approx(2000 / 3000, abs=1e-3) and photo.grey.shape == (2000, 2000)
+    photo = photo_from_samples("<array>", np.tile(np.linspace(0, 255, 64), (64, 1)))  # floats over 1: own range
+    assert photo.grey.max() == pytest.approx(1.0) and photo.grey[0, 32] == pytest.approx(0.51, abs=0.02)
     for eyes in ([[np.nan, 1], [2, 3]], [[1e9, 1], [2e9, 3]], [[10, 10], [10.5, 10]]):
         with pytest.raises(InputError, match="given eyes"):
             shadowflow.fit(np.random.default_rng(0).random((100, 100)), eyes=eyes)
