@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from shadowflow.flow.manifest import RunManifest
 
+from conftest import run_cli
+
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 REPO = Path(__file__).resolve().parents[2]
 
@@ -48,19 +50,18 @@ def test_a_full_disk_stops_the_run_with_a_clear_error_and_resume_finishes(tmp_pa
     journaled = RunManifest.load(out)
     assert sorted(r["stem"] for r in done) == sorted(e.name for e in journaled.entries.values())
     assert len(done) < 3
-    resumed = subprocess.run(cmd + ["--resume"], capture_output=True, text=True, cwd=REPO, timeout=300)
+    resumed = run_cli(cmd[len(CLI):] + ["--resume"])
     assert resumed.returncode == 0, resumed.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert [r["status"] for r in summary] == ["ok"] * 3
     if record == "mcap":  # issue 39 #8: the cut part does not make the job's recording unreadable
-        replay = subprocess.run(CLI + ["replay", str(out)], capture_output=True, text=True, cwd=REPO, timeout=300)
+        replay = run_cli(["replay", out])
         assert replay.returncode == 0, replay.stderr
         assert all(r["stem"] in replay.stdout for r in summary), replay.stdout
         fresh = tmp_path / "fresh"
-        made = subprocess.run([str(fresh) if x == str(out) else x for x in cmd], capture_output=True, text=True, cwd=REPO, timeout=300)
+        made = run_cli([str(fresh) if x == str(out) else x for x in cmd[len(CLI):]])
         assert made.returncode == 0, made.stderr
-        diff = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True, cwd=REPO,
-                              timeout=300)
+        diff = run_cli(["diff", out, fresh])
         assert diff.returncode == 0 and diff.stdout.startswith("same: 3 frames"), diff.stdout + diff.stderr
 
 

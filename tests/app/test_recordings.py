@@ -16,6 +16,8 @@ from shadowflow.flow.recording import Event, McapSink, RecordingError, RecordOpt
 from shadowflow.flow.replay import diff_recordings
 from shadowflow.nodes.app.outputs import OUTPUT_FILES
 
+from conftest import run_cli
+
 REPO = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 sys.path.insert(0, str(REPO / "recordings"))
@@ -26,8 +28,7 @@ from make_golden import GOLDEN, golden_inputs, golden_model, golden_run  # noqa:
 def demo(tmp_path_factory):
     """A recorded run of the built-in demo (3 faces), both formats."""
     out = tmp_path_factory.mktemp("rec")
-    proc = subprocess.run([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", "--demo", "--out", str(out), "--quiet"],
-                          capture_output=True, text=True)
+    proc = run_cli(["run", "--demo", "--out", out, "--quiet"])
     assert proc.returncode == 0, proc.stderr
     return out
 
@@ -213,17 +214,15 @@ def test_foxglove_copies_decode_with_the_files_own_protobuf_schemas(demo):
 
 @pytest.mark.slow
 def test_replay_and_diff_commands(demo, tmp_path):
-    cli = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
-    out = subprocess.run(cli + ["replay", str(demo / "run.mcap"), "--plot", str(tmp_path / "c.png"),
-                                "--rrd", str(tmp_path / "re.rrd")], capture_output=True, text=True)
+    out = run_cli(["replay", demo / "run.mcap", "--plot", tmp_path / "c.png", "--rrd", tmp_path / "re.rrd"])
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     assert lines[0].split()[:3] == ["frame", "iters", "sigma"] and len([ln for ln in lines if "demo-" in ln]) == 3
     assert (tmp_path / "c.png").stat().st_size > 1000 and (tmp_path / "re.rrd").stat().st_size > 1000
-    same = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(demo / "run.mcap")], capture_output=True, text=True)
+    same = run_cli(["diff", demo / "run.mcap", demo / "run.mcap"])
     assert same.returncode == 0 and same.stdout.startswith("same: 3 frames")
     (tmp_path / "junk.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\xff" * 64)
-    bad = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(tmp_path / "junk.mcap")], capture_output=True, text=True)
+    bad = run_cli(["diff", demo / "run.mcap", tmp_path / "junk.mcap"])
     assert bad.returncode == 2 and "junk.mcap" in bad.stderr
 
 
@@ -259,11 +258,10 @@ def test_diff_reports_first_where_the_runs_split_in_the_methods_order(demo, tmp_
             return None
         return change
 
-    cli = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
     _rewrite(demo / "run.mcap", tmp_path / "late.mcap", bump(("/albedo/albedo", None), ("/robust_fit/weights", 3)))
     diffs = diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "late.mcap"), stage=stage_rank)
     assert [(d.frame, d.iteration, d.channel) for d in diffs] == [(0, 3, "robust_fit/weights"), (0, None, "albedo/albedo")]
-    out = subprocess.run(cli + ["diff", str(demo / "run.mcap"), str(tmp_path / "late.mcap")], capture_output=True, text=True)
+    out = run_cli(["diff", demo / "run.mcap", tmp_path / "late.mcap"])
     assert out.returncode == 1 and "iteration 3, channel robust_fit/weights" in out.stdout.splitlines()[0], out.stdout
     _rewrite(demo / "run.mcap", tmp_path / "early.mcap", bump(("/load/grid_image", None), ("/robust_fit/weights", 1)))
     first = diff_recordings(read_mcap(demo / "run.mcap"), read_mcap(tmp_path / "early.mcap"), stage=stage_rank)[0]
@@ -388,9 +386,9 @@ def test_kill_9_then_resume_completes_without_redoing(tmp_path):
         for name in OUTPUT_FILES:
             assert (out / r["stem"] / name).read_bytes() == (fresh / r["stem"] / name).read_bytes(), name
     # the killed run's recording and the resumed part, merged, equal the uninterrupted recording
-    same = subprocess.run(CLI + ["diff", str(out), str(fresh)], capture_output=True, text=True)
+    same = run_cli(["diff", out, fresh])
     assert same.returncode == 0 and same.stdout.startswith("same: 16 frames"), same.stdout + same.stderr
-    alone = subprocess.run(CLI + ["diff", str(out / "run.part2.mcap"), str(fresh)], capture_output=True, text=True)
+    alone = run_cli(["diff", out / "run.part2.mcap", fresh])
     assert alone.returncode == 1 and "frame only in B" in alone.stdout  # the merge is what makes them equal
 
 
