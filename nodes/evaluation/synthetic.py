@@ -112,3 +112,17 @@ def model_floor(model: ShapeModel, depths: np.ndarray) -> float:
         fit_n = model.closest_normals(np.where(ok[:, None], n, model.mean_normals), ok)
         errs.append(np.mean(angle_deg(fit_n[ok], n[ok])))
     return float(np.mean(errs))
+
+
+# the table's columns, per fit and light angle (``evaluate``'s ``per_angle`` rows)
+TABLE_COLUMNS = ("err_all", "err_lit", "err_cast", "err_attached", "cast_iou", "shadow_iou", "depth_rmse",
+                 "iterations", "seconds_per_face")
+
+
+def table_header() -> str:
+    return f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in TABLE_COLUMNS)
+
+
+def table_row(fit: str, angle, row: dict) -> str:
+    """One line of the table: a fit at one light angle (degrees)."""
+    return f"{fit:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in TABLE_COLUMNS)

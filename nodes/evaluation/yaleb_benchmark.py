@@ -292,3 +292,27 @@ def summarise(rows: list[dict]) -> list[dict]:
         out.append({"lights": name, "n": len(rs),
                     **{k: float(np.mean([r[k] for r in rs])) for k in keys if all(k in r for r in rs)}})
     return out
+
+
+# the table's columns: (row key, heading); errors in degrees, relighting in dB
+TABLE_COLUMNS = (("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
+                 ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
+                 ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("relit_level", "relit level"),
+                 ("shadow_iou", "shadow IoU"), ("psnr_input", "input dB"), ("ssim", "relit SSIM"),
+                 ("ssim_input", "input SSIM"), ("light_err_deg", "auto light"), ("iterations", "iterations"))
+
+
+def format_report(report: dict, summary: list[dict]) -> str:
+    """``evaluate_yaleb``'s report as the terminal shows it: one line per subject and light, the means
+    over the subjects (``summarise``), then each subject's frontal photo relit frontally."""
+    def line(name: str, light: str, row: dict) -> str:
+        return f"{name:8} {light:>7} " + " ".join(f"{row[k]:12.2f}" for k, _ in TABLE_COLUMNS)
+
+    lines = ["per subject and light (errors in degrees):",
+             f"{'subject':8} {'A,E':>7} " + " ".join(f"{t:>12}" for _, t in TABLE_COLUMNS)]
+    lines += [line(r["subject"], r["light"], r) for r in report["rows"]]
+    lines.append("means over the subjects:")
+    lines += [line("all", s["lights"], s) for s in summary]
+    lines += [f"{f['subject']:8} frontal photo relit frontally: {f['psnr']:.2f} dB, "
+              f"{100 * f['gradient_energy']:.1f} % of its gradient energy" for f in report["frontal"]]
+    return "\n".join(lines)

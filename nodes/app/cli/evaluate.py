@@ -9,8 +9,8 @@ from contextlib import contextmanager
 
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
-from ...evaluation.synthetic import evaluate, model_floor
-from ...evaluation.yaleb_benchmark import evaluate_yaleb, summarise
+from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
+from ...evaluation.yaleb_benchmark import evaluate_yaleb, format_report, summarise
 from ...method.nodes import MethodOptions
 from ...model.default_model import train_from_recipe
 from ...model.sources import load_source
@@ -59,7 +59,6 @@ def _mapper(spec: str | None):
 
 
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
-
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
     model = model_arg(args.model)
@@ -72,23 +71,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
           "ground truth: photometric stereo of each subject's exposures")
     with _mapper(args.dask) as mapper:
         report = evaluate_yaleb(args.data, model, options, mapper=mapper)
-    cols = [("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
-            ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
-            ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("relit_level", "relit level"),
-            ("shadow_iou", "shadow IoU"),
-            ("psnr_input", "input dB"), ("ssim", "relit SSIM"), ("ssim_input", "input SSIM"),
-            ("light_err_deg", "auto light"), ("iterations", "iterations")]
-    print("per subject and light (errors in degrees):")
-    print(f"{'subject':8} {'A,E':>7} " + " ".join(f"{t:>12}" for _, t in cols))
-    for r in report["rows"]:
-        print(f"{r['subject']:8} {r['light']:>7} " + " ".join(f"{r[k]:12.2f}" for k, _ in cols))
-    print("means over the subjects:")
     summary = summarise(report["rows"])
-    for s in summary:
-        print(f"{'all':8} {s['lights']:>7} " + " ".join(f"{s[k]:12.2f}" for k, _ in cols))
-    for f in report["frontal"]:
-        print(f"{f['subject']:8} frontal photo relit frontally: {f['psnr']:.2f} dB, "
-              f"{100 * f['gradient_energy']:.1f} % of its gradient energy")
+    print(format_report(report, summary))
     report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
                   seconds=time.perf_counter() - t0)
     _write_report(args.json, report)
@@ -124,9 +108,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     print(f"model: {trained_on}, K={model.n_modes}, grid {model.grid[0]}x{model.grid[1]}; "
           f"test: {args.n_test} faces of {args.source} (seed {args.test_seed}), {args.albedo} albedo")
     print(f"model floor (true normals projected on the modes): {report['model_floor_deg']:.2f} deg")
-    cols = ["err_all", "err_lit", "err_cast", "err_attached", "cast_iou", "shadow_iou", "depth_rmse",
-            "iterations", "seconds_per_face"]
-    print(f"{'fit':12} {'angle':>5} " + " ".join(f"{c:>12}" for c in cols))
+    print(table_header())
     with _mapper(args.dask) as mapper:  # one cluster for every fit compared
         for name in fits:
             opts = MethodOptions(fit=fit_config(name, None, albedo_rounds=args.albedo_rounds,
@@ -135,7 +117,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             res = evaluate(model, test, albedo, angles, opts, mapper=mapper)
             report["results"][name] = res["per_angle"]
             for angle, row in res["per_angle"].items():
-                print(f"{name:12} {angle:>5} " + " ".join(f"{row[c]:12.3f}" for c in cols))
+                print(table_row(name, angle, row))
     report["seconds"] = time.perf_counter() - t0
     _write_report(args.json, report)
     return 0
