@@ -33,6 +33,15 @@ from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import confirm_with_image, far_darker, shadow_maps
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
+# every option of ``MethodOptions`` that is one of a few names, and those names, the default first: the
+# options check against them and the command line offers them
+CHOICES: dict[str, tuple[str, ...]] = {
+    "integrator": tuple(INTEGRATORS),
+    "remap": ("ratio", "peak"),
+    "shadows": ("confirmed", "geometric"),
+    "albedo_fill": ("ceiling", "mirror"),
+    "encoding": ENCODINGS,
+}
 
 
 @dataclass(frozen=True)
@@ -81,12 +90,9 @@ class MethodOptions:
     def __post_init__(self) -> None:
         """Every choice checked where it is defined: a bad one raises ``ValueError`` naming it, from the
         API as from the command line."""
-        choices = {"integrator": (self.integrator, tuple(INTEGRATORS)), "remap": (self.remap, ("ratio", "peak")),
-                   "shadows": (self.shadows, ("confirmed", "geometric")),
-                   "albedo_fill": (self.albedo_fill, ("ceiling", "mirror")), "encoding": (self.encoding, ENCODINGS)}
-        for name, (value, allowed) in choices.items():
-            if value not in allowed:
-                raise ValueError(f"{name} {value!r}: choose from {', '.join(allowed)}")
+        for name, allowed in CHOICES.items():
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} {getattr(self, name)!r}: choose from {', '.join(allowed)}")
         self._check_ranges()
         self._check_lights()
 

@@ -308,3 +308,24 @@ def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
     for options, scale, ceiling in ((asked, "ratio", True), (plain, "peak", False)):
         nodes = {type(n).__name__: n for n in method_nodes(model, options, with_views=False)}
         assert nodes["RemapNode"].scale == scale and (nodes["AlbedoNode"].ceiling is not None) == ceiling
+
+
+def test_the_command_lines_choices_are_the_options_own():
+    """Every named choice of ``MethodOptions`` (``CHOICES``) and the fit's solvers are what ``run`` and ``eval``
+    offer, defaults included: a new integrator or encoding reaches the command line without a second list."""
+    import argparse
+
+    from shadowflow.nodes.app.cli import build_parser
+    from shadowflow.nodes.method.nodes import CHOICES, MethodOptions
+    from shadowflow.nodes.method.robust_fit.config import SOLVERS
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for command in ("run", "eval"):
+        actions = {a.dest: a for a in sub.choices[command]._actions}
+        for name, allowed in CHOICES.items():
+            if name in actions:
+                assert tuple(actions[name].choices) == allowed, (command, name)
+                default = actions[name].default
+                assert default is None or default == getattr(MethodOptions(), name), (command, name)
+        assert set(SOLVERS) <= set(actions["fit"].choices)
+    assert set(CHOICES) - {"encoding"} <= set(a.dest for a in sub.choices["eval"]._actions)

@@ -6,10 +6,11 @@ import dataclasses
 
 from ...method.nodes import MethodOptions
 from ...method.robust_fit import FitConfig
+from ...method.robust_fit.config import SOLVERS
 from ...model.default_model import resolve_model
 from ...model.shape_model import check_grid
 
-FITS = ["gauss-newton", "irls", "paper"]
+FITS = list(SOLVERS)  # the fit's solvers, as FitConfig checks them
 
 
 MODEL_HELP = ("ict (default: built in, trained from ICT-FaceKit's real-scan identities) | procedural (built in, "

@@ -11,7 +11,7 @@ from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
 from ...evaluation.yaleb_benchmark import evaluate_yaleb, format_report, summarise
-from ...method.nodes import MethodOptions
+from ...method.nodes import CHOICES, MethodOptions
 from ...model.default_model import train_from_recipe
 from ...model.sources import load_source
 from ..cluster import DASK_METAVAR, dask_client, parse_dask
@@ -144,13 +144,13 @@ def add_parser(sub) -> None:
                    help="synthetic: the test faces' albedo, uniform (default) or varying over the face")
     e.add_argument("--fit", choices=FITS + ["both", "all"], default="gauss-newton",
                    help="both: gauss-newton and paper; all: the three")
-    e.add_argument("--remap", choices=["ratio", "peak"], help="as run --remap")
+    e.add_argument("--remap", choices=CHOICES["remap"], help="as run --remap")
     e.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     e.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     e.add_argument("--face-length", default="auto", metavar="auto|off|F", help="eval yaleb: " + FACE_LENGTH_HELP)
-    e.add_argument("--integrator", choices=["lsq", "fc"], default="lsq", help="as run --integrator")
-    e.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed", help="as run --shadows")
-    e.add_argument("--albedo-fill", choices=["ceiling", "mirror"], help="as run --albedo-fill")
+    e.add_argument("--integrator", choices=CHOICES["integrator"], default=MethodOptions.integrator, help="as run --integrator")
+    e.add_argument("--shadows", choices=CHOICES["shadows"], default=MethodOptions.shadows, help="as run --shadows")
+    e.add_argument("--albedo-fill", choices=CHOICES["albedo_fill"], help="as run --albedo-fill")
     e.add_argument("--json", help="write the report here")
     e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "

@@ -16,8 +16,7 @@ from ....flow.recording import RecordOptions
 from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
 from ...method.eye_detail import CONTRAST as EYE_CONTRAST
-from ...method.nodes import MethodOptions
-from ...photo.encoding import ENCODINGS
+from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..inputs import FolderWatch, expand_inputs
@@ -225,14 +224,14 @@ def add_parser(sub) -> None:
     r.add_argument("--albedo-rounds", type=int, metavar="N", help=ALBEDO_ROUNDS_HELP)
     r.add_argument("--cone-trust", type=float, metavar="C", help=CONE_TRUST_HELP)
     r.add_argument("--face-length", default="auto", metavar="auto|off|F", help=FACE_LENGTH_HELP)
-    r.add_argument("--remap", choices=["ratio", "peak"],
+    r.add_argument("--remap", choices=CHOICES["remap"],
                    help="brightness scale: median ratio to the mean face (default) or the brightest point "
                         "(the paper's; the default with --fit paper)")
-    r.add_argument("--integrator", choices=["lsq", "fc"], default="lsq",
+    r.add_argument("--integrator", choices=CHOICES["integrator"], default=MethodOptions.integrator,
                    help="masked least squares (default) or Frankot-Chellappa (the paper's)")
-    r.add_argument("--shadows", choices=["confirmed", "geometric"], default="confirmed",
+    r.add_argument("--shadows", choices=CHOICES["shadows"], default=MethodOptions.shadows,
                    help="cast shadows traced and checked against the image (default) or traced only (paper)")
-    r.add_argument("--albedo-fill", choices=["ceiling", "mirror"],
+    r.add_argument("--albedo-fill", choices=CHOICES["albedo_fill"],
                    help="albedo under shadow: mirrored or interpolated, never brighter than the face's typical "
                         "measured albedo (default) or mirrored as measured (the paper's; the default with --fit paper)")
     r.add_argument("--eyes", default="auto",
@@ -250,7 +249,7 @@ def add_parser(sub) -> None:
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
                    help="novel_view.png's height and width in pixels (default: the model grid's)")
-    r.add_argument("--encoding", choices=list(ENCODINGS), default="auto",
+    r.add_argument("--encoding", choices=CHOICES["encoding"], default=MethodOptions.encoding,
                    help="how the photos' values relate to light: auto (default; colour photos are sRGB, grey ones "
                         "linear), srgb or linear; the method works in linear light, outputs keep the photo's encoding")
     r.add_argument("--max-megapixels", type=float, default=MAX_WORK_PIXELS / 1e6, metavar="MP",
