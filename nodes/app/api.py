@@ -159,7 +159,7 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
                     relit=p["relit"], relit_extra=p["relit_extra"], quality=face.meta["quality"], mask=p["mask"],
                     novel_view=face.data["novel_view"], light=np.asarray(face.data["light"], np.float64),
                     history=list(r.history), iterations=r.iterations, converged=r.converged, frame=face,
-                    model=shape_model, faces=[face_record(f, None) for f in photo.parts], photo=photo)
+                    model=shape_model, faces=[face_record(photo, f, None) for f in photo.parts], photo=photo)
 
 
 def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: ShapeModel | str | None = None,

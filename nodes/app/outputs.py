@@ -101,16 +101,20 @@ def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     return (v if mask is None else np.where(mask, v, 0)).astype(np.uint8)
 
 
-def face_folder(k: int) -> str:
-    """The output folder of a photo's k-th face (1 the largest), relative to the photo's: ``""`` or ``face-<k>``."""
-    return "" if k <= 1 else f"face-{k}"
-
-
 def faces_of(frame: Frame) -> list[Frame]:
-    """The face frames of a photo's frame that came through (its ``parts``; a frame of one face: itself)."""
+    """The face frames of a photo's frame that came through (its ``parts``; a frame of one face: itself),
+    largest first: the first is the photo's face (``face_folder``)."""
     if not frame.parts:
         return [frame] if "fit" in frame.data else []
     return [p for p in frame.parts if p.ok]
+
+
+def face_folder(frame: Frame, face: Frame) -> str:
+    """The output folder of one of ``frame``'s faces, relative to the photo's: ``""`` for the first face
+    that came through (the largest; a larger candidate the fit found no face in does not take its place),
+    ``face-<k>`` for the photo's k-th face (``meta["face"]``) after it."""
+    faces = faces_of(frame)
+    return "" if faces and face is faces[0] else f"face-{int(face.meta.get('face', 1))}"
 
 
 def relit_name(light: np.ndarray) -> str:
@@ -126,7 +130,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     relit = relit_photos(frame)
     written = {}
     for face in faces_of(frame):
-        sub = face_folder(int(face.meta.get("face", 1)))
+        sub = face_folder(frame, face)
         for name, path in write_face(face, model, folder / sub if sub else folder).items():
             written[f"{sub}/{name}" if sub else name] = path
     encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
@@ -134,7 +138,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
         encoders[relit_name(light)] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
     # the photo to look at and relight by hand: every face, the failed ones marked
     stem = frame.meta.get("stem")
-    faces = [(face_record(p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
+    faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
     encoders[VIEW_NAME] = lambda: view_html(frame, faces)
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
@@ -183,7 +187,7 @@ class WriteNode:
         folder = self.out_dir / frame.meta["stem"]
         targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light, _ in relit_photos(frame)[1:]))]
         for face in faces_of(frame):
-            sub = face_folder(int(face.meta.get("face", 1)))
+            sub = face_folder(frame, face)
             if sub:
                 targets += [folder / sub, *(folder / sub / n for n in FACE_FILES)]
         for path in (folder, *targets):
@@ -207,16 +211,17 @@ def face_status(face: Frame) -> str:
     return "doubtful: " + "; ".join(flags) if face.ok and flags else face.status
 
 
-def face_record(face: Frame, stem: str | None) -> dict:
-    """A face's entry in ``summary.json``'s ``faces``: where it is (box, eyes: photo pixels, image-left eye
-    first), its pose (degrees), status, quality, light and the folder of its outputs (relative to --out)."""
+def face_record(frame: Frame, face: Frame, stem: str | None) -> dict:
+    """One of ``frame``'s faces as ``summary.json``'s ``faces`` lists it: where it is (box, eyes: photo pixels,
+    image-left eye first), its pose (degrees), status, quality, light and the folder of its outputs
+    (relative to --out)."""
     rec = dict(face.meta.get("placement") or {})
-    k = int(face.meta.get("face", 1))
     q = face.meta.get("quality") or {}
     rec.update(status=face_status(face), quality={"score": q.get("score"), "flags": q.get("flags", [])} if q else None,
                light=face.meta.get("light"))
     if face.ok and stem is not None:
-        rec["dir"] = stem if k <= 1 else f"{stem}/{face_folder(k)}"
+        sub = face_folder(frame, face)
+        rec["dir"] = f"{stem}/{sub}" if sub else stem
     return rec
 
 
@@ -225,7 +230,8 @@ def summary_record(frame: Frame) -> dict:
     its largest face's fields (quality, light, alignment, the fit), and ``faces``, one entry per face
     found (``face_record``)."""
     m = frame.meta
-    first = frame.parts[0] if frame.parts else frame
+    # the photo's face: the first that came through (a larger candidate refused as no face does not speak for it)
+    first = next(iter(faces_of(frame)), frame.parts[0] if frame.parts else frame)
     rec = {
         "source": frame.source,
         "stem": m.get("stem"),
@@ -233,7 +239,7 @@ def summary_record(frame: Frame) -> dict:
         **{k: first.meta.get(k) for k in FACE_FIELDS},
         "seconds": round(float(sum(m.get("timings", {}).values())), 4),
     }
-    rec["faces"] = [face_record(p, m.get("stem")) for p in frame.parts]
+    rec["faces"] = [face_record(frame, p, m.get("stem")) for p in frame.parts]
     if m.get("reduced"):
         rec["reduced"] = m["reduced"]
     if frame.failed_in:
@@ -254,10 +260,11 @@ def status_lines(rec: dict) -> list[str]:
     if rec.get("failed_in") or not rec.get("faces"):  # the input failed as a whole
         return [] if rec["status"] == "ok" else [f"error: {rec['status']}"]
     lines = []
+    has_face = any(f["status"] == "ok" or f["status"].startswith("doubtful: ") for f in rec["faces"])
     for k, face in enumerate(rec["faces"], start=1):
         status = face["status"]
-        if status == "ok":
-            continue
+        if status == "ok" or (has_face and ": no face found" in status):  # a candidate beside a real face that
+            continue  # the fit found no face in (listed in summary.json with its reason): not the photo's error
         name = rec["source"] if k == 1 else f"{rec['source']} (face {k})"
         if status.startswith("doubtful: "):
             lines.append(f"doubtful: {name}: {status[len('doubtful: '):]}")
