@@ -5,13 +5,15 @@ Usage: python benchmarks/bench_faces.py [--repeat 7]
 Photos (made here, nothing read from ../shared): scikit-image's ``astronaut`` (public domain) as it
 is (512^2), scaled to 1 MP and 4 MP, pasted small (eyes 30 px apart) into a 1 MP frame of colour
 shapes, three times into one 1 MP frame (a group), and the 1 MP frame alone (no face). Prints the
-median milliseconds of ``--repeat`` runs, the detector's views, the mesh calls and the faces found;
-writes benchmarks/results/faces.json.
+median milliseconds of ``--repeat`` runs with the nets in each runtime (LiteRT where installed, OpenCV's
+dnn), their ratio, the detector's views, the mesh calls and the faces found; writes
+benchmarks/results/faces.json.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
 import time
@@ -60,6 +62,25 @@ def count_calls(fn):
     return wrapped
 
 
+def runtimes() -> list[str]:
+    """The nets' runtimes to time: LiteRT (where installed) and OpenCV's dnn (``mediapipe.runtime``)."""
+    return [n for n in mp.RUNTIMES if n != "litert" or mp._litert() is not None]
+
+
+def timed(model, rgb, runtime: str, repeat: int) -> tuple[float, int]:
+    """Median milliseconds of ``place_faces`` on ``rgb`` with the nets in ``runtime``, and the faces found."""
+    os.environ["SHADOWFLOW_NETS"] = runtime
+    for pool in (mp.DETECTOR, mp.MESH):
+        pool._free.clear()  # nets of this runtime from here on
+    place_faces(model, rgb)  # warm: the nets load once
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        faces = place_faces(model, rgb)
+        times.append(time.perf_counter() - t0)
+    return 1000 * statistics.median(times), len(faces)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=7)
@@ -67,14 +88,12 @@ def main() -> None:
     cv2.setNumThreads(1)
     model = default_model()
     rows = []
+    names = runtimes()
     with threadpool_limits(1):
         for name, rgb in photos().items():
-            place_faces(model, rgb)  # warm: the nets load once per thread
-            times = []
-            for _ in range(args.repeat):
-                t0 = time.perf_counter()
-                faces = place_faces(model, rgb)
-                times.append(time.perf_counter() - t0)
+            ms, found = {}, {}
+            for runtime in names:
+                ms[runtime], found[runtime] = timed(model, rgb, runtime, args.repeat)
             mesh = count_calls(mp.face_mesh)
             import shadowflow.nodes.photo.faces as faces_module
 
@@ -83,10 +102,12 @@ def main() -> None:
             faces_module.face_mesh = saved
             views = len(mp._views(rgb.shape[:2], 30.0))
             rows.append({"photo": name, "megapixels": round(rgb.shape[0] * rgb.shape[1] / 1e6, 2),
-                         "ms": round(1000 * statistics.median(times), 1), "views": views, "mesh_calls": mesh.calls,
-                         "faces": len(faces)})
-            print(f"{name:28s} {rows[-1]['megapixels']:5.2f} MP  {rows[-1]['ms']:6.1f} ms  "
-                  f"{views:3d} detector views  {mesh.calls:2d} mesh calls  {len(faces)} faces", flush=True)
+                         "ms": {k: round(v, 1) for k, v in ms.items()}, "views": views, "mesh_calls": mesh.calls,
+                         "faces": found})
+            times = "  ".join(f"{k} {v:6.1f} ms" for k, v in ms.items())
+            ratio = f"  opencv / litert {ms['opencv'] / ms['litert']:.2f}" if "litert" in ms else ""
+            print(f"{name:28s} {rows[-1]['megapixels']:5.2f} MP  {times}{ratio}  {views:3d} detector views  "
+                  f"{mesh.calls:2d} mesh calls  {found[names[0]]} faces", flush=True)
     out = Path(__file__).parent / "results" / "faces.json"
     out.write_text(json.dumps({"machine": f"{platform.machine()}, {platform.python_version()}, one core",
                                "repeat": args.repeat, "rows": rows}, indent=1) + "\n")

@@ -1,4 +1,5 @@
-"""MediaPipe's face detector (BlazeFace, short range) and 468-point face mesh, run by OpenCV's dnn.
+"""MediaPipe's face detector (BlazeFace, short range) and 468-point face mesh, run by LiteRT (Google's
+TensorFlow Lite runtime) where it is installed, else by OpenCV's dnn (``runtime``).
 
 The two ``.tflite`` files in ``data/`` are MediaPipe's (Apache-2.0, ``data/NOTICE``); the code that
 feeds them and reads their outputs is ours:
@@ -47,32 +48,88 @@ WHOLE_REACH = 0.75  # tiles stop once they are this share of the photo's long si
 OUTER_CORNERS = (33, 263)  # the image-left eye's outer corner, the image-right eye's
 
 
-def _load(path: Path) -> cv2.dnn.Net:
+def _litert():
+    """LiteRT's interpreter class (``ai-edge-litert``, Google's TensorFlow Lite runtime), or None where it is
+    not installed: it runs both nets two to three times faster than OpenCV's dnn (XNNPACK kernels)."""
+    try:
+        from ai_edge_litert.interpreter import Interpreter
+    except ImportError:
+        return None
+    return Interpreter
+
+
+class _LiteRtNet:
+    """One model in LiteRT, called as ``(N=1, H, W, C) float32 -> named outputs``."""
+
+    def __init__(self, path: Path, interpreter):
+        from .native_messages import decoder_messages_dropped
+
+        with decoder_messages_dropped():  # its note on loading, on standard error
+            self._net = interpreter(model_path=str(path), num_threads=1)  # one core: the run's threads share them
+            self._net.allocate_tensors()
+        self._input = self._net.get_input_details()[0]["index"]
+        self._outputs = {o["name"]: o["index"] for o in self._net.get_output_details()}
+
+    def __call__(self, x: np.ndarray, outputs: list[str]) -> tuple[np.ndarray, ...]:
+        self._net.set_tensor(self._input, x)
+        self._net.invoke()
+        return tuple(self._net.get_tensor(self._outputs[name]) for name in outputs)
+
+
+class _OpenCvNet:
+    """One model in OpenCV's dnn (its classic engine), called as LiteRT's is: NHWC in, named outputs."""
+
+    def __init__(self, path: Path):
+        kwargs = {"engine": cv2.dnn.ENGINE_CLASSIC} if hasattr(cv2.dnn, "ENGINE_CLASSIC") else {}
+        self._net = cv2.dnn.readNetFromTFLite(str(path), **kwargs)
+
+    def __call__(self, x: np.ndarray, outputs: list[str]) -> tuple[np.ndarray, ...]:
+        self._net.setInput(np.ascontiguousarray(x.transpose(0, 3, 1, 2)))
+        return tuple(self._net.forward(outputs))
+
+
+RUNTIMES = ("litert", "opencv")
+
+
+def runtime() -> str:
+    """Which runtime runs the nets: ``SHADOWFLOW_NETS`` (litert | opencv) when set, else LiteRT where it is
+    installed, else OpenCV's dnn. The two agree to a fraction of a pixel (tests/photo/test_faces.py)."""
+    import os
+
+    asked = os.environ.get("SHADOWFLOW_NETS", "").strip().lower()
+    if asked and asked not in RUNTIMES:
+        raise RuntimeError(f"SHADOWFLOW_NETS={asked!r}: choose from {', '.join(RUNTIMES)}")
+    if asked == "opencv" or (not asked and _litert() is None):
+        return "opencv"
+    if _litert() is None:
+        raise RuntimeError("SHADOWFLOW_NETS=litert, but ai-edge-litert is not installed")
+    return "litert"
+
+
+def _load(path: Path):
     if not path.is_file():
         raise RuntimeError(f"{path}: MediaPipe model missing from the package (reinstall shadowflow)")
-    kwargs = {"engine": cv2.dnn.ENGINE_CLASSIC} if hasattr(cv2.dnn, "ENGINE_CLASSIC") else {}
-    return cv2.dnn.readNetFromTFLite(str(path), **kwargs)
+    return _LiteRtNet(path, _litert()) if runtime() == "litert" else _OpenCvNet(path)
 
 
 class NetPool:
-    """The loaded nets of one model, lent to one caller at a time: a ``dnn.Net`` is not safe to share
-    between threads, and loading one takes milliseconds, so the nets outlive the threads that use them
-    (a time-limited step runs each frame in a new thread)."""
+    """The loaded nets of one model, lent to one caller at a time: a net is not safe to share between
+    threads, and loading one takes milliseconds, so the nets outlive the threads that use them (a
+    time-limited step runs each frame in a new thread)."""
 
     def __init__(self, path: Path):
         self.path = path
-        self._free: list[cv2.dnn.Net] = []
+        self._free: list = []
         self._lock = threading.Lock()
 
-    def forward(self, blob: np.ndarray, outputs: list[str]) -> tuple[np.ndarray, ...]:
-        """The named outputs of the net for the input ``blob`` (N, C, H, W) float32."""
+    def forward(self, x: np.ndarray, outputs: list[str]) -> tuple[np.ndarray, ...]:
+        """The named outputs of the net for the input ``x`` (1, H, W, C) float32."""
         with self._lock:
             net = self._free.pop() if self._free else None
         if net is None:
             net = _load(self.path)
         try:
-            net.setInput(blob)
-            return tuple(net.forward(outputs))
+            return net(x, outputs)
         finally:
             with self._lock:
                 self._free.append(net)
@@ -151,6 +208,18 @@ def _shrunk(rgb: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
     return small, np.diag([w / small.shape[1], h / small.shape[0], 1.0])
 
 
+def _around(rgb: np.ndarray, to_photo: np.ndarray, size: int, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """The part of the photo a ``size``^2 window (``to_photo``, (2, 3)) shows, ``margin`` pixels wider (a view,
+    not a copy), and the (3, 3) map from its pixels to the photo's: a large photo is then shrunk only there."""
+    corners = np.array([[0.0, 0.0], [size, 0.0], [0.0, size], [size, size]]) @ to_photo[:, :2].T + to_photo[:, 2]
+    h, w = rgb.shape[:2]
+    x0, y0 = (max(0, int(np.floor(v - margin))) for v in corners.min(axis=0))
+    x1, y1 = min(w, int(np.ceil(corners[:, 0].max() + margin))), min(h, int(np.ceil(corners[:, 1].max() + margin)))
+    if x1 - x0 < 2 or y1 - y0 < 2:  # the window is off the photo: all of it (the window comes out black)
+        return rgb, np.eye(3)
+    return rgb[y0:y1, x0:x1], np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
+
+
 def _pyramid(rgb: np.ndarray, scales: list[float]) -> dict[float, tuple[np.ndarray, np.ndarray]]:
     """The photo area-averaged to each of ``scales`` (largest first): ``scale -> (image, its pixels ->
     the photo's (3, 3))``; each from the last one made, so the full photo is averaged down only once."""
@@ -191,8 +260,7 @@ def detect_faces(rgb: np.ndarray, min_iod: float = 30.0) -> list[Detection]:
         else:
             win = _window(rgb, to_photo, DETECTOR_SIZE)
         x = win.astype(np.float32) / np.float32(127.5) - np.float32(1.0)
-        scores, regressors = DETECTOR.forward(np.ascontiguousarray(x.transpose(2, 0, 1)[None]),
-                                              ["classificators", "regressors"])
+        scores, regressors = DETECTOR.forward(x[None], ["classificators", "regressors"])
         found += _decode(scores.reshape(-1), regressors.reshape(-1, 16), to_photo)
     return weighted_nms(found)
 
@@ -274,12 +342,13 @@ def face_mesh(rgb: np.ndarray, roi: Roi) -> tuple[np.ndarray, float]:
     to_photo = roi.to_photo(MESH_SIZE)
     shrink = roi.side / MESH_SIZE  # photo pixels per crop pixel
     if shrink > 2.0:  # a large face: area-average the photo first, so the crop is not aliased
-        small, from_small = _shrunk(rgb, 1.5 / shrink)
-        crop = _window(small, to_photo, MESH_SIZE, from_small)
+        region, offset = _around(rgb, to_photo, MESH_SIZE, margin=2.0 * shrink)  # only what the crop shows
+        small, from_small = _shrunk(region, 1.5 / shrink)
+        crop = _window(small, to_photo, MESH_SIZE, offset @ from_small)
     else:
         crop = _window(rgb, to_photo, MESH_SIZE)
     x = crop.astype(np.float32) / np.float32(255.0)
-    mesh, presence = MESH.forward(np.ascontiguousarray(x.transpose(2, 0, 1)[None]), ["conv2d_21", "conv2d_31"])
+    mesh, presence = MESH.forward(x[None], ["conv2d_21", "conv2d_31"])
     pts = mesh.reshape(468, 3).astype(np.float64)
     xy = pts[:, :2] @ to_photo[:, :2].T + to_photo[:, 2]
     z = -pts[:, 2] * (roi.side / MESH_SIZE)

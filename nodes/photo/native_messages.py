@@ -1,9 +1,9 @@
-"""The image libraries' own messages kept off the terminal.
+"""The native libraries' own messages kept off the terminal.
 
 libpng and libjpeg, called by OpenCV, print what they find wrong in a file straight to the process's
 standard error ("libpng error: bad adaptive filter value", "Corrupt JPEG data: premature end of data
 segment"), beside the one line the loader itself gives for that file. OpenCV's log level does not reach
-them. ``decoder_messages_dropped`` points standard error (fd 2) at a pipe while a decoder runs, then
+them. LiteRT says "INFO: Created TensorFlow Lite XNNPACK delegate for CPU." whenever a net is loaded. ``decoder_messages_dropped`` points standard error (fd 2) at a pipe while a decoder runs, then
 writes back every line that is not such a message, so nothing else printed meanwhile (by another
 thread) is lost; decoders run one at a time under it.
 """
@@ -16,11 +16,12 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-# the messages of libpng, libjpeg(-turbo) and libtiff, as their default handlers word them, and OpenCV's log lines
+# the messages of libpng, libjpeg(-turbo) and libtiff, as their default handlers word them, OpenCV's log lines
+# and LiteRT's note on loading a net
 DECODER_MESSAGE = re.compile(
     rb"^(\[ ?(WARN|ERROR|INFO):\d+@[\d.]+\] |libpng (error|warning)|Corrupt JPEG data|Premature end of JPEG file|Invalid JPEG file structure|"
     rb"Invalid SOS parameters|Unsupported marker|Bogus |Inconsistent progression sequence|JPEG datastream|"
-    rb"TIFFRead|TIFFFetch|TIFFReadDirectory|Warning, Unknown field|.*: Not a TIFF)")
+    rb"TIFFRead|TIFFFetch|TIFFReadDirectory|Warning, Unknown field|.*: Not a TIFF|INFO: Created TensorFlow Lite)")
 
 _lock = threading.Lock()
 

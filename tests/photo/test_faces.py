@@ -29,6 +29,28 @@ def test_the_shipped_models_are_mediapipes_unchanged():
     assert "MediaPipe" in (M.DATA / "NOTICE").read_text()
 
 
+def test_the_two_runtimes_find_the_same_faces(astronaut, monkeypatch):
+    """LiteRT (where installed) and OpenCV's dnn run the same nets: the same faces, landmarks within a
+    fraction of a pixel, on the astronaut and on her photo scaled to 1 MP."""
+    pytest.importorskip("ai_edge_litert")
+    big = cv2.resize(astronaut, (1024, 1024), interpolation=cv2.INTER_LINEAR)
+    found = {}
+    for name in M.RUNTIMES:
+        monkeypatch.setenv("SHADOWFLOW_NETS", name)
+        for pool in (M.DETECTOR, M.MESH):
+            monkeypatch.setattr(pool, "_free", [])  # nets of the runtime asked for
+        assert M.runtime() == name
+        found[name] = [F.find_faces(img) for img in (astronaut, big)]
+    for lite, cv in zip(found["litert"], found["opencv"]):
+        assert len(lite) == len(cv) >= 1
+        for a, b in zip(lite, cv):
+            assert np.abs(a.mesh[:, :2] - b.mesh[:, :2]).max() < 1.0
+            assert abs(a.presence - b.presence) < 0.05
+    monkeypatch.setenv("SHADOWFLOW_NETS", "tensorflow")
+    with pytest.raises(RuntimeError, match="SHADOWFLOW_NETS='tensorflow': choose from litert, opencv"):
+        M.runtime()
+
+
 def test_anchors_tile_the_detectors_input_as_its_two_layers_do():
     a = M.ANCHORS
     assert a.shape == (896, 2)
