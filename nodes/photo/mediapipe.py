@@ -50,7 +50,7 @@ OUTER_CORNERS = (33, 263)  # the image-left eye's outer corner, the image-right 
 
 def _litert():
     """LiteRT's interpreter class (``ai-edge-litert``, Google's TensorFlow Lite runtime), or None where it is
-    not installed: it runs both nets two to three times faster than OpenCV's dnn (XNNPACK kernels)."""
+    not installed: it runs both nets about twice as fast as OpenCV's dnn (XNNPACK kernels)."""
     try:
         from ai_edge_litert.interpreter import Interpreter
     except ImportError:
@@ -93,7 +93,7 @@ RUNTIMES = ("litert", "opencv")
 
 def runtime() -> str:
     """Which runtime runs the nets: ``SHADOWFLOW_NETS`` (litert | opencv) when set, else LiteRT where it is
-    installed, else OpenCV's dnn. The two agree to a fraction of a pixel (tests/photo/test_faces.py)."""
+    installed, else OpenCV's dnn. The two find the same faces, landmarks within a pixel (tests/photo/test_faces.py)."""
     import os
 
     asked = os.environ.get("SHADOWFLOW_NETS", "").strip().lower()
