@@ -14,7 +14,7 @@ class Kind(StrEnum):
     """How an event's value is stored and shown."""
 
     ARRAY = "array"  # any array; a 1-D one is plotted per entry, a 2-D one shown as an image
-    IMAGE = "image"  # (H, W) grey in [0, 1]
+    IMAGE = "image"  # (H, W) grey or (H, W, 3) RGB in [0, 1]
     DEPTH = "depth"  # (H, W) heights
     NORMALS = "normals"  # (H, W, 3) unit vectors
     MESH = "mesh"  # dict: vertices (V, 3), triangles (T, 3), colours (V, 3) uint8

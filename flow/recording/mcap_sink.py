@@ -116,7 +116,8 @@ def raw_image(event: Event) -> bytes:
     elif event.kind is Kind.DEPTH:
         img, encoding = display(event.value, Kind.DEPTH), "32FC1"  # float32, 0 off the face
     else:
-        img, encoding = (display(event.value, event.kind).clip(0, 1) * 255 + 0.5).astype(np.uint8), "mono8"
+        img = (display(event.value, event.kind).clip(0, 1) * 255 + 0.5).astype(np.uint8)
+        encoding = "rgb8" if img.ndim == 3 else "mono8"  # an image in colour, or grey
     img = np.ascontiguousarray(img)
     msg = RawImage(frame_id="camera", width=img.shape[1], height=img.shape[0], encoding=encoding,
                    step=img.strides[0], data=img.tobytes())

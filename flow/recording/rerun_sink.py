@@ -136,13 +136,15 @@ class RerunSink(Sink):
         elif event.kind is Kind.NORMALS:
             rec.log(entity, rr.Image(display(v, Kind.NORMALS)))
         else:
-            a = display(v, event.kind)
-            if a.ndim == 2:  # "image", and 2-D "array"s
-                rec.log(entity, rr.Image(a))
-            elif a.ndim == 1:  # a vector (the fit's coefficients): a bar chart
-                rec.log(entity, rr.BarChart(a))
-            else:
-                rec.log(entity, rr.Tensor(a))
+            rec.log(entity, self._shown(display(v, event.kind), event.kind))
+
+    def _shown(self, a: np.ndarray, kind: Kind):
+        """The Rerun archetype of an image or array: an image (grey, RGB, and 2-D arrays), a bar chart
+        (a vector, the fit's coefficients) or a tensor."""
+        rr = self.rr
+        if a.ndim == 2 or (kind is Kind.IMAGE and a.ndim == 3 and a.shape[2] == 3):
+            return rr.Image(a)
+        return rr.BarChart(a) if a.ndim == 1 else rr.Tensor(a)
 
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""

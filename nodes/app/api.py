@@ -45,7 +45,7 @@ class Products:
     three channels when it was given so
     (auto-exposed on the face); relit_extra: ``(light, photo)`` for each of
     ``MethodOptions.extra_lights``; quality: score, flags and signals (``method/quality.py``);
-    mask (H, W) bool face; novel_view (Hm, Wm) model grid, the surface turned about the vertical
+    mask (H, W) bool face; novel_view (Hm, Wm[, 3]) model grid, linear, the surface turned about the vertical
     axis; light (3,) the light used (input camera frame); history: one dict of scalars per fit
     iteration (sigma, residual_mean, residual_median, downweighted_fraction, change_deg);
     iterations, converged: how the fit ended; frame: the face's frame, everything on the model grid

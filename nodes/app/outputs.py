@@ -18,7 +18,7 @@ from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_ch
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
-from ..method.products import face_products, on_photo, photo_mesh, relit_photos, squeeze_channels
+from ..method.products import face_products, in_encoding, on_photo, photo_mesh, relit_photos, squeeze_channels
 from ..model.shape_model import ShapeModel
 from .view import VIEW_NAME, view_html
 
@@ -146,6 +146,13 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     return written
 
 
+def novel_view_8bit(face: Frame) -> np.ndarray:
+    """``novel_view.png``'s pixels: the turned face in the photo's own encoding (as its albedo), 0 beside it."""
+    view = face.data["novel_view"]
+    seen = view > 0 if view.ndim == 2 else np.any(view > 0, axis=-1)
+    return to_8bit(in_encoding(face, view), seen)
+
+
 def write_face(face: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
     """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. Made from the face's
     box (``face_products``): only the arrays' files hold the whole photo's grid, as conventions.md
@@ -164,7 +171,7 @@ def write_face(face: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
         "depth.npy": lambda: _npy_bytes(on_photo(p.pop("depth"), box, shape)),
         "albedo.png": lambda: png(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
         "shadow.png": lambda: png(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
-        "novel_view.png": lambda: _png_bytes(to_8bit(face.data["novel_view"], face.data["novel_view"] > 0)),
+        "novel_view.png": lambda: _png_bytes(novel_view_8bit(face)),
         "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face, model)),  # the fit's resolution, the photo's frame
     }
     folder.mkdir(parents=True, exist_ok=True)

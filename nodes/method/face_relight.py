@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.raster import polygon_mask
-from ..photo.align import Alignment, face_box, mask_to_input, normals_to_input, scalar_to_input
+from ..photo.align import Alignment, face_box, mask_to_input, normals_to_input, scalar_to_input, to_model_grid
 from .eye_detail import CONTRAST as EYE_CONTRAST
 from .eye_detail import EyeDetail
 from .live_relight import live_relight_data
@@ -134,3 +134,17 @@ class FaceRelight:
             skin=self.skin_only, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
             photo_light=self.light, clipped=(np.atleast_3d(photo) >= CLIPPED) & self.face[..., None],
             depth=self.depth, grid_mask=self.mask, to_box=self.al.matrix, encoding=encoding)
+
+
+def albedo_on_grid(albedo: np.ndarray, box: tuple[int, int, int, int], alignment: Alignment,
+                   grid: tuple[int, int]) -> np.ndarray:
+    """(Hm, Wm, C) a face's albedo measured on the photo (``FaceRelight.albedo``: (h, w, C) in ``box``
+    ``(y0, y1, x0, x1)``, NaN off the face) brought to the model grid, area-averaged over what is known;
+    NaN where its box knows nothing. alignment: model pixel -> photo pixel (the whole photo's)."""
+    y0, _, x0, _ = box
+    al = alignment.cropped(x0, y0)
+    known = np.isfinite(albedo[..., 0]).astype(np.float32)
+    weight = to_model_grid(known, al, grid)
+    out = np.stack([to_model_grid(np.nan_to_num(albedo[..., c]).astype(np.float32) * known, al, grid)
+                    for c in range(albedo.shape[-1])], axis=-1) / np.maximum(weight, 1e-6)[..., None]
+    return np.where((weight > 0.5)[..., None], out, np.nan).astype(np.float32)

@@ -39,7 +39,8 @@ DATA: dict[str, tuple[str, str]] = {
     "albedo": ("(Hm, Wm) float32 albedo, NaN off the face", "albedo"),
     "albedo_source": ("(Hm, Wm) uint8: 0 off-face, 1 measured, 2 mirrored, 3 filled", "albedo"),
     "relit": ("(Hm, Wm) the face under ``MethodOptions.relight_light``", "relight"),
-    "novel_view": ("(Hm, Wm) the surface turned about the vertical axis", "relight"),
+    "novel_view": ("(Hm, Wm) or (Hm, Wm, 3) (colour photo) the surface turned about the vertical axis, linear",
+                   "novel_view"),
     "photo_box": ("(y0, y1, x0, x1) the photo pixels around the face the next three cover", "relight_photo"),
     "photo_albedo": ("(h, w, C) albedo in the face's box of the photo grid, C = 3 for a colour photo, NaN off "
                      "the face", "relight_photo"),

@@ -22,7 +22,7 @@ from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_f
 from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
-from .face_relight import FaceRelight
+from .face_relight import FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
 from .products import relit_photos
@@ -420,10 +420,29 @@ class RelightNode:
         light = al.vector_to_model(self.options.relight_light)
         frame.data["relit"] = relight(frame.data["albedo"], np.nan_to_num(shading_normals(frame)), light,
                                       frame.data["depth"])
-        depth, albedo = frame.data["depth"], frame.data["albedo"]
+        return frame
+
+
+class NovelViewNode:
+    """The surface turned ``novel_yaw_deg`` about the vertical axis (``relight.novel_view``), with the
+    albedo measured on the photo (colour for a colour photo: ``photo_albedo``, brought to the model grid):
+    the face within its own outline, not the hair, ears or background the model grid reaches beyond it."""
+
+    name = "novel_view"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+
+    def __call__(self, frame: Frame) -> Frame:
+        d = frame.data
+        albedo, depth = d["albedo"], d["depth"]
+        if "photo_albedo" in d:
+            measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"], self.model.grid)
+            depth = np.where(np.isfinite(measured[..., 0]), depth, np.nan)
+            albedo = measured[..., 0] if measured.shape[-1] == 1 else measured
         if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
             depth, albedo = resample_surface(depth, albedo, self.options.novel_size)
-        frame.data["novel_view"] = novel_view(depth, albedo, self.options.novel_yaw_deg)
+        d["novel_view"] = novel_view(depth, albedo, self.options.novel_yaw_deg)
         return frame
 
 
@@ -524,7 +543,7 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         QualityNode(model),  # before the relighting: a frame with no face fails without paying for it
     ]
     if with_views:
-        nodes += [RelightNode(options), PhotoRelightNode(model, options)]
+        nodes += [RelightNode(options), PhotoRelightNode(model, options), NovelViewNode(model, options)]
     return nodes
 
 

@@ -37,10 +37,12 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
 
     The surface (pixel-unit heights, NaN off the face) is turned about the vertical line
     through its centroid; the light stays fixed in the camera frame, so the face is lit as
-    a real head turned under the same lamp. Returns (H, W) float32 in [0, 1], 0 background.
+    a real head turned under the same lamp. albedo: (H, W) or (H, W, C) (colour) on the surface's
+    grid. Returns (H, W) or (H, W, C) float32 in [0, 1], 0 background.
     """
     mask = np.isfinite(depth)
     h, w = depth.shape
+    colours = np.asarray(albedo, np.float64).reshape(h * w, -1)
     pix, _ = grid_mesh(mask)
     rows, cols = np.divmod(pix, w)
     x, y, z = cols.astype(float), rows.astype(float), depth.flat[pix].astype(float)
@@ -54,11 +56,14 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
     # wall, a dark crack down the face
     n = np.nan_to_num(normals_from_depth(depth).reshape(-1, 3)[pix].astype(np.float64))
     turned = np.column_stack([c * n[:, 0] + s * n[:, 2], n[:, 1], -s * n[:, 0] + c * n[:, 2]])
-    attributes = np.column_stack([np.nan_to_num(albedo.ravel()[pix]), turned])
+    attributes = np.column_stack([np.nan_to_num(colours[pix]), turned])
     _, attrs = rasterize_row_edges(np.column_stack([xr, y, zr]), grid_row_edges(mask), (h, w), attributes=attributes)
-    normals = np.nan_to_num(attrs[..., 1:])
+    k = colours.shape[1]
+    normals = np.nan_to_num(attrs[..., k:])
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-    img = np.nan_to_num(relight(np.nan_to_num(attrs[..., 0]), normals, light))
+    s_light = np.asarray(light, np.float64) / np.linalg.norm(light)
+    shade = np.clip(normals @ s_light, 0.0, None)
+    img = np.nan_to_num(attrs[..., :k]) * shade[..., None]
     # a steep slope seen nearly edge-on (the nose's side beside the cheek it hides) covers a sliver of its
     # pixels, foreshortened by its normal's z: those pixels take their neighbours' shade, as an antialiased
     # edge would, not the slope's own (dark under a frontal light: a dotted crack down the nose)
@@ -66,14 +71,16 @@ def novel_view(depth: np.ndarray, albedo: np.ndarray, yaw_deg: float = 45.0,
     edge_on = covered & (normals[..., 2] <= EDGE_ON)
     if edge_on.any():
         seen = (covered & ~edge_on).astype(np.float32)
-        near = cv2.GaussianBlur(img * seen, (0, 0), 1.0) / np.maximum(cv2.GaussianBlur(seen, (0, 0), 1.0), 1e-6)
-        img = np.where(edge_on, near, img)
-    return np.clip(img, 0.0, 1.0).astype(np.float32)
+        near = np.atleast_3d(cv2.GaussianBlur((img * seen[..., None]).astype(np.float32), (0, 0), 1.0)) / \
+            np.maximum(cv2.GaussianBlur(seen, (0, 0), 1.0), 1e-6)[..., None]
+        img = np.where(edge_on[..., None], near, img)
+    out = np.clip(img, 0.0, 1.0).astype(np.float32)
+    return out[..., 0] if np.ndim(albedo) == 2 else out
 
 
 def resample_surface(depth: np.ndarray, albedo: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """The surface (heights in pixels, NaN off it) and its albedo resampled to ``size`` x ``size``
-    (a square grid, as the model's): heights scale with the pixels."""
+    """The surface (heights in pixels, NaN off it) and its albedo ((H, W) or (H, W, C)) resampled to
+    ``size`` x ``size`` (a square grid, as the model's): heights scale with the pixels."""
     h, w = depth.shape
     factor = size / max(h, w)
     out_hw = (max(1, int(round(w * factor))), max(1, int(round(h * factor))))
@@ -82,7 +89,7 @@ def resample_surface(depth: np.ndarray, albedo: np.ndarray, size: int) -> tuple[
     d = cv2.resize(np.nan_to_num(depth).astype(np.float32), out_hw, interpolation=cv2.INTER_LINEAR)
     a = cv2.resize(np.nan_to_num(albedo).astype(np.float32), out_hw, interpolation=cv2.INTER_LINEAR)
     inside = cover >= 0.999
-    return np.where(inside, d * factor, np.nan), np.where(inside, a, np.nan)
+    return np.where(inside, d * factor, np.nan), np.where(inside if a.ndim == 2 else inside[..., None], a, np.nan)
 
 
 def surface_mesh(depth: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:

@@ -96,6 +96,10 @@ def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_reli
     face = result.mask
     rgb = relit[face].mean(axis=0)
     assert rgb[0] > rgb[1] > rgb[2]  # still skin-coloured
+    turned = result.novel_view  # the face turned is in colour too
+    assert turned.ndim == 3 and turned.shape[2] == 3
+    tone = turned[turned.max(axis=-1) > 0.05].mean(axis=0)
+    assert tone[0] > tone[1] > tone[2]
     # the background, far from the face, is the photo times one gain
     from scipy import ndimage
 

@@ -30,3 +30,18 @@ def test_the_turned_surface_has_no_crack_where_the_nose_hides_the_cheek():
     cols = np.nonzero(face[rows].any(axis=0))[0]
     left, right = view[rows, cols[:8]].mean(), view[rows, cols[-8:]].mean()
     assert abs(left - right) > 0.05
+
+
+def test_a_colour_albedo_turns_with_its_colours_and_a_grey_one_stays_grey():
+    depth = _face_with_a_nose()
+    face = np.isfinite(depth)
+    grey = np.where(face, 0.8, np.nan)
+    colour = np.where(face[..., None], np.array([0.8, 0.6, 0.4]), np.nan)
+    plain, coloured = novel_view(depth, grey, 30.0), novel_view(depth, colour, 30.0)
+    assert plain.shape == depth.shape and coloured.shape == depth.shape + (3,)
+    seen = plain > 0.05
+    assert seen.sum() > 2000
+    # the same shading in every channel, scaled by each channel's albedo
+    np.testing.assert_allclose(coloured[seen][:, 0], plain[seen], atol=1e-5)
+    np.testing.assert_allclose(coloured[seen][:, 1] / coloured[seen][:, 0], 0.75, atol=1e-4)
+    np.testing.assert_allclose(coloured[seen][:, 2] / coloured[seen][:, 0], 0.5, atol=1e-4)
