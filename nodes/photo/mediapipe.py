@@ -18,12 +18,15 @@ Everything here is in photo pixels: x = column, y = row (down).
 """
 from __future__ import annotations
 
+import os
 import threading
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+
+from .native_messages import decoder_messages_dropped
 
 DATA = Path(__file__).resolve().parent / "data"
 DETECTOR_FILE = DATA / "face_detection_short_range.tflite"
@@ -62,8 +65,6 @@ class _LiteRtNet:
     """One model in LiteRT, called as ``(N=1, H, W, C) float32 -> named outputs``."""
 
     def __init__(self, path: Path, interpreter):
-        from .native_messages import decoder_messages_dropped
-
         with decoder_messages_dropped():  # its note on loading, on standard error
             self._net = interpreter(model_path=str(path), num_threads=1)  # one core: the run's threads share them
             self._net.allocate_tensors()
@@ -94,8 +95,6 @@ RUNTIMES = ("litert", "opencv")
 def runtime() -> str:
     """Which runtime runs the nets: ``SHADOWFLOW_NETS`` (litert | opencv) when set, else LiteRT where it is
     installed, else OpenCV's dnn. The two find the same faces, landmarks within a pixel (tests/photo/test_faces.py)."""
-    import os
-
     asked = os.environ.get("SHADOWFLOW_NETS", "").strip().lower()
     if asked and asked not in RUNTIMES:
         raise RuntimeError(f"SHADOWFLOW_NETS={asked!r}: choose from {', '.join(RUNTIMES)}")
