@@ -54,7 +54,8 @@ def channel(frame: Frame, path: str) -> str:
     return path if k <= 1 else f"face{k}/{path}"
 
 
-DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH}  # re-logging
+DISPLAY_KINDS = {"normals": Kind.NORMALS, "model_normals": Kind.NORMALS, "depth": Kind.DEPTH,  # re-logging
+                 "novel_view": Kind.IMAGE}  # (colour for a colour photo)
 # the mesh is recorded as its parts (vertices, triangles, colours: ``Kind.MESH``); re-logged one by one they
 # would show as meaningless images
 RELOG_LEFT_OUT = ("mesh",)
