@@ -50,6 +50,9 @@ MIN_PRESENCE = 0.5  # the face mesh's own threshold (MediaPipe's graph uses 0.5)
 # turn that shows it within MAX_ROLL of upright (a face on its side, meshed as it stands, comes out skewed)
 QUARTER_TURNS = (0, 2, 1, 3)
 MAX_ROLL = 45.0
+# a photo that shows no upright face is looked at turned at most this many pixels on its long side: whole
+# views (the detector's 128 px) and the photo as one face's crop (the mesh's 192 px) need no more
+TURNED_SIDE = 640
 MIN_IOD = 30.0  # pixels between the eyes: the smallest face the detector is made to look for
 SMALLEST_IOD = 12.0  # found faces smaller than this are left alone: too few pixels to fit
 # the tracking crop is followed at most this many times, until it moves less than SETTLED of its side
@@ -135,13 +138,36 @@ def find_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:
     that shows any, mapped back: such a face is placed turned, its eyes listed as they are when the
     face is upright (image-left first then). Faces are upright in nearly every photo, and trying
     every turn of every candidate finds faces in a sleeve or a badge (a jacket's folds turned over)."""
-    for quarter in QUARTER_TURNS:
-        turned = np.ascontiguousarray(np.rot90(rgb, quarter)) if quarter else rgb
-        # turned, the photo is seen whole only: a photo saved the wrong way up is mostly a portrait
-        faces = upright_faces(turned, min_iod if not quarter else float("inf"))
+    faces = upright_faces(rgb, min_iod)
+    if faces:
+        return faces
+    # turned, the photo is seen whole only (a photo saved the wrong way up is mostly a portrait), so a smaller
+    # copy shows the nets what the whole photo would, and is turned and looked at for a fraction of the cost
+    small, k = _for_turns(rgb)
+    for quarter in QUARTER_TURNS[1:]:
+        faces = upright_faces(np.ascontiguousarray(np.rot90(small, quarter)), float("inf"))
         if faces:
-            return [_turned_back(f, quarter, rgb.shape[:2]) for f in faces] if quarter else faces
+            return [_scaled(_turned_back(f, quarter, small.shape[:2]), k) for f in faces]
     return []
+
+
+def _for_turns(rgb: np.ndarray) -> tuple[np.ndarray, float]:
+    """``rgb`` area-averaged to at most ``TURNED_SIDE`` pixels on its long side, and the photo's pixels per
+    pixel of it (1: small enough as it is)."""
+    k = max(rgb.shape[:2]) / TURNED_SIDE
+    if k <= 1.0:
+        return rgb, 1.0
+    h, w = rgb.shape[:2]
+    size = (max(1, round(w / k)), max(1, round(h / k)))
+    return cv2.resize(rgb, size, interpolation=cv2.INTER_AREA), w / size[0]
+
+
+def _scaled(face: FoundFace, k: float) -> FoundFace:
+    """A face found in a copy of the photo ``k`` times smaller, in the photo's pixels (pixel centres kept)."""
+    if k == 1.0:
+        return face
+    x, y, z = face.mesh.T
+    return FoundFace(np.column_stack([(x + 0.5) * k - 0.5, (y + 0.5) * k - 0.5, z * k]), face.presence, face.score)
 
 
 def _turned_back(face: FoundFace, quarter: int, shape: tuple[int, int]) -> FoundFace:

@@ -104,6 +104,22 @@ def test_a_face_found_in_a_turned_photo_maps_back_to_the_photo():
         assert sorted(map(tuple, back)) == sorted(map(tuple, pts[:, :2])), quarter
 
 
+def test_a_large_photo_saved_the_wrong_way_up_is_looked_at_small_and_placed_in_its_own_pixels(astronaut):
+    """A 1 MP photo turned a half or a quarter is looked at through a copy of at most ``TURNED_SIDE`` pixels:
+    her eyes still land within 5 % of their distance of where the upright photo's are, turned with it."""
+    big = cv2.resize(astronaut, (1100, 1100), interpolation=cv2.INTER_CUBIC)
+    upright = F.find_faces(big)[0].eyes
+    iod = float(np.linalg.norm(upright[1] - upright[0]))
+    n = big.shape[0]
+    for quarter, truth in ((2, np.column_stack([n - 1 - upright[:, 0], n - 1 - upright[:, 1]])),
+                           (1, np.column_stack([upright[:, 1], n - 1 - upright[:, 0]]))):
+        faces = F.find_faces(np.ascontiguousarray(np.rot90(big, quarter)))
+        assert len(faces) == 1, quarter
+        eyes = faces[0].eyes
+        off = min(np.abs(eyes - truth).max(), np.abs(eyes[::-1] - truth).max())
+        assert off < 0.05 * iod, (quarter, eyes, truth)
+
+
 def test_placement_recovers_a_similarity_and_a_face_length():
     rng = np.random.default_rng(0)
     grid = rng.uniform(20, 100, (12, 2))
