@@ -19,6 +19,7 @@ from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
 from ..method.products import face_products, in_encoding, on_photo, photo_mesh, relit_photos, squeeze_channels
+from ..method.quality import NO_FACE
 from ..model.shape_model import ShapeModel
 from .view import VIEW_NAME, view_html
 
@@ -270,7 +271,7 @@ def status_lines(rec: dict) -> list[str]:
     has_face = any(f["status"] == "ok" or f["status"].startswith("doubtful: ") for f in rec["faces"])
     for k, face in enumerate(rec["faces"], start=1):
         status = face["status"]
-        if status == "ok" or (has_face and ": no face found" in status):  # a candidate beside a real face that
+        if status == "ok" or (has_face and f": {NO_FACE}" in status):  # a candidate beside a real face that
             continue  # the fit found no face in (listed in summary.json with its reason): not the photo's error
         name = rec["source"] if k == 1 else f"{rec['source']} (face {k})"
         if status.startswith("doubtful: "):

@@ -211,11 +211,15 @@ def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
     return out
 
 
-def run_file_clash(path: str, out: Path) -> str | None:
-    """Why an input cannot be run into ``out``: it, or its sidecar, is one of the files the run writes
-    beside its output folders (``summary.json`` would overwrite the sidecar of ``summary.png``, and
-    ``manifest.png`` would read the run's manifest as its own); None when nothing clashes."""
-    run_files = {real_path(out / name) for name in RUN_FILES}
+def run_files(out: Path) -> set[Path]:
+    """The real paths of the files a run writes beside its output folders in ``out``."""
+    return {real_path(out / name) for name in RUN_FILES}
+
+
+def run_file_clash(path: str, run_files: set[Path]) -> str | None:
+    """Why an input cannot be run into the folder whose ``run_files`` these are: it, or its sidecar, is one
+    of them (``summary.json`` would overwrite the sidecar of ``summary.png``, and ``manifest.png`` would
+    read the run's manifest as its own); None when nothing clashes."""
     p = Path(path)
     if real_path(p) in run_files:
         return f"{p}: is a file the run writes in --out; choose another --out"
@@ -235,9 +239,11 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
     lists them); ``--resume`` finishes the job once there is room.
     """
     if isinstance(paths, (list, tuple)):
+        written = run_files(out)
         for path in paths:
-            if run_file_clash(path, out):
-                raise ValueError(run_file_clash(path, out))
+            clash = run_file_clash(path, written)
+            if clash:
+                raise ValueError(clash)
     check_writable(out)
     release_large_frees()
     holder = f"pid {os.getpid()} on {socket.gethostname()}, started {time.strftime('%Y-%m-%d %H:%M:%S')}"
@@ -292,6 +298,7 @@ class StoredRun:
         # outputs must never land on an input: all of them when the list is known, else as they come
         self.protected: set[Path] = {real_path(p) for p in paths} if isinstance(paths, (list, tuple)) else set()
         self.pipeline = None  # made by ``execute``, after the recordings and the journal are open
+        self.run_files = run_files(out)  # what no input may be (``run_file_clash``)
         self._open_recordings()
         manifest.save(out)  # the job's parts and inputs so far, before any frame
         self.journal = Journal(out)
@@ -476,7 +483,7 @@ class StoredRun:
         complete and made from the same input under the same configuration."""
         frame = Frame(fid, path)
         frame.meta.update(stem=name, input_key=key, identity=identity)
-        clash = run_file_clash(path, self.out)
+        clash = run_file_clash(path, self.run_files)
         if clash:  # (a watched folder's newcomer: a listed one refused the run before it began)
             frame.fail("load", clash)
             return frame

@@ -145,6 +145,7 @@ def albedo_on_grid(albedo: np.ndarray, box: tuple[int, int, int, int], alignment
     al = alignment.cropped(x0, y0)
     known = np.isfinite(albedo[..., 0]).astype(np.float32)
     weight = to_model_grid(known, al, grid)
-    out = np.stack([to_model_grid(np.nan_to_num(albedo[..., c]).astype(np.float32) * known, al, grid)
-                    for c in range(albedo.shape[-1])], axis=-1) / np.maximum(weight, 1e-6)[..., None]
+    # (one channel comes back from OpenCV without its axis)
+    measured = to_model_grid(np.nan_to_num(albedo).astype(np.float32) * known[..., None], al, grid)
+    out = measured.reshape(weight.shape + (albedo.shape[-1],)) / np.maximum(weight, 1e-6)[..., None]
     return np.where((weight > 0.5)[..., None], out, np.nan).astype(np.float32)

@@ -26,7 +26,7 @@ from .face_relight import FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
 from .products import relit_photos
-from .quality import assess, core_face, explained_variance
+from .quality import NO_FACE, assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
@@ -231,7 +231,7 @@ class FacesNode:
             placements = place_faces(m, photo_rgb8(frame), d.get("given_eyes"), frame.meta.get("eyes_source", ""),
                                      self.options.find_faces, self.options.face_length)
         if not placements:
-            raise FrameFailed(f"{frame.source}: no face found")
+            raise FrameFailed(f"{frame.source}: {NO_FACE}")
         frame.parts = [self._face(frame, k, p) for k, p in enumerate(placements)]
         return frame
 
@@ -249,7 +249,7 @@ class FacesNode:
         else:
             use = seen.copy()
             if "colour" in d:  # the skin only: hair over the forehead, brows and eyes are dark but not shaded
-                grid_colour = np.stack([to_model_grid(d["colour"][..., c], al, m.grid) for c in range(3)], axis=-1)
+                grid_colour = to_model_grid(d["colour"], al, m.grid)
                 use &= skin(grid_colour, use & m.mask)
             light, how = al.vector_to_input(light_on_face(grid_image, use, m)), "estimated"
         face.data.update(alignment=al, placement=placement, eyes_found=placement.found, grid_image=grid_image,
@@ -524,7 +524,7 @@ class QualityNode:
                    plausible=placement.plausible if placement is not None else True)
         frame.meta["quality"] = q.record()
         if q.no_face:
-            raise FrameFailed(f"{frame.source}: no face found ({'; '.join(q.flags)})")
+            raise FrameFailed(f"{frame.source}: {NO_FACE} ({'; '.join(q.flags)})")
         return frame
 
 

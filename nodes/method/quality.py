@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
+
 # thresholds set between real and rendered faces (good) and the hostile corpus of tests/method/test_quality.py
 # (bad); what each side measured: docs/tuning.md, "Quality"
 MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness

@@ -124,7 +124,7 @@ def grid_reach(al: Alignment, grid: tuple[int, int], shape: tuple[int, int], rea
 
 
 def to_model_grid(image: np.ndarray, al: Alignment, grid: tuple[int, int]) -> np.ndarray:
-    """Resample an input image (H, W) onto the model grid (area-averaged when shrinking). Only the
+    """Resample an input image (H, W) or (H, W, C) onto the model grid (area-averaged when shrinking). Only the
     photo's pixels the grid reaches (and the blur's) are touched: a 4-megapixel photo costs what its
     face does."""
     img = np.asarray(image)

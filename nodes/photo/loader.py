@@ -178,12 +178,6 @@ def _load_npy(p: Path, data: bytes) -> np.ndarray:
 LUMA = np.array([0.299, 0.587, 0.114], np.float32)  # ITU-R BT.601 weights of R, G, B (OpenCV's BGR2GRAY)
 
 
-def luminance(image: np.ndarray) -> np.ndarray:
-    """(H, W) brightness of an RGB image (H, W, 3); a grey (H, W) image is returned as it is."""
-    a = np.asarray(image)
-    return a @ LUMA if a.ndim == 3 else a
-
-
 def load_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image as (H, W) float32 brightness in [0, 1] (``load_photo`` without its colour)."""
     return load_photo(path)[0]

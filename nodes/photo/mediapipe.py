@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .align import Alignment, grid_reach
 from .native_messages import decoder_messages_dropped
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -210,12 +211,7 @@ def _shrunk(rgb: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
 def _around(rgb: np.ndarray, to_photo: np.ndarray, size: int, margin: float) -> tuple[np.ndarray, np.ndarray]:
     """The part of the photo a ``size``^2 window (``to_photo``, (2, 3)) shows, ``margin`` pixels wider (a view,
     not a copy), and the (3, 3) map from its pixels to the photo's: a large photo is then shrunk only there."""
-    corners = np.array([[0.0, 0.0], [size, 0.0], [0.0, size], [size, size]]) @ to_photo[:, :2].T + to_photo[:, 2]
-    h, w = rgb.shape[:2]
-    x0, y0 = (max(0, int(np.floor(v - margin))) for v in corners.min(axis=0))
-    x1, y1 = min(w, int(np.ceil(corners[:, 0].max() + margin))), min(h, int(np.ceil(corners[:, 1].max() + margin)))
-    if x1 - x0 < 2 or y1 - y0 < 2:  # the window is off the photo: all of it (the window comes out black)
-        return rgb, np.eye(3)
+    y0, y1, x0, x1 = grid_reach(Alignment(to_photo, "crop"), (size, size), rgb.shape[:2], int(np.ceil(margin)))
     return rgb[y0:y1, x0:x1], np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
 
 
