@@ -50,7 +50,7 @@ def astronaut_figure(folder: Path) -> np.ndarray:
     cv2.imwrite(str(path), rgb[..., ::-1])
     r = shadowflow.fit(path, options=shadowflow.MethodOptions(
         extra_lights=(light_from_angles(-60, 10), light_from_angles(60, 10))))
-    relit = [img for _, img in r.photo.data["photo_relit"]]
+    relit = [r.relit, *(img for _, img in r.relit_extra)]
     found = rgb[..., ::-1].copy()
     face = r.faces[0]
     x0, y0, x1, y1 = (int(round(v)) for v in face["box"])
@@ -105,7 +105,7 @@ def portrait_figure(folder: Path) -> np.ndarray:
     photo.with_suffix(".json").write_text(json.dumps({"light": side["light"], "eyes": eyes}))
     options = shadowflow.MethodOptions(extra_lights=(light_from_angles(-45),))
     r = shadowflow.fit(photo, options=options)
-    other = r.photo.data["photo_relit"][1][1]
+    other = r.relit_extra[0][1]
     return np.hstack([_grey8(linear_to_srgb(frame)), _grey8(r.relit), _grey8(other),
                       _grey8(np.where(r.mask[..., None], r.albedo, 0))])
 

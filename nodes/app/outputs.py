@@ -18,7 +18,8 @@ from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_ch
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
-from ..method.products import face_products, in_encoding, on_photo, photo_mesh, relit_photos, squeeze_channels
+from ..method.products import (face_products, in_encoding, on_photo, photo_mesh, relit_lights, relit_photo_8bit,
+                               squeeze_channels)
 from ..method.quality import NO_FACE
 from ..model.shape_model import ShapeModel
 from .view import VIEW_NAME, view_html
@@ -92,6 +93,11 @@ def mesh_ply_bytes(m: dict[str, np.ndarray]) -> bytes:
     return mesh.export(file_type="ply")
 
 
+def _bgr(rgb8: np.ndarray) -> np.ndarray:
+    """(H, W, 3) RGB -> OpenCV's BGR; (H, W, 1) -> (H, W)."""
+    return rgb8[..., 0] if rgb8.shape[-1] == 1 else np.ascontiguousarray(rgb8[..., ::-1])
+
+
 def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """[0, 1] floats (H, W) or RGB (H, W, 3) -> uint8 (RGB becomes OpenCV's BGR), 0 off the mask."""
     v = np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255)
@@ -127,16 +133,15 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, st
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
     in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
-    let go before the next (a large photo's files are not all held at once)."""
-    relit = relit_photos(frame)
+    let go before the next (a large photo's files are not all held at once, nor its relit photos)."""
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
         for name, path in write_face(face, model, folder / sub if sub else folder).items():
             written[f"{sub}/{name}" if sub else name] = path
-    encoders = {"relit.png": lambda: _png_bytes(to_8bit(squeeze_channels(relit[0][1])))}
-    for light, image in relit[1:]:
-        encoders[relit_name(light)] = lambda image=image: _png_bytes(to_8bit(squeeze_channels(image)))
+    lights = relit_lights(frame)
+    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: _png_bytes(_bgr(relit_photo_8bit(frame, i)))
+                for i, light in enumerate(lights)}
     # the photo to look at and relight by hand: every face, the failed ones marked
     stem = frame.meta.get("stem")
     faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
@@ -193,7 +198,7 @@ class WriteNode:
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
-        targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light, _ in relit_photos(frame)[1:]))]
+        targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light in relit_lights(frame)[1:]))]
         for face in faces_of(frame):
             sub = face_folder(frame, face)
             if sub:

@@ -19,8 +19,6 @@ DATA: dict[str, tuple[str, str]] = {
     "rgb8": ("(H, W, 3) uint8 RGB, the file's own values, when it was decoded from sRGB (``image`` and ``colour`` "
              "are linear light)", "load, or given; faces"),
     "light": ("(3,) unit light, input camera frame: known before the faces (photo), or the face's", "load, faces"),
-    "photo_relit": ("list of (light (3,), (H, W, C) photo relit by it, every face composed in): "
-                    "``relight_light``, ``extra_lights``", "compose"),
     # a face's frame
     "alignment": ("``Alignment``: model pixel -> input pixel", "faces, or given"),
     "placement": ("``FacePlacement``: the face's alignment, eyes, box, pose, outlines and doubts", "faces"),

@@ -25,7 +25,6 @@ from .eye_detail import CONTRAST as EYE_CONTRAST
 from .face_relight import FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
-from .products import relit_photos
 from .quality import NO_FACE, assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -486,17 +485,6 @@ class PhotoRelightNode:
             eyes=eyes, eye_contrast=self.options.eye_contrast)
 
 
-class ComposeNode:
-    """The photo relit: every face's layer for each light put into it (``compose``), as ``photo_relit``;
-    the photo is the same outside the faces' feathers, bit for bit."""
-
-    name = "compose"
-
-    def __call__(self, frame: Frame) -> Frame:
-        frame.data["photo_relit"] = relit_photos(frame)
-        return frame
-
-
 class QualityNode:
     """Is there a face and did the fit work (``quality``): ``meta["quality"]`` holds the score,
     flags and signals; a frame with no face fails with that reason."""
@@ -550,7 +538,8 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
 def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
                 with_views: bool = True, after: tuple = ()) -> list:
     """The whole chain for a photo: load, find its faces, the method on each face (``method_nodes``,
-    then each of ``after``, e.g. recording), and (``with_views``) the photo relit with every face."""
+    then each of ``after``, e.g. recording). With ``with_views`` each face's relit layers are made
+    (``photo_layers``); the photo relit with every face is made from them when asked
+    (``products.relit_photo``)."""
     per_face = [*method_nodes(model, options, observer, with_views), *after]
-    nodes = [LoadNode(model, options), FacesNode(model, options), *(EachPart(n) for n in per_face)]
-    return nodes + [ComposeNode()] if with_views else nodes
+    return [LoadNode(model, options), FacesNode(model, options), *(EachPart(n) for n in per_face)]

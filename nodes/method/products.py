@@ -95,37 +95,74 @@ def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = No
             "relit_extra": [(light, squeeze_channels(r)) for light, r in relit[1:]]}
 
 
-def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(light, (H, W, C) photo)`` per light: the frame's photo with the layers of its faces that came
-    through (its parts' ``photo_layers``; a frame of one face without parts: its own) composed in,
-    float32 in [0, 1] in the photo's own encoding (``meta["encoding"]``): the relighting is done in
-    linear light, and an sRGB photo's pixels no face changes keep the file's values exactly."""
-    if "photo_relit" in frame.data:
-        return frame.data["photo_relit"]
+def relit_lights(frame: Frame) -> list[np.ndarray]:
+    """The lights the frame's photo is relit by (``relight_light``, then each of ``extra_lights``), (3,) each."""
+    return [light for light, _ in _relit_faces(frame)[0].data["photo_layers"]]
+
+
+def _relit_faces(frame: Frame) -> list[Frame]:
+    """The faces whose layers go into the photo: its parts that came through (a frame of one face without
+    parts: its own)."""
+    return [p for p in frame.parts if p.ok and "photo_layers" in p.data] or [frame]
+
+
+def relit_photo(frame: Frame, index: int) -> np.ndarray:
+    """(H, W, C) float32 in [0, 1]: the frame's photo relit by its ``index``-th light (``relit_lights``), the
+    layers of every face that came through composed in, in the photo's own encoding (``meta["encoding"]``):
+    the relighting is done in linear light, and an sRGB photo's pixels no face changes keep the file's
+    values exactly. Made when asked, not kept: a 4-megapixel photo relit is 48 MB."""
     d = frame.data
     photo = d["colour"] if "colour" in d else d["image"][..., None]
-    faces = [p for p in frame.parts if p.ok and "photo_layers" in p.data] or [frame]
-    lights = [light for light, _ in faces[0].data["photo_layers"]]
-    encoding = frame.meta.get("encoding", "linear")
-    out = []
-    for i, light in enumerate(lights):
-        layers = [f.data["photo_layers"][i][1] for f in faces]
-        image = compose(photo, layers) if encoding != "srgb" else _composed_srgb(photo, d["rgb8"], layers)
-        out.append((light, image))
-    return out
-
-
-def _composed_srgb(photo: np.ndarray, rgb8: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
-    """An sRGB photo with its faces' layers composed in: only the faces' boxes are composed (in linear light,
-    ``photo``) and encoded; the rest is the file's values (``rgb8``, 8 bits)."""
-    y0, x0 = min(layer.box[0] for layer in layers), min(layer.box[2] for layer in layers)
-    y1, x1 = max(layer.box[1] for layer in layers), max(layer.box[3] for layer in layers)
-    shifted = [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
-               for layer in layers for b in [layer.box]]
-    image = (rgb8 if rgb8.shape[-1] == photo.shape[-1] else rgb8[..., :1]).astype(np.float32)
+    layers = [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
+    if frame.meta.get("encoding", "linear") != "srgb":
+        return compose(photo, layers)
+    image = _file_values(photo, d["rgb8"]).astype(np.float32)
     image /= np.float32(255.0)
-    image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], shifted))
+    y0, y1, x0, x1 = _around(layers)
+    image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], _shifted(layers, y0, x0)))
     return image
+
+
+def relit_photo_8bit(frame: Frame, index: int) -> np.ndarray:
+    """(H, W, C) uint8 RGB (C = 1 for grey): ``relit_photo`` as its PNG holds it (rounded), made without the
+    float copy of the whole photo where it can be: an sRGB photo's file values with its faces' box encoded in."""
+    d = frame.data
+    if frame.meta.get("encoding", "linear") != "srgb":
+        return to_8bit(relit_photo(frame, index))
+    photo = d["colour"] if "colour" in d else d["image"][..., None]
+    layers = [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
+    image = _file_values(photo, d["rgb8"]).copy()
+    y0, y1, x0, x1 = _around(layers)
+    image[y0:y1, x0:x1] = to_8bit(linear_to_srgb(compose(photo[y0:y1, x0:x1], _shifted(layers, y0, x0))))
+    return image
+
+
+def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(light, relit_photo)`` for each of the frame's lights (``relit_lights``): all of them at once, for
+    callers that want them held (the API, benchmarks); a run writes them one at a time."""
+    return [(light, relit_photo(frame, i)) for i, light in enumerate(relit_lights(frame))]
+
+
+def to_8bit(values: np.ndarray) -> np.ndarray:
+    """[0, 1] floats -> uint8, rounded (NaN as 0)."""
+    return np.clip(np.nan_to_num(values) * np.float32(255.0) + np.float32(0.5), 0, 255).astype(np.uint8)
+
+
+def _file_values(photo: np.ndarray, rgb8: np.ndarray) -> np.ndarray:
+    """The file's own 8-bit values with the photo's channels: (H, W, 3), or (H, W, 1) for a grey photo."""
+    return rgb8 if rgb8.shape[-1] == photo.shape[-1] else rgb8[..., :1]
+
+
+def _around(layers: list[FaceLayer]) -> tuple[int, int, int, int]:
+    """The box ``(y0, y1, x0, x1)`` around every layer's box."""
+    return (min(layer.box[0] for layer in layers), max(layer.box[1] for layer in layers),
+            min(layer.box[2] for layer in layers), max(layer.box[3] for layer in layers))
+
+
+def _shifted(layers: list[FaceLayer], y0: int, x0: int) -> list[FaceLayer]:
+    """The layers with their boxes in a crop whose corner is ``(y0, x0)``."""
+    return [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
+            for layer in layers for b in [layer.box]]
 
 
 def in_encoding(frame: Frame, linear: np.ndarray) -> np.ndarray:

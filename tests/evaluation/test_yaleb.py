@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import SHARED
 from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.products import relit_photo
 
 YALEB = SHARED / "data" / "yaleb"
 
@@ -131,7 +132,7 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
             photo = chain.process(Frame(0, str(folder / f"{folder.name}_P00A{az:+04d}E+00.pgm")))
             frame = photo.parts[0]
             assert frame.data["eyes_found"] == "detected"
-            relit = photo.data["photo_relit"][0][1][..., 0]
+            relit = relit_photo(photo, 0)[..., 0]
             eyes = frame.data["placement"].eyes  # where the face mesh found them
             iod = np.linalg.norm(eyes[1] - eyes[0])
             yy, xx = np.mgrid[0:relit.shape[0], 0:relit.shape[1]]

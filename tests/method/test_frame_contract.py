@@ -6,7 +6,7 @@ from shadowflow.flow.frame import Frame
 from shadowflow.nodes.evaluation.scenes import render_scene, write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method import keys
-from shadowflow.nodes.method.nodes import ComposeNode, FacesNode, LoadNode, MethodOptions, method_nodes, on_model_grid
+from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions, method_nodes, on_model_grid
 from shadowflow.nodes.model.sources import procedural
 
 
@@ -40,8 +40,6 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     frame, added = _run_node_by_node(photo_frame.parts[0], method_nodes(model, options))
     _check(added)
     assert {"image", "grid_valid", "saturated", "shading_normals", "relit", "photo_layers"} <= set(frame.data)
-    photo_frame, added = _run_node_by_node(photo_frame, [ComposeNode()])
-    _check(added)
 
     depth, _ = procedural(1, seed=5)
     s = light_from_angles(40)
