@@ -161,7 +161,7 @@ def _around(layers: list[FaceLayer]) -> tuple[int, int, int, int]:
 
 def _shifted(layers: list[FaceLayer], y0: int, x0: int) -> list[FaceLayer]:
     """The layers with their boxes in a crop whose corner is ``(y0, x0)``."""
-    return [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain)
+    return [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain, layer.alpha)
             for layer in layers for b in [layer.box]]
 
 
