@@ -120,6 +120,20 @@ def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_reli
     result.save(tmp_path / "out")
     saved = cv2.imread(str(tmp_path / "out" / "relit.png"), cv2.IMREAD_UNCHANGED)
     assert saved.shape == (h, w, 3)
+    # the sRGB photo is relit in linear light as a linear one is, the face's inner feather included, and
+    # its 8-bit file is that rounded: the file's own values beyond the face's box
+    from shadowflow.nodes.method.photo_relight import compose
+    from shadowflow.nodes.method.products import relit_photo, relit_photo_8bit
+    from shadowflow.nodes.photo.encoding import linear_to_srgb
+
+    whole = result.photo
+    layers = [f.data["photo_layers"][0][1] for f in whole.parts]
+    linear = linear_to_srgb(compose(whole.data["colour"], layers))
+    assert np.abs(relit_photo(whole, 0) - linear).max() < 1e-5
+    assert layers[0].alpha is not None and (layers[0].alpha[layers[0].inside] < 1).sum() > 100
+    eight = relit_photo_8bit(whole, 0)
+    assert np.array_equal(eight, (linear * 255 + 0.5).astype(np.uint8))
+    assert np.array_equal(saved[..., ::-1], eight)
 
 
 @pytest.mark.slow
