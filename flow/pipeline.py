@@ -3,7 +3,8 @@
 Frames enter from any iterable; each stage runs one node in ``workers`` threads; stages are
 joined by ``queue.Queue(maxsize=queue_size)``, so a slow stage blocks the ones before it
 (backpressure) and at most ``sum(workers) + (stages + 1) * queue_size`` frames are in flight
-however long the stream. Results leave in input order. A node that raises fails only that
+however long the stream, or ``in_flight`` when that is fewer (frames that hold large arrays: a
+long pipeline's queues would otherwise hold dozens of them). Results leave in input order. A node that raises fails only that
 frame (see ``run_node``); ``stop()`` (or SIGINT / SIGTERM under ``handle_signals``) stops
 taking new frames and lets the frames in flight leave at once, marked ``cancelled`` (a node already running on one
 finishes first); frames finished before the stop are emitted as usual.
@@ -103,19 +104,24 @@ class Pipeline(Stoppable):
     """Run frames through stages of nodes concurrently; iterate over ``run`` for results.
 
     stages: nodes or ``Stage``s in order. queue_size: capacity of each queue between stages.
+    in_flight: the most frames between the source and the caller at once (None: as the queues allow).
     on_done: called in input order with each finished (or failed) frame, on the caller's
     thread, before it is yielded. frame_timeout: seconds one node may take on one frame
     (None: no limit), see ``run_node``.
     """
 
     def __init__(self, stages: Iterable, queue_size: int = 2,
-                 on_done: Callable[[Frame], None] | None = None, frame_timeout: float | None = None):
+                 on_done: Callable[[Frame], None] | None = None, frame_timeout: float | None = None,
+                 in_flight: int | None = None):
         self.stages = [s if isinstance(s, Stage) else Stage(s) for s in stages]
         if not self.stages:
             raise ValueError("a pipeline needs at least one node")
         self.queue_size = max(1, int(queue_size))
         self.on_done = on_done
         self.frame_timeout = frame_timeout
+        if in_flight is not None and in_flight < 1:
+            raise ValueError(f"in_flight must be at least 1, not {in_flight!r}")
+        self.in_flight = in_flight
         super().__init__()
         self._lock = threading.Lock()
         self._in_flight = 0
@@ -123,7 +129,8 @@ class Pipeline(Stoppable):
 
     def run(self, frames: Iterable[Frame], handle_signals: bool = False) -> Iterator[Frame]:
         queues = [queue.Queue(maxsize=self.queue_size) for _ in range(len(self.stages) + 1)]
-        source = Source(frames, queues[0], self._stop, ends=self.stages[0].workers, on_take=self._took)
+        slots = None if self.in_flight is None else threading.Semaphore(self.in_flight)
+        source = Source(frames, queues[0], self._stop, ends=self.stages[0].workers, on_take=self._took, slots=slots)
         threads = []
         for i, stage in enumerate(self.stages):
             remaining = [stage.workers]
@@ -136,7 +143,7 @@ class Pipeline(Stoppable):
             for t in threads:
                 t.start()
             try:
-                yield from self._emit(queues[-1])
+                yield from self._emit(queues[-1], slots)
             finally:
                 source.close()
         if source.errors:
@@ -171,8 +178,9 @@ class Pipeline(Stoppable):
                 self._stop.set()
             q_out.put((seq, frame))
 
-    def _emit(self, out: queue.Queue) -> Iterator[Frame]:
-        """The last stage's frames in input order (``on_done`` first), until it has ended."""
+    def _emit(self, out: queue.Queue, slots: threading.Semaphore | None) -> Iterator[Frame]:
+        """The last stage's frames in input order (``on_done`` first; its slot given back after), until it
+        has ended."""
         order: InOrder[Frame] = InOrder()
         while (item := out.get()) is not END:
             order.put(*item)
@@ -181,4 +189,6 @@ class Pipeline(Stoppable):
                     self._in_flight -= 1
                 if self.on_done is not None:
                     self.on_done(frame)
+                if slots is not None:
+                    slots.release()
                 yield frame

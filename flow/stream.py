@@ -57,11 +57,14 @@ class Source:
     """The frames of a run read on a thread of their own (a watched folder may block) into ``queue`` as
     ``(seq, frame)``, then ``ends`` x ``END``. It stops taking frames once ``stop`` is set or ``close()``
     is called; ``on_take`` is called before each frame goes in (e.g. to count the frames in flight);
-    ``errors``: what broke the source, for the run to raise after its frames."""
+    with ``slots`` it takes one of them before each frame (the engine gives it back when the frame
+    leaves), so at most that many frames are in flight; ``errors``: what broke the source, for the run
+    to raise after its frames."""
 
     def __init__(self, frames: Iterable[Frame], into: queue.Queue, stop: threading.Event, ends: int = 1,
-                 on_take: Callable[[], None] | None = None, name: str = "flow-source"):
-        self.queue, self.errors = into, []
+                 on_take: Callable[[], None] | None = None, name: str = "flow-source",
+                 slots: threading.Semaphore | None = None):
+        self.queue, self.errors, self.slots = into, [], slots
         self._stop, self._closing, self._ends, self._on_take = stop, threading.Event(), ends, on_take
         self._thread = threading.Thread(target=self._feed, args=(frames,), name=name, daemon=True)
 
@@ -78,7 +81,7 @@ class Source:
     def _feed(self, frames: Iterable[Frame]) -> None:
         try:
             for item in enumerate(frames):
-                if self._ended():
+                if self._ended() or not self._slot():
                     break
                 if self._on_take is not None:
                     self._on_take()
@@ -94,6 +97,15 @@ class Source:
         finally:
             for _ in range(self._ends):
                 self.queue.put(END)
+
+    def _slot(self) -> bool:
+        """A slot taken (waiting while every one is in flight); False when the stream ended meanwhile."""
+        if self.slots is None:
+            return True
+        while not self.slots.acquire(timeout=0.2):
+            if self._ended():
+                return False
+        return True
 
     def get(self, timeout: float):
         """The next ``(seq, frame)``, ``END`` after the last, or None when none came within ``timeout`` s."""

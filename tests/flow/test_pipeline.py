@@ -74,3 +74,23 @@ def test_chain_is_the_same_engine_sequentially():
     out = list(Chain([Sleepy("a", delay=0), Sleepy("b", fail_ids={1}, delay=0)]).run(frames(3)))
     assert [f.ok for f in out] == [True, False, True]
     assert set(out[0].meta["timings"]) == {"a", "b"}
+
+
+def test_in_flight_bounds_the_frames_between_source_and_caller():
+    """A long pipeline's queues would hold a dozen frames; ``in_flight`` holds it to a few, in order,
+    and a stop while the source waits for a slot still ends the stream."""
+    stages = [Sleepy(f"s{k}", delay=0.0) for k in range(6)] + [Sleepy("slow", delay=0.002)]
+    p = Pipeline(stages, queue_size=2, in_flight=2)
+    out = [f.id for f in p.run(frames(50))]
+    assert out == list(range(50)) and p.max_in_flight == 2
+    free = Pipeline(stages, queue_size=2)
+    assert [f.id for f in free.run(frames(50))] == list(range(50)) and free.max_in_flight > 4
+    stopping = Pipeline([Sleepy("a", delay=0.001)], in_flight=1)
+    got = []
+    for f in stopping.run(frames(1000)):
+        got.append(f)
+        if f.id == 3:
+            stopping.stop()
+    assert 4 <= len(got) < 10
+    with pytest.raises(ValueError):
+        Pipeline(stages, in_flight=0)
