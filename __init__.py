@@ -13,9 +13,10 @@ from importlib import import_module
 # loaded on first use (PEP 562): ``import shadowflow.flow`` alone, as a recording process does,
 # does not load the method, OpenCV and SciPy
 _NAMES = {"Products": "nodes.app.api", "fit": "nodes.app.api", "run": "nodes.app.api",
-          "MethodOptions": "nodes.method.nodes", "FitConfig": "nodes.method.robust_fit"}
+          "MethodOptions": "nodes.method.nodes", "FitConfig": "nodes.method.robust_fit",
+          "read_arrays": "nodes.app.outputs"}
 
-__all__ = ["FitConfig", "MethodOptions", "Products", "fit", "run"]
+__all__ = ["FitConfig", "MethodOptions", "Products", "fit", "read_arrays", "run"]
 __version__ = "0.1.0"
 
 

@@ -36,7 +36,7 @@ ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an ar
 @dataclass
 class Products:
     """What ``fit`` recovers from one photo. Images are on the photo's pixel grid (H, W), NaN (or
-    False) off the face, camera frame (x right, y down, z toward the camera; conventions.md).
+    False) off the face, camera frame (x right, y up, z toward the camera; conventions.md).
 
     normals (H, W, 3) float32 unit; depth (H, W) float32 heights in input pixels; albedo (H, W), or
     (H, W, 3) RGB for a colour photo, at the photo's resolution; weights (H, W) the fit's robust
@@ -88,16 +88,17 @@ class Products:
         ``mesh.ply`` holds the same (``method.products.photo_mesh``)."""
         return photo_mesh(self.frame, self.model)
 
-    def save(self, folder: str | os.PathLike) -> dict[str, str]:
+    def save(self, folder: str | os.PathLike, arrays: str = "grid") -> dict[str, str]:
         """Write the files of one ``shadowflow run`` output folder (conventions.md) into ``folder``,
-        each atomically; refuses to write over the input image. Returns name -> path."""
+        each atomically, the fit's arrays where ``arrays`` says (``outputs.ARRAYS``: "grid" or "photo",
+        as ``--arrays``); refuses to write over the input image. Returns name -> path."""
         folder = Path(folder)
         if self.frame.source != ARRAY_SOURCE:
             clash = [n for n in OUTPUT_FILES if real_path(folder / n) == real_path(self.frame.source)]
             if clash:
                 raise ValueError(f"{folder / clash[0]}: is the input image; save somewhere else")
         folder.mkdir(parents=True, exist_ok=True)
-        return write_outputs(self.photo, self.model, folder)
+        return write_outputs(self.photo, self.model, folder, arrays)
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:

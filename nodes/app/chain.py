@@ -18,4 +18,4 @@ def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: M
     written under ``out`` (never over a path in ``protected``)."""
     observer = FitRecorder(model, recorder) if recorder is not None else None
     after = (RecordNode(model, recorder),) if recorder is not None else ()
-    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected)]
+    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected, options.arrays)]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import itertools
+import json
 import os
 import re
 import unicodedata
@@ -18,15 +19,19 @@ from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_ch
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
-from ..method.products import (face_products, in_encoding, on_photo, photo_mesh, relit_lights, relit_photo_8bit,
-                               squeeze_channels)
+from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_mesh,
+                               relit_lights, relit_photo_8bit, squeeze_channels)
 from ..method.quality import NO_FACE
 from ..model.shape_model import ShapeModel
 from .view import VIEW_NAME, view_html
 
 # a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
-FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "novel_view.png",
-              "mesh.ply")
+FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json", "albedo.png", "shadow.png",
+              "novel_view.png", "mesh.ply")
+# where normals.npy, weights.npy and depth.npy are: on the fit's model grid, as the fit has them (``grid.json``
+# places it on the photo), or on the photo's pixel grid (conventions.md's first layout: 48 MB of normals for a
+# 4-megapixel photo, holding the same 128 x 128 fit resampled)
+ARRAYS = ("grid", "photo")
 OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
 
 
@@ -129,15 +134,16 @@ def relit_name(light: np.ndarray) -> str:
     return f"relit_{light_tag(light)}.png"
 
 
-def write_outputs(frame: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
+def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "grid") -> dict[str, str]:
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
     in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
-    let go before the next (a large photo's files are not all held at once, nor its relit photos)."""
+    let go before the next (a large photo's files are not all held at once, nor its relit photos).
+    arrays: where the fit's arrays are written (``ARRAYS``, ``write_face``)."""
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
-        for name, path in write_face(face, model, folder / sub if sub else folder).items():
+        for name, path in write_face(face, model, folder / sub if sub else folder, arrays).items():
             written[f"{sub}/{name}" if sub else name] = path
     lights = relit_lights(frame)
     encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: _png_bytes(_bgr(relit_photo_8bit(frame, i)))
@@ -159,22 +165,33 @@ def novel_view_8bit(face: Frame) -> np.ndarray:
     return to_8bit(in_encoding(face, view), seen)
 
 
-def write_face(face: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
-    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. Made from the face's
-    box (``face_products``): only the arrays' files hold the whole photo's grid, as conventions.md
-    asks."""
-    box, p = face_products(face, model)
+def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid") -> dict[str, str]:
+    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. The images are on the
+    photo's pixel grid, made from the face's box (``face_products``); the fit's arrays (normals, weights,
+    depth) on its model grid (``grid_products``, placed on the photo by ``grid.json``), or with ``arrays``
+    "photo" on the photo's pixel grid."""
+    if arrays not in ARRAYS:
+        raise ValueError(f"arrays {arrays!r}: choose from {', '.join(ARRAYS)}")
+    on_grid = arrays == "grid"
+    box, p = face_products(face, model, arrays=not on_grid)
     shape = face.data["image"].shape[:2]
     mask = p["mask"]
+    if on_grid:
+        p.update(grid_products(face, model))
 
     def png(values8: np.ndarray) -> bytes:
         return _png_bytes(on_photo(values8, box, shape))
 
+    def npy(name: str) -> bytes:
+        values = p.pop(name)
+        return _npy_bytes(values if on_grid else on_photo(values, box, shape))
+
     encoders = {
-        "normals.npy": lambda: _npy_bytes(on_photo(p.pop("normals"), box, shape)),
+        "normals.npy": lambda: npy("normals"),
         "mask.png": lambda: png(np.where(mask, 255, 0).astype(np.uint8)),
-        "weights.npy": lambda: _npy_bytes(on_photo(p.pop("weights"), box, shape)),
-        "depth.npy": lambda: _npy_bytes(on_photo(p.pop("depth"), box, shape)),
+        "weights.npy": lambda: npy("weights"),
+        "depth.npy": lambda: npy("depth"),
+        "grid.json": lambda: (json.dumps(grid_placement(face, model), indent=1) + "\n").encode(),
         "albedo.png": lambda: png(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
         "shadow.png": lambda: png(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
         "novel_view.png": lambda: _png_bytes(novel_view_8bit(face)),
@@ -188,13 +205,47 @@ def write_face(face: Frame, model: ShapeModel, folder: Path) -> dict[str, str]:
     return written
 
 
+def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np.ndarray]:
+    """A face's output folder's arrays: normals (3 channels), weights, depth, as written, or with
+    ``on_photo_grid`` on its photo's pixel grid (H, W[, 3]) whichever way they were written: model-grid
+    arrays are brought there through ``grid.json`` as ``--arrays photo`` brings them (bilinear, renormalised
+    at the face's edge, normals made unit again), NaN off ``mask.png``. Read without pickles."""
+    folder = Path(folder)
+    arrays = {name: np.load(folder / f"{name}.npy", allow_pickle=False) for name in ("normals", "weights", "depth")}
+    if not on_photo_grid:
+        return arrays
+    place = json.loads((folder / "grid.json").read_text())
+    h, w = place["photo"]
+    if arrays["depth"].shape == (h, w):  # written on the photo's grid already
+        return arrays
+    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+    matrix = np.asarray(place["to_photo"], np.float64)
+
+    def warp(values: np.ndarray) -> np.ndarray:
+        return cv2.warpAffine(values.astype(np.float32), matrix, (w, h), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+
+    known = np.isfinite(arrays["depth"])
+    share = warp(known.astype(np.float32))
+    out = {}
+    for name, values in arrays.items():
+        v = values if values.ndim == 3 else values[..., None]
+        on = np.stack([warp(np.where(known, v[..., i], 0.0)) for i in range(v.shape[-1])], axis=-1)
+        on /= np.maximum(share, 1e-6)[..., None]
+        if name == "normals":
+            on /= np.maximum(np.linalg.norm(on, axis=-1, keepdims=True), 1e-12)
+        on = np.where((mask & (share > 0))[..., None], on, np.nan).astype(np.float32)
+        out[name] = on if values.ndim == 3 else on[..., 0]
+    return out
+
+
 class WriteNode:
     """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file."""
 
     name = "write"
 
-    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path]):
-        self.model, self.out_dir, self.protected = model, out_dir, protected
+    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid"):
+        self.model, self.out_dir, self.protected, self.arrays = model, out_dir, protected, arrays
 
     def __call__(self, frame: Frame) -> Frame:
         folder = self.out_dir / frame.meta["stem"]
@@ -209,7 +260,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        write_outputs(frame, self.model, folder)
+        write_outputs(frame, self.model, folder, self.arrays)
         frame.meta["outputs"] = str(folder)
         return frame
 

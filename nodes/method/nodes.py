@@ -40,6 +40,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "shadows": ("confirmed", "geometric"),
     "albedo_fill": ("ceiling", "mirror"),
     "encoding": ENCODINGS,
+    "arrays": ("grid", "photo"),
 }
 
 
@@ -77,6 +78,10 @@ class MethodOptions:
     # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
     # "linear"; the method works on linear light and writes images back in the photo's encoding
     encoding: str = "auto"
+    # where a run writes the fit's arrays (normals.npy, weights.npy, depth.npy): "grid", the fit's model grid
+    # with grid.json placing it on the photo, or "photo", the photo's pixel grid (what the method computes is
+    # the same; the files differ, so a resumed run redoes its frames when this changes)
+    arrays: str = "grid"
 
     @classmethod
     def paper(cls, **overrides) -> "MethodOptions":

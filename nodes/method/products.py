@@ -47,31 +47,61 @@ def _in_box(values: np.ndarray, src: tuple[int, int, int, int], dst: tuple[int, 
     return out
 
 
-def face_products(frame: Frame, model: ShapeModel) -> tuple[tuple[int, int, int, int], dict[str, np.ndarray]]:
+def face_products(frame: Frame, model: ShapeModel, arrays: bool = True
+                  ) -> tuple[tuple[int, int, int, int], dict[str, np.ndarray]]:
     """One face's results on the photo's pixels inside its ``product_box`` ``(row0, row1, col0, col1)``
     (beyond it each is NaN, or False): ``(box, {mask, normals, weights, depth, albedo, lit})`` as
-    ``input_grid_products`` describes them, each (h, w[, C]) the box's size. Only the box is computed:
-    a 4-megapixel photo's background costs nothing."""
+    ``input_grid_products`` describes them, each (h, w[, C]) the box's size; without ``arrays``, only
+    mask, albedo and lit (the fit's arrays are written on its own grid, ``grid_products``). Only the box
+    is computed: a 4-megapixel photo's background costs nothing."""
     d = frame.data
     box = product_box(frame, model, d["image"].shape[:2])
-    y0, y1, x0, x1 = box
-    al, bshape, m = d["alignment"].cropped(x0, y0), (y1 - y0, x1 - x0), model.mask
     mask = _box_mask(frame, model, box)
-    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, bshape)
-    depth = scalar_to_input(d["depth"], m, al, bshape) * np.float32(al.scale)
-    normals = normals_to_input(d["normals"], m, al, bshape)
     # the relit box (``photo_box``) holds the photo's albedo and shadow
     albedo = _in_box(d["photo_albedo"].astype(np.float32), d["photo_box"], box, np.nan)
     shadow = _in_box(np.asarray(d["photo_shadow"], bool), d["photo_box"], box, False)
     nan = np.float32(np.nan)
-    return box, {
-        "mask": mask,
-        "normals": np.where(mask[..., None], normals, nan).astype(np.float32),
-        "weights": np.where(mask, np.clip(weights, 0, 1), nan).astype(np.float32),
-        "depth": np.where(mask, depth, nan).astype(np.float32),
-        "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, nan))),
-        "lit": mask & ~shadow,
-    }
+    out = {"mask": mask, "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, nan))),
+           "lit": mask & ~shadow}
+    if not arrays:
+        return box, out
+    y0, y1, x0, x1 = box
+    al, bshape, m = d["alignment"].cropped(x0, y0), (y1 - y0, x1 - x0), model.mask
+    weights = scalar_to_input(model.to_image(d["fit"].weights.astype(np.float32)), m, al, bshape)
+    depth = scalar_to_input(d["depth"], m, al, bshape) * np.float32(al.scale)
+    normals = normals_to_input(d["normals"], m, al, bshape)
+    out.update(normals=np.where(mask[..., None], normals, nan).astype(np.float32),
+               weights=np.where(mask, np.clip(weights, 0, 1), nan).astype(np.float32),
+               depth=np.where(mask, depth, nan).astype(np.float32))
+    return box, out
+
+
+def grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
+    """One face's fit as the fit has it, on the model grid (Hm, Wm), NaN where the fit did not see the face
+    (off the model's mask, beyond the photo or the face's outline): normals (Hm, Wm, 3) float32, unit, in
+    the PHOTO's camera frame (rotated with the face's roll: the same vectors ``input_grid_products`` puts on
+    the photo's pixels); weights (Hm, Wm) in [0, 1]; depth (Hm, Wm) in photo pixels. ``grid_placement``
+    says where each model pixel lies on the photo."""
+    d = frame.data
+    al = d["alignment"]
+    seen = model.mask & np.asarray(d.get("grid_valid", model.mask), bool)
+    nan = np.float32(np.nan)
+    normals = al.vector_to_input(np.nan_to_num(d["normals"])).astype(np.float32)
+    weights = np.clip(model.to_image(d["fit"].weights.astype(np.float32)), 0.0, 1.0)
+    return {"normals": np.where(seen[..., None], normals, nan).astype(np.float32),
+            "weights": np.where(seen, weights, nan).astype(np.float32),
+            "depth": np.where(seen, d["depth"] * np.float32(al.scale), nan).astype(np.float32)}
+
+
+def grid_placement(frame: Frame, model: ShapeModel) -> dict:
+    """Where a face's model grid lies on its photo (``grid.json``): ``grid`` [Hm, Wm]; ``to_photo`` the 2 x 3
+    matrix taking a model pixel (col, row, 1) to its photo pixel (x, y), pixel centres at integers, as
+    OpenCV's ``warpAffine`` takes it (``cv2.warpAffine(depth, to_photo, (W, H))`` puts a grid array on the
+    photo); ``photo`` [H, W]; ``scale`` photo pixels per model pixel."""
+    al = frame.data["alignment"]
+    h, w = frame.data["image"].shape[:2]
+    return {"grid": list(model.grid), "to_photo": np.round(al.matrix, 9).tolist(), "photo": [h, w],
+            "scale": round(al.scale, 9), "depth_unit": "photo pixels", "normals_frame": "photo camera"}
 
 
 def on_photo(values: np.ndarray, box: tuple[int, int, int, int], shape: tuple[int, int]) -> np.ndarray:

@@ -8,8 +8,9 @@ import cv2
 import numpy as np
 import pytest
 from shadowflow.nodes.app.cli import main
+from shadowflow.nodes.app.outputs import read_arrays
 
-LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png",
+LAYOUT = {"normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json", "albedo.png", "shadow.png", "relit.png",
           "novel_view.png", "mesh.ply", "view.html"}
 
 
@@ -28,15 +29,24 @@ def test_run_writes_the_conventions_layout(demo_run):
         assert {p.name for p in folder.iterdir()} == LAYOUT
         src = cv2.imread(rec["source"], cv2.IMREAD_GRAYSCALE)
         h, w = src.shape
-        n = np.load(folder / "normals.npy", allow_pickle=False)
         mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) == 255
-        assert n.shape == (h, w, 3) and n.dtype == np.float32
-        assert np.all(np.isnan(n[~mask])) and np.all(np.isfinite(n[mask]))
-        np.testing.assert_allclose(np.linalg.norm(n[mask], axis=1), 1, atol=1e-5)
-        assert np.all(n[mask][:, 2] > 0)
-        for name in ("weights.npy", "depth.npy"):
-            a = np.load(folder / name, allow_pickle=False)
-            assert a.shape == (h, w) and np.all(np.isnan(a[~mask])) and np.all(np.isfinite(a[mask]))
+        place = json.loads((folder / "grid.json").read_text())
+        assert place["photo"] == [h, w] and place["depth_unit"] == "photo pixels"
+        # the fit's arrays on its model grid, NaN where it did not see the face; on the photo's grid when asked
+        n = np.load(folder / "normals.npy", allow_pickle=False)
+        seen = np.isfinite(n[..., 0])
+        assert n.shape == tuple(place["grid"]) + (3,) and n.dtype == np.float32 and seen.sum() > 4000
+        for arrays in (np.load(folder / "normals.npy"), read_arrays(folder, on_photo_grid=True)["normals"]):
+            known = np.isfinite(arrays[..., 0])
+            np.testing.assert_allclose(np.linalg.norm(arrays[known], axis=-1), 1, atol=1e-5)
+            assert np.all(arrays[known][:, 2] > 0) and np.all(np.isnan(arrays[~known]))
+        on_photo = read_arrays(folder, on_photo_grid=True)
+        assert on_photo["normals"].shape == (h, w, 3) and not np.isfinite(on_photo["normals"][~mask]).any()
+        assert np.isfinite(on_photo["normals"][mask]).mean() > 0.99
+        for name in ("weights", "depth"):
+            a = np.load(folder / f"{name}.npy", allow_pickle=False)
+            assert a.shape == tuple(place["grid"]) and np.array_equal(np.isfinite(a), seen)
+            assert on_photo[name].shape == (h, w) and not np.isfinite(on_photo[name][~mask]).any()
         for name in ("albedo.png", "shadow.png"):
             img = cv2.imread(str(folder / name), cv2.IMREAD_UNCHANGED)
             assert img.shape == (h, w) and img.dtype == np.uint8 and not img[~mask].any()
@@ -328,4 +338,4 @@ def test_the_command_lines_choices_are_the_options_own():
                 default = actions[name].default
                 assert default is None or default == getattr(MethodOptions(), name), (command, name)
         assert set(SOLVERS) <= set(actions["fit"].choices)
-    assert set(CHOICES) - {"encoding"} <= set(a.dest for a in sub.choices["eval"]._actions)
+    assert set(CHOICES) - {"encoding", "arrays"} <= set(a.dest for a in sub.choices["eval"]._actions)

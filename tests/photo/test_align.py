@@ -49,7 +49,11 @@ def test_a_stretched_alignment_keeps_the_eyes_moves_the_mouth_and_turns_vectors_
 
 def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_model, tmp_path):
     """A face rendered at another scale, rotated and shifted inside a larger photo, with its
-    eyes given: the normals on the photo's grid must match the rendered truth there."""
+    eyes given: the normals must match the rendered truth on the model grid, in the photo's frame, and on
+    the photo's grid, whether written there (``--arrays photo``) or brought there (``read_arrays``)."""
+    import json
+
+    import shadowflow
     import cv2
     from shadowflow.nodes.app.cli import main
     from shadowflow.nodes.model.canonical import canonical_eyes
@@ -67,17 +71,35 @@ def test_an_off_grid_photo_is_aligned_by_its_eyes_and_mapped_back(procedural_mod
     cv2.imwrite(str(path), (np.clip(photo, 0, 1) * 255 + 0.5).astype(np.uint8))
     light = al.vector_to_input(s)
     out = tmp_path / "out"
-    assert main(["run", str(path), "--out", str(out), "--record", "none", "--quiet", "--model",
-                 str(_save(procedural_model, tmp_path)), "--light=" + ",".join(f"{x:.6f}" for x in light),
-                 "--eyes=" + ",".join(f"{v:g}" for v in eyes_photo.ravel())]) == 0
-    n = np.load(out / "photo" / "normals.npy")
+    args = ["run", str(path), "--record", "none", "--quiet", "--model", str(_save(procedural_model, tmp_path)),
+            "--light=" + ",".join(f"{x:.6f}" for x in light), "--eyes=" + ",".join(f"{v:g}" for v in eyes_photo.ravel())]
+    assert main([*args, "--out", str(out)]) == 0
+    assert main([*args, "--out", str(tmp_path / "full"), "--arrays", "photo"]) == 0
+    # on the model grid (the default): the fit's own pixels, its vectors in the photo's frame
+    grid = np.load(out / "photo" / "normals.npy")
+    place = json.loads((out / "photo" / "grid.json").read_text())
+    assert grid.shape == (128, 128, 3) and place["grid"] == [128, 128] and place["photo"] == list(shape)
+    np.testing.assert_allclose(place["to_photo"], al.matrix, atol=0.05)  # the eyes the run found, as given
+    inner_model = cv2.erode(mask.astype(np.uint8), np.ones((7, 7))) > 0
+    ok = inner_model & np.isfinite(grid[..., 0])
+    assert ok.sum() > 3500
+    assert np.mean(angle_deg(grid[ok], al.vector_to_input(scene.normals[ok]))) < 6.0
+    # on the photo's grid
     truth_model = np.where(mask[..., None], scene.normals, 0).astype(np.float32)
     truth = np.stack([cv2.warpAffine(truth_model[..., i], al.matrix, shape[::-1]) for i in range(3)], -1)
     truth = al.vector_to_input(truth)
+    truth /= np.maximum(np.linalg.norm(truth, axis=-1, keepdims=True), 1e-12)
     inner = cv2.warpAffine(cv2.erode(mask.astype(np.uint8), np.ones((7, 7))), al.matrix, shape[::-1]) > 0
-    ok = inner & np.isfinite(n[..., 0])
-    assert ok.sum() > 5000
-    assert np.mean(angle_deg(n[ok], truth[ok] / np.linalg.norm(truth[ok], axis=1, keepdims=True))) < 6.0
+    written = np.load(tmp_path / "full" / "photo" / "normals.npy")
+    brought = shadowflow.read_arrays(out / "photo", on_photo_grid=True)["normals"]
+    assert written.shape == brought.shape == shape + (3,)
+    for n in (written, brought):
+        ok = inner & np.isfinite(n[..., 0])
+        assert ok.sum() > 10000
+        assert np.mean(angle_deg(n[ok], truth[ok])) < 6.0
+    both = np.isfinite(written[..., 0]) & np.isfinite(brought[..., 0])
+    assert both.sum() > 0.97 * np.isfinite(written[..., 0]).sum()
+    assert np.percentile(angle_deg(written[both], brought[both]), 99) < 0.5
 
 
 def test_a_mask_comes_to_the_photo_with_a_smooth_border_not_a_staircase_of_model_pixels():

@@ -135,7 +135,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                          novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
                          eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
-                         encoding=args.encoding)
+                         encoding=args.encoding, arrays=args.arrays)
 
 
 def _no_input(args: argparse.Namespace) -> str | None:
@@ -252,6 +252,10 @@ def add_parser(sub) -> None:
     r.add_argument("--encoding", choices=CHOICES["encoding"], default=MethodOptions.encoding,
                    help="how the photos' values relate to light: auto (default; colour photos are sRGB, grey ones "
                         "linear), srgb or linear; the method works in linear light, outputs keep the photo's encoding")
+    r.add_argument("--arrays", choices=CHOICES["arrays"], default=MethodOptions.arrays,
+                   help="normals.npy, weights.npy, depth.npy: on the fit's model grid (default: what the fit holds, "
+                        "with grid.json placing it on the photo; shadowflow.read_arrays brings them there) or on "
+                        "the photo's pixel grid (a 4-megapixel photo's normals.npy is then 48 MB)")
     r.add_argument("--max-megapixels", type=float, default=MAX_WORK_PIXELS / 1e6, metavar="MP",
                    help="read larger photos reduced to this size, outputs at that size (default 4; 0: full size, "
                         "memory grows with the photo, see README)")
