@@ -2,8 +2,10 @@
 
 ``FaceRelight`` measures once what every light shares (the box's photo, face, normals, shading,
 shadows, room light and albedo) and gives ``layer(light)`` for each light, a ``FaceLayer`` for
-``photo_relight.compose``. Everything happens in the box: a large photo's background costs nothing,
-and the photo outside the box is not touched. The steps are ``photo_relight``'s; this module says
+``photo_relight.compose``. Two boxes: the face's own (``box``: the face and ``INNER_MARGIN``), where
+the albedo, shadows and relit face are made, and the layer's (``layer_box``: the face and its feather),
+where only the relit face's light is carried into the photo around it (``outside_gain``). A large
+photo's background costs nothing, and the photo outside the layer's box is not touched. The steps are ``photo_relight``'s; this module says
 which arrays go where.
 """
 from __future__ import annotations
@@ -40,6 +42,9 @@ FEATHER = 0.3  # the relit face's light fades into the photo over this many inte
 # the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``):
 # the staircase seams where its mirrored and measured parts meet go (figures: docs/accuracy.md)
 COARSE_SMOOTH = 1.5
+# everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
+# ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
+INNER_MARGIN = 4
 
 
 class FaceRelight:
@@ -61,15 +66,25 @@ class FaceRelight:
                  eye_contrast: float = EYE_CONTRAST):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
-        y0, y1, x0, x1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * self.feather + 4)
-        self.box = (y0, y1, x0, x1)
+        # the layer's box: the face and its feather
+        ly0, ly1, lx0, lx1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * self.feather + 4)
+        self.layer_box = (ly0, ly1, lx0, lx1)
+        self.layer_photo = photo[ly0:ly1, lx0:lx1]
+        layer_face = mask_to_input(mask, alignment.cropped(lx0, ly0), (ly1 - ly0, lx1 - lx0))
+        if outline is not None:  # the face's own outline, at the photo's resolution
+            layer_face &= polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
+        self.layer_face = layer_face
+        # ``box``: the face's own box in it, where the albedo, shadows and relit face are computed
+        rows, cols = np.nonzero(layer_face) if layer_face.any() else ([0], [0])
+        m = INNER_MARGIN
+        iy0, iy1 = max(0, min(rows) - m), min(ly1 - ly0, max(rows) + 1 + m)
+        ix0, ix1 = max(0, min(cols) - m), min(lx1 - lx0, max(cols) + 1 + m)
+        self.inner = (slice(iy0, iy1), slice(ix0, ix1))  # the face's box within the layer's
+        y0, y1, x0, x1 = self.box = (ly0 + iy0, ly0 + iy1, lx0 + ix0, lx0 + ix1)
         self.al = al = alignment.cropped(x0, y0)
         self.photo = photo = photo[y0:y1, x0:x1]
         self.shape = shape = photo.shape[:2]
-        face = mask_to_input(mask, al, shape)
-        if outline is not None:  # the face's own outline, at the photo's resolution
-            face &= polygon_mask(np.asarray(outline) - [x0, y0], shape)
-        self.face = face
+        self.face = face = layer_face[self.inner]
         self.normals = np.nan_to_num(normals_to_input(normals, mask, al, shape)).astype(np.float32)
         self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         box_grey = grey[y0:y1, x0:x1]
@@ -123,8 +138,16 @@ class FaceRelight:
         unexposed = light_albedo * new_lighting[..., None]
         gain = skin_exposure(photo, unexposed, self.lit_skin, self.skin_only & (new_shading >= LIT_SHADING))
         face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face)
-        return FaceLayer(self.box, face, np.clip(face_image, 0.0, 1.0),
-                         outside_gain(photo, face_image, face, self.feather), self.alpha)
+        # into the layer's box: the relit face's light carried over its border into the photo around it
+        relit = self._in_layer(np.clip(face_image, 0.0, 1.0))
+        return FaceLayer(self.layer_box, self.layer_face, relit,
+                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather), self._in_layer(self.alpha))
+
+    def _in_layer(self, values: np.ndarray) -> np.ndarray:
+        """(h, w[, C]) values on the face's box -> the layer's box, 0 around."""
+        out = np.zeros(self.layer_face.shape + values.shape[2:], np.float32)
+        out[self.inner] = values
+        return out
 
     def live_data(self, encoding: str) -> dict:
         """What the page needs to relight this face live (``live_relight_data``)."""

@@ -39,7 +39,8 @@ DATA: dict[str, tuple[str, str]] = {
     "relit": ("(Hm, Wm) the face under ``MethodOptions.relight_light``", "relight"),
     "novel_view": ("(Hm, Wm) or (Hm, Wm, 3) (colour photo) the surface turned about the vertical axis, linear",
                    "novel_view"),
-    "photo_box": ("(y0, y1, x0, x1) the photo pixels around the face the next three cover", "relight_photo"),
+    "photo_box": ("(y0, y1, x0, x1) the face's own box in the photo (the face and a few pixels), which the next "
+                  "three cover", "relight_photo"),
     "photo_albedo": ("(h, w, C) albedo in the face's box of the photo grid, C = 3 for a colour photo, NaN off "
                      "the face", "relight_photo"),
     "photo_shadow": ("(h, w) bool, the face's cast and attached shadows in its box, at the photo's resolution",

@@ -40,18 +40,26 @@ def scene():
 
 
 def test_the_box_holds_the_face_and_its_feather_and_stays_in_the_photo(scene):
+    """The layer's box holds the face and its feather; the face's own box, where the relit face is made,
+    holds the face and no more than its margin."""
+    from shadowflow.nodes.method.face_relight import INNER_MARGIN
+
     relight, photo, face, _ = scene
-    y0, y1, x0, x1 = relight.box
+    y0, y1, x0, x1 = relight.layer_box
     rows, cols = np.nonzero(face)
     assert 0 <= y0 and y1 <= photo.shape[0] and 0 <= x0 and x1 <= photo.shape[1]
     assert y0 <= rows.min() - relight.feather and rows.max() + relight.feather < y1
     assert x0 <= cols.min() - relight.feather and cols.max() + relight.feather < x1
-    assert np.array_equal(relight.face, face[y0:y1, x0:x1])
+    assert np.array_equal(relight.layer_face, face[y0:y1, x0:x1])
+    fy0, fy1, fx0, fx1 = relight.box
+    assert (fy0, fy1, fx0, fx1) == (rows.min() - INNER_MARGIN, rows.max() + 1 + INNER_MARGIN,
+                                    cols.min() - INNER_MARGIN, cols.max() + 1 + INNER_MARGIN)
+    assert np.array_equal(relight.face, face[fy0:fy1, fx0:fx1]) and relight.albedo.shape[:2] == relight.face.shape
 
 
 def test_the_photos_own_light_gives_the_lit_face_back(scene):
     relight, photo, face, shading = scene
-    y0, y1, x0, x1 = relight.box
+    y0, y1, x0, x1 = relight.layer_box
     layer = relight.layer(PHOTO_LIGHT)
     lit_skin = (face & (shading > 0.3))[y0:y1, x0:x1]
     error = np.abs(layer.relit[lit_skin] - photo[y0:y1, x0:x1][lit_skin]) / photo[y0:y1, x0:x1][lit_skin]
@@ -60,7 +68,7 @@ def test_the_photos_own_light_gives_the_lit_face_back(scene):
 
 def test_a_frontal_light_brightens_the_dark_side_and_leaves_the_photo_beyond_the_box(scene):
     relight, photo, face, shading = scene
-    y0, y1, x0, x1 = relight.box
+    y0, y1, x0, x1 = relight.layer_box
     layer = relight.layer(np.array([0.0, 0.0, 1.0]))
     # the sphere's right side, in the photo's attached shadow, is lit by a frontal light: at the same
     # normals a frontal light gives z, so it comes out several times brighter than it was

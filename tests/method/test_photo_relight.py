@@ -197,8 +197,10 @@ def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     assert frame.ok and frame.data["alignment"].scale == pytest.approx(3.0, rel=0.05)
     rows, cols = np.indices(model.mask.shape)
     frame.data["albedo"] = np.where(model.mask, np.where((rows + cols) % 2 == 0, 0.5, 0.9), np.nan).astype(np.float32)
-    albedo = PhotoRelightNode(model, options)(frame).data["photo_albedo"][..., 0]
-    image = frame.data["image"]
+    relit = PhotoRelightNode(model, options)(frame).data
+    albedo = relit["photo_albedo"][..., 0]
+    y0, y1, x0, x1 = relit["photo_box"]
+    image = frame.data["image"][y0:y1, x0:x1]
     shadowed = ndimage.binary_erosion(np.isfinite(albedo) & (image < 0.02), iterations=4)
     assert shadowed.sum() > 2000
     steps = np.abs(np.diff(albedo, axis=1))[shadowed[:, :-1] & shadowed[:, 1:]]
