@@ -1,14 +1,17 @@
 """Whole runs of ordinary photos on one core, beside the fit alone: where a photo's time goes.
 
-    python benchmarks/bench_photo_run.py [--repeats 5] [--record mcap,rerun] [--baseline REV]
+    python benchmarks/bench_photo_run.py [--repeats 5] [--record mcap,rerun] [--baseline REV] [--memory]
 
 Cases: scikit-image's astronaut (public domain) scaled 4x (2048 x 2048, 4.2 MP) and 2x (1 MP), and
 30 synthetic 128 x 128 faces. Each case runs ``shadowflow run`` in a fresh process pinned to one
 core: once to warm the model cache and imports, then ``--repeats`` times; it reports the median
 wall time of the run (seconds per photo; per frame for the 30 faces), the median of the fit's own
 nodes (remap to relight, on the model grid), the photo's steps (load, faces, relight_photo,
-compose, write), the child's peak memory and the run's exit code (1: a frame failed). ``--baseline REV`` runs the same cases on git
-revision REV (installed into a temporary folder) for a ratio. Not part of the tests.
+compose, write), the child's peak memory, the megabytes a photo's outputs take (its folder; the 30 faces'
+per face) and the run's exit code (1: a frame failed). ``--baseline REV`` runs the same cases on git
+revision REV (installed into a temporary folder) for a ratio. ``--memory``: also the peak memory of one
+run over twenty 4.2 MP photos with two ``--relight`` lights (both cores, as a user runs it). Not part of
+the tests.
 """
 from __future__ import annotations
 
@@ -54,7 +57,19 @@ for k in range(repeats + 1):
             per_node[name] = per_node.get(name, 0.0) + s
     print(json.dumps({"wall": walls[-1], "nodes": per_node, "frames": len(timings), "exit": code}), flush=True)
 peak = [int(ln.split()[1]) for ln in open("/proc/self/status") if ln.startswith("VmHWM")][0]
-print(json.dumps({"peak_mib": peak / 1024}))
+folders = [p for p in os.scandir(out) if p.is_dir()]
+size = sum(os.path.getsize(os.path.join(root, f)) for p in folders for root, _, files in os.walk(p.path) for f in files)
+print(json.dumps({"peak_mib": peak / 1024, "mb_per_photo": size / 1e6 / max(1, len(folders))}))
+"""
+
+# one run of many large photos in a fresh process, on every core: its peak memory
+MEMORY_CHILD = r"""
+import json, sys
+from shadowflow.nodes.app.cli import main
+folder, out = sys.argv[1], sys.argv[2]
+code = main(["run", folder, "--out", out, "--quiet", "--record", "none", "--relight=30,0", "--relight=-30,0"])
+peak = [int(ln.split()[1]) for ln in open("/proc/self/status") if ln.startswith("VmHWM")][0]
+print(json.dumps({"peak_mib": peak / 1024, "exit": code}))
 """
 
 
@@ -104,14 +119,14 @@ def run_case(inputs: list[Path], out: Path, record: str, repeats: int, pythonpat
     if proc.returncode:
         raise RuntimeError(proc.stderr[-2000:])
     lines = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("{")]
-    runs, peak = lines[:-1], lines[-1]["peak_mib"]
+    runs, peak, size = lines[:-1], lines[-1]["peak_mib"], lines[-1]["mb_per_photo"]
     frames = runs[0]["frames"]
 
     def median(f) -> float:
         return statistics.median(f(r) for r in runs) / frames
 
     row = {"wall": median(lambda r: r["wall"]), "fit": median(lambda r: sum(r["nodes"].get(n, 0) for n in FIT_NODES)),
-           "peak_mib": round(peak), "frames": frames, "exit": runs[0]["exit"]}
+           "peak_mib": round(peak), "mb": round(size, 2), "frames": frames, "exit": runs[0]["exit"]}
     for name in PHOTO_NODES:
         row[name] = median(lambda r: r["nodes"].get(name, 0.0))
     return row
@@ -123,6 +138,7 @@ def main() -> None:
     ap.add_argument("--record", default="mcap,rerun")
     ap.add_argument("--baseline", help="a git revision to run the same cases on")
     ap.add_argument("--json")
+    ap.add_argument("--memory", action="store_true", help="also twenty 4.2 MP photos with two lights: peak memory")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -136,18 +152,33 @@ def main() -> None:
             for build, path in builds.items():
                 row = {"case": case, "build": build, **run_case(inputs, tmp / "out", args.record, args.repeats, path)}
                 rows.append(row)
+        memory = []
+        if args.memory:
+            twenty = tmp / "twenty"
+            twenty.mkdir()
+            big = astronaut(tmp, 4)
+            for k in range(20):
+                (twenty / f"a{k:02d}.png").write_bytes(big.read_bytes())
+            for build, path in builds.items():
+                env = None if path is None else {**__import__("os").environ, "PYTHONPATH": str(path)}
+                proc = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(twenty), str(tmp / "mem")],
+                                      capture_output=True, text=True, env=env)
+                memory.append({"build": build, **json.loads(proc.stdout.splitlines()[-1])})
     cols = ("wall", "fit", *PHOTO_NODES)
     print(f"one core, record {args.record}, medians of {args.repeats} warm runs; seconds per photo (per frame for "
           "the 30 faces)\n")
-    print("| case | build | " + " | ".join(cols) + " | peak MiB | exit | × baseline |")
-    print("|---|---|" + "---|" * len(cols) + "---|---|---|")
+    print("| case | build | " + " | ".join(cols) + " | peak MiB | MB written | exit | × fit | × baseline |")
+    print("|---|---|" + "---|" * len(cols) + "---|---|---|---|---|")
     for row in rows:
         base = next((r for r in rows if r["case"] == row["case"] and r["build"] == args.baseline), None)
         ratio = f"{row['wall'] / base['wall']:.2f}" if base and base is not row else "-"
         print(f"| {row['case']} | {row['build']} | " + " | ".join(f"{row[c]:.3f}" for c in cols)
-              + f" | {row['peak_mib']} | {row['exit']} | {ratio} |")
+              + f" | {row['peak_mib']} | {row['mb']} | {row['exit']} | {row['wall'] / row['fit']:.1f} | {ratio} |")
+    for m in memory:
+        print(f"\ntwenty 4.2 MP photos, two --relight lights, both cores, {m['build']}: peak {m['peak_mib']:.0f} MiB "
+              f"(exit {m['exit']})")
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=2))
+        Path(args.json).write_text(json.dumps({"rows": rows, "memory": memory}, indent=2))
 
 
 if __name__ == "__main__":

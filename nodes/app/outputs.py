@@ -19,10 +19,11 @@ from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_ch
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
-from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_mesh,
-                               relit_lights, relit_photo_8bit, squeeze_channels)
+from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
+                               photo_mesh, relit_lights, relit_photo_8bit, squeeze_channels)
 from ..method.quality import NO_FACE
 from ..model.shape_model import ShapeModel
+from .report import card_pictures
 from .view import VIEW_NAME, view_html
 
 # a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
@@ -134,23 +135,31 @@ def relit_name(light: np.ndarray) -> str:
     return f"relit_{light_tag(light)}.png"
 
 
-def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "grid") -> dict[str, str]:
+def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "grid",
+                  card: bool = False) -> dict[str, str]:
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
     in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
     let go before the next (a large photo's files are not all held at once, nor its relit photos).
-    arrays: where the fit's arrays are written (``ARRAYS``, ``write_face``)."""
+    arrays: where the fit's arrays are written (``ARRAYS``, ``write_face``). ``card``: the report's pictures
+    of the photo are made while it is held (``report.card_pictures``), in ``frame.meta["card"]``."""
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
         for name, path in write_face(face, model, folder / sub if sub else folder, arrays).items():
             written[f"{sub}/{name}" if sub else name] = path
-    lights = relit_lights(frame)
-    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: _png_bytes(_bgr(relit_photo_8bit(frame, i)))
-                for i, light in enumerate(lights)}
-    # the photo to look at and relight by hand: every face, the failed ones marked
     stem = frame.meta.get("stem")
     faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
+
+    def relit_png(i: int) -> bytes:
+        relit = _bgr(relit_photo_8bit(frame, i))
+        if i == 0 and card:
+            frame.meta["card"] = card_pictures(_bgr(photo_8bit(frame)), relit, [f.get("box") for f, _ in faces])
+        return _png_bytes(relit)
+
+    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: relit_png(i)
+                for i, light in enumerate(relit_lights(frame))}
+    # the photo to look at and relight by hand: every face, the failed ones marked
     encoders[VIEW_NAME] = lambda: view_html(frame, faces)
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
@@ -260,7 +269,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        write_outputs(frame, self.model, folder, self.arrays)
+        write_outputs(frame, self.model, folder, self.arrays, card=True)
         frame.meta["outputs"] = str(folder)
         return frame
 

@@ -18,6 +18,7 @@ import json
 import os
 import time
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
@@ -41,12 +42,15 @@ LINKED = (("shadow", "shadow.png"), ("relit", "relit.png"), ("novel view", "nove
 
 
 def write_report(out: Path, records: Iterable[dict], recording: Path | None = None, title: str = "shadowflow run",
-                 series: list[tuple[str, dict]] | None = None) -> Path:
+                 series: list[tuple[str, dict]] | None = None, cards: dict[str, CardPictures] | None = None) -> Path:
     """Write ``out/report.html`` for the run whose summary records are ``records`` (input order; read
     twice, so a list or a re-iterable view such as ``RunStore.records``).
     The convergence plot draws ``series`` (``(frame name, {iteration: scalars})`` per frame, as the
     run kept them, ``ScalarsTap``) when given, else reads ``recording`` (the run's MCAP, a file or
-    the folder); neither, or unreadable: the report says so. Returns the report's path."""
+    the folder); neither, or unreadable: the report says so. ``cards``: stem -> the card's pictures the
+    run made (``card_pictures``); a photo without them is read back from its input and relit file.
+    Returns the report's path."""
+    cards = cards or {}
     frames = n_ok = doubtful = 0
     failed = []  # (input, step, reason) of each frame without outputs
     odd = set()  # the file names of doubtful frames: drawn in colour in a crowded convergence plot
@@ -92,7 +96,7 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
                            "<p class=meta>Drag across a picture to compare the photo (left) with it relit "
                            "(right); <i>relight live</i> opens the photo to move the light yourself.</p>").encode()
                 shown += 1
-                yield ("\n" + _card(out, r, thumbs)).encode()
+                yield ("\n" + _card(out, r, thumbs, cards.get(r["stem"]))).encode()
         yield ("\n" + sheet).encode()
         for r in records:  # and again, a row at a time
             if _written(out, r):
@@ -151,28 +155,25 @@ def _shown(source, max_pixels: int | None) -> np.ndarray | None:
     return np.ascontiguousarray(np.clip(values * 255 + 0.5, 0, 255).astype(np.uint8))
 
 
-def _card(out: Path, r: dict, thumbs: dict | None = None) -> str:
-    """A photo large: its faces before and after under a slider (the part of the photo around its
-    faces, at most LARGE_SIDE a side), the faces' boxes and eyes, a line per face, and its links.
-    ``thumbs``: the input's contact-sheet thumbnail is put there under its stem (the input is read once)."""
-    stem = r["stem"]
-    folder = out / stem
-    after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
-    # the photo read at the size the run worked at (a 33 MP JPEG decoded reduced, as the run read it), not whole
-    before = _shown(r.get("source"), None if after is None else after.shape[0] * after.shape[1])
-    if thumbs is not None and before is not None:
-        thumbs[stem] = _fit(before)
-    faces = r.get("faces") or []
-    lines = [_face_line(k, f) for k, f in enumerate(faces, 1)]
-    links = (f'<a href="{quote(f"{stem}/{VIEW_NAME}")}">relight live</a> · '
-             f'<a href="{quote(f"{stem}/relit.png")}">relit.png</a> · <a href="{quote(stem)}/">files</a>')
-    head = (f"<div class=card><h3>{html.escape(stem)}</h3><p class=meta title=\"{_text(r.get('source'))}\">"
-            f"{_text(_file_name(r.get('source')))} · {links}</p><ul class=faces>{''.join(lines)}</ul>")
-    if after is None or before is None:
-        return head + "<p class=meta>(the photo or its relit file cannot be read)</p></div>"
+@dataclass(frozen=True)
+class CardPictures:
+    """A photo's pictures on its card: ``crop`` (c0, r0, c1, r1) the part of the photo around its faces,
+    ``before`` and ``after`` that part of the photo and of its relit file (base64 JPEGs, at most LARGE_SIDE
+    a side), ``thumb`` the photo at most THUMB a side (BGR or grey uint8), for its contact-sheet row."""
+
+    crop: tuple[int, int, int, int]
+    before: str
+    after: str
+    thumb: np.ndarray
+
+
+def card_pictures(before: np.ndarray, after: np.ndarray, boxes: list) -> CardPictures:
+    """``CardPictures`` of a photo (``before``, as its file shows it: uint8 BGR or grey) and its relit file
+    (``after``, the same), ``boxes`` its faces' ``[x0, y0, x1, y1]`` (photo pixels; None for a face without
+    one). A run makes them while it holds both (``WriteNode``), so the report reads neither back."""
     before, after = _alike(before, after)
     h, w = after.shape[:2]
-    x0, y0, x1, y1 = faces_crop([f.get("box") for f in faces], (w, h))
+    x0, y0, x1, y1 = faces_crop(boxes, (w, h))
     c0, r0, c1, r1 = int(x0), int(y0), int(np.ceil(x1)), int(np.ceil(y1))
     k = min(1.0, LARGE_SIDE / max(c1 - c0, r1 - r0))
 
@@ -184,14 +185,41 @@ def _card(out: Path, r: dict, thumbs: dict | None = None) -> str:
         ok, enc = cv2.imencode(".jpg", part, [cv2.IMWRITE_JPEG_QUALITY, 90])
         return base64.b64encode(enc.tobytes()).decode() if ok else ""
 
+    return CardPictures((c0, r0, c1, r1), crop(before), crop(after), _fit(before))
+
+
+def _card(out: Path, r: dict, thumbs: dict | None = None, pictures: CardPictures | None = None) -> str:
+    """A photo large: its faces before and after under a slider (the part of the photo around its
+    faces, at most LARGE_SIDE a side), the faces' boxes and eyes, a line per face, and its links.
+    ``pictures``: made by the run (``card_pictures``), else made here from the input and its relit file.
+    ``thumbs``: the input's contact-sheet thumbnail is put there under its stem (the input is read once)."""
+    stem = r["stem"]
+    folder = out / stem
+    faces = r.get("faces") or []
+    if pictures is None:
+        after = cv2.imread(str(folder / "relit.png"), cv2.IMREAD_UNCHANGED)
+        # the photo read at the size the run worked at (a 33 MP JPEG decoded reduced, as the run read it)
+        before = _shown(r.get("source"), None if after is None else after.shape[0] * after.shape[1])
+        if after is not None and before is not None:
+            pictures = card_pictures(before, after, [f.get("box") for f in faces])
+    if thumbs is not None and pictures is not None:
+        thumbs[stem] = pictures.thumb
+    lines = [_face_line(k, f) for k, f in enumerate(faces, 1)]
+    links = (f'<a href="{quote(f"{stem}/{VIEW_NAME}")}">relight live</a> · '
+             f'<a href="{quote(f"{stem}/relit.png")}">relit.png</a> · <a href="{quote(stem)}/">files</a>')
+    head = (f"<div class=card><h3>{html.escape(stem)}</h3><p class=meta title=\"{_text(r.get('source'))}\">"
+            f"{_text(_file_name(r.get('source')))} · {links}</p><ul class=faces>{''.join(lines)}</ul>")
+    if pictures is None:
+        return head + "<p class=meta>(the photo or its relit file cannot be read)</p></div>"
+    c0, r0, c1, r1 = pictures.crop
     cw, ch = c1 - c0, r1 - r0
     # the crops fill the stage: its size is the crop's, the marks shifted into it
     shifted = [dict(f, box=[f["box"][0] - c0, f["box"][1] - r0, f["box"][2] - c0, f["box"][3] - r0] if f.get("box")
                     else None, eyes=[[x - c0, y - r0] for x, y in f.get("eyes") or []]) for f in faces]
     return head + (
         f'<div class=compare data-size="{cw} {ch}" data-crop="0 0 {cw} {ch}">'
-        f'<div class=stage><img alt="relit" src="data:image/jpeg;base64,{crop(after)}"></div>'
-        f'<div class=before><div class=stage><img alt="photo" src="data:image/jpeg;base64,{crop(before)}"></div></div>'
+        f'<div class=stage><img alt="relit" src="data:image/jpeg;base64,{pictures.after}"></div>'
+        f'<div class=before><div class=stage><img alt="photo" src="data:image/jpeg;base64,{pictures.before}"></div></div>'
         f'<div class=stage><svg viewBox="0 0 {cw} {ch}" preserveAspectRatio="none">{face_marks(shifted, (cw, ch))}'
         f'</svg></div><div class=divider></div><span class=tag style="left: 6px">photo</span>'
         f'<span class=tag style="right: 6px">relit</span>'

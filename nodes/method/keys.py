@@ -73,6 +73,8 @@ META: dict[str, tuple[str, str]] = {
     "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
+    "card": ("``report.CardPictures``: the report's pictures of the photo, made while it was held; taken by the "
+             "run when the frame is done", "write"),
     "recording_parts": ("the recording files a Dask worker wrote the frame into (taken off by the runner)",
                         "the Dask worker's finish"),
     "recording_error": ("why a Dask worker could not record the frame (taken off by the runner)",

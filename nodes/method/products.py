@@ -167,6 +167,16 @@ def relit_photo_8bit(frame: Frame, index: int) -> np.ndarray:
     return image
 
 
+def photo_8bit(frame: Frame) -> np.ndarray:
+    """(H, W, C) uint8 RGB (C = 1 for grey): the photo as its file shows it, in its own encoding (an sRGB
+    photo's file values; a linear one's values, rounded)."""
+    d = frame.data
+    photo = d["colour"] if "colour" in d else d["image"][..., None]
+    if frame.meta.get("encoding", "linear") == "srgb":
+        return _file_values(photo, d["rgb8"])
+    return to_8bit(photo)
+
+
 def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(light, relit_photo)`` for each of the frame's lights (``relit_lights``): all of them at once, for
     callers that want them held (the API, benchmarks); a run writes them one at a time."""

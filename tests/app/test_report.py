@@ -60,3 +60,36 @@ def test_a_real_browser_renders_the_report(run_with_a_failure, tmp_path):
     assert img is not None and img.shape[:2] == (1100, 1300)
     grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     assert np.mean(grey < 200) > 0.10  # the plot and the pictures drawn, not a blank or broken page
+
+
+def test_the_run_makes_its_cards_pictures_as_the_report_would_read_them_back(tmp_path, monkeypatch):
+    """A colour photo's card: the run makes its before/after pictures while it holds the photo and its relit
+    file, so the report reads neither back, and they are the pictures the report makes from the files."""
+    import json
+
+    from shadowflow.nodes.app import report
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    face = cv2.imread(str(write_shadowed_face(tmp_path / "f.png", np.random.default_rng(4), light_from_angles(40))))
+    photo = np.full((300, 360, 3), (40, 90, 150), np.uint8)  # BGR
+    photo[100:228, 150:278] = np.maximum(face, photo[100:228, 150:278]) * np.array([0.7, 0.85, 1.0])
+    cv2.imwrite(str(tmp_path / "portrait.png"), photo)
+    side = json.loads((tmp_path / "f.json").read_text())
+    eyes = (np.array(side["eyes"]) + [150, 100]).tolist()
+    (tmp_path / "portrait.json").write_text(json.dumps({"light": side["light"], "eyes": eyes}))
+    out = tmp_path / "out"
+
+    def no_reading(*args, **kwargs):
+        raise AssertionError("the report read a photo back")
+
+    with monkeypatch.context() as m:
+        m.setattr(report, "_shown", no_reading)
+        assert main(["run", str(tmp_path / "portrait.png"), "--out", str(out), "--quiet", "--record", "none"]) == 0
+    page = (out / "report.html").read_text()
+    made = re.findall(r'alt="(relit|photo|input)" src="data:image/jpeg;base64,([^"]+)"', page)
+    (out / "report.html").unlink()
+    report.write_report(out, json.loads((out / "summary.json").read_text()))  # from the files alone
+    read_back = re.findall(r'alt="(relit|photo|input)" src="data:image/jpeg;base64,([^"]+)"',
+                           (out / "report.html").read_text())
+    assert [name for name, _ in made] == ["relit", "photo", "input"] and made == read_back
