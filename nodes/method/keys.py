@@ -14,7 +14,8 @@ DATA: dict[str, tuple[str, str]] = {
     "samples": ("(H, W) or (H, W, 3) an array given for the photo (the API's), read as a file's samples are; "
                 "taken off by load", "given"),
     "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given; faces (a face's, the photo's)"),
-    "colour": ("(H, W, 3) float32 RGB in [0, 1], when the input is in colour", "load, or given; faces"),
+    "colour": ("(H, W, 3) float32 linear RGB in [0, 1], when the input is in colour: an array, or for 8-bit sRGB "
+               "a ``Decoded8`` of ``rgb8`` (index it: only that part is decoded)", "load, or given; faces"),
     "given_eyes": ("(2, 2) eye centres given for the photo, photo pixels (sidecar, --eyes)", "load"),
     "rgb8": ("(H, W, 3) uint8 RGB, the file's own values, when it was decoded from sRGB (``image`` and ``colour`` "
              "are linear light)", "load, or given; faces"),

@@ -127,7 +127,7 @@ def to_model_grid(image: np.ndarray, al: Alignment, grid: tuple[int, int]) -> np
     """Resample an input image (H, W) or (H, W, C) onto the model grid (area-averaged when shrinking). Only the
     photo's pixels the grid reaches (and the blur's) are touched: a 4-megapixel photo costs what its
     face does."""
-    img = np.asarray(image)
+    img = image if hasattr(image, "shape") else np.asarray(image)  # (a ``Decoded8`` decodes only the crop)
     sigma = 0.5 * np.sqrt(al.scale**2 - 1.0) if al.scale > 1.5 else 0.0
     r0, r1, c0, c1 = grid_reach(al, grid, img.shape, int(np.ceil(4 * sigma)) + 2)  # OpenCV's kernel: 4 sigma
     crop = np.asarray(img[r0:r1, c0:c1], np.float32)

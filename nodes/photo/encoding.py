@@ -54,6 +54,43 @@ def decode_samples(samples: np.ndarray, full: float) -> np.ndarray:
     return srgb_to_linear(np.clip(s.astype(np.float32) / np.float32(full), 0.0, 1.0))
 
 
+class Decoded8:
+    """(H, W, 3) float32 linear light of 8-bit sRGB values ``rgb8`` (H, W, 3) uint8, decoded where it is read:
+    ``view[r0:r1, c0:c1]`` (any index) decodes that part alone, by ``decode_samples``'s table, so a
+    4-megapixel photo's 48 MB of floats are never held whole; ``np.asarray(view)`` decodes all of it.
+    The same values as ``decode_samples(rgb8, 255)``, bit for bit. Read-only."""
+
+    ndim = 3
+    dtype = np.dtype(np.float32)
+
+    def __init__(self, rgb8: np.ndarray):
+        self.rgb8 = rgb8
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.rgb8.shape
+
+    def __len__(self) -> int:
+        return self.rgb8.shape[0]
+
+    def __getitem__(self, key) -> np.ndarray:
+        return _decode_table(256)[self.rgb8[key]]
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        values = _decode_table(256)[self.rgb8]
+        return values if dtype is None else values.astype(dtype, copy=False)
+
+
+def decoded_luminance(rgb8: np.ndarray, rows: int = 256) -> np.ndarray:
+    """(H, W) float32 ``linear_luminance`` of 8-bit sRGB values (H, W, 3), ``rows`` rows at a time: the
+    whole photo's linear floats never exist at once."""
+    out = np.empty(rgb8.shape[:2], np.float32)
+    table = _decode_table(256)
+    for r in range(0, rgb8.shape[0], rows):
+        out[r:r + rows] = linear_luminance(table[rgb8[r:r + rows]])
+    return out
+
+
 def resolve(encoding: str, channels: int) -> str:
     """``"srgb"`` or ``"linear"``: what ``encoding`` ("auto", "srgb", "linear") means for a photo of
     ``channels`` channels (auto: colour is sRGB, grey is linear)."""

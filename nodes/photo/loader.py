@@ -17,7 +17,7 @@ from PIL import Image
 
 from ..geometry.reflectance import light_from_angles
 from .native_messages import decoder_messages_dropped
-from .encoding import decode_samples, linear_luminance, resolve
+from .encoding import Decoded8, decode_samples, decoded_luminance, linear_luminance, resolve
 
 # what a folder is read for; a file named on the command line is read whatever its name
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".jfif", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".webp", ".gif",
@@ -191,8 +191,8 @@ def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
 
 @dataclass
 class Photo:
-    """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1], or None
-    for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
+    """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1] (for 8-bit sRGB a
+    ``Decoded8`` of ``rgb8``, decoded where it is indexed), or None for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
     ``max_pixels``); size: the file's (width, height), upright (its EXIF orientation applied); encoding: "linear" (the values are the file's)
     or "srgb" (the file's values decoded to linear light, ``photo.encoding``); rgb8: (H, W, 3) uint8
     RGB, the file's own (encoded) values at 8 bits, when it was decoded from sRGB."""
@@ -363,16 +363,27 @@ def _photo(p: Path, raw: np.ndarray, colour_raw: np.ndarray | None, header: _Hea
     # the project's renders) are taken as linear
     if resolve(encoding, 3 if colour_raw is not None or header.kind == "JPEG" else 1) == "srgb":
         encoded = raw if colour_raw is None else colour_raw
-        rgb8 = encoded if encoded.dtype == np.uint8 and full == 255.0 else \
-            (np.clip(encoded.astype(np.float32) / np.float32(full), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        linear = decode_samples(encoded, full)
         del raw, colour_raw
-        if linear.ndim == 2:
-            return Photo(linear, None, scale, (width, height), "srgb", np.repeat(rgb8[..., None], 3, axis=-1))
-        return Photo(linear_luminance(linear), linear, scale, (width, height), "srgb", np.ascontiguousarray(rgb8))
+        return _srgb_photo(encoded, full, scale, (width, height))
     img = np.clip(raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     colour = None if colour_raw is None else np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     return Photo(img, colour, scale, (width, height))
+
+
+def _srgb_photo(encoded: np.ndarray, full: float, scale: float, size: tuple[int, int]) -> Photo:
+    """The ``Photo`` of sRGB-encoded samples (H, W) or (H, W, 3) RGB on the scale 0..``full``: linear light, and
+    the file's values at 8 bits. 8-bit colour is decoded where it is read (``Decoded8``)."""
+    rgb8 = encoded if encoded.dtype == np.uint8 and full == 255.0 else \
+        (np.clip(encoded.astype(np.float32) / np.float32(full), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    if encoded is rgb8 and rgb8.ndim == 3:
+        rgb8 = np.ascontiguousarray(rgb8)
+        del encoded
+        return Photo(decoded_luminance(rgb8), Decoded8(rgb8), scale, size, "srgb", rgb8)
+    linear = decode_samples(encoded, full)
+    del encoded
+    if linear.ndim == 2:
+        return Photo(linear, None, scale, size, "srgb", np.repeat(rgb8[..., None], 3, axis=-1))
+    return Photo(linear_luminance(linear), linear, scale, size, "srgb", np.ascontiguousarray(rgb8))
 
 
 def _grey(bgr: np.ndarray) -> np.ndarray:

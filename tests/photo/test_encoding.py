@@ -73,3 +73,30 @@ def test_a_black_and_white_jpeg_is_srgb_as_a_camera_saved_it(tmp_path):
     assert read_photo(tmp_path / "bw.jpg", encoding="auto").encoding == "srgb"
     assert read_photo(tmp_path / "bw.png", encoding="auto").encoding == "linear"
     assert read_photo(tmp_path / "bw.jpg", encoding="linear").encoding == "linear"
+
+
+def test_an_8_bit_colour_photo_is_decoded_where_it_is_read_never_whole(tmp_path):
+    """An 8-bit sRGB colour photo's linear RGB is a ``Decoded8``: any part of it indexed is the table's decoding of
+    those values, bit for bit what the whole decoded at once gives, and so is its grey; reading a 4-megapixel
+    photo never holds its 48 MB of linear floats (its file, its decoded samples, 12 MB, their 8-bit RGB, 12 MB,
+    and its grey, 16 MB)."""
+    import tracemalloc
+
+    from shadowflow.nodes.photo.encoding import Decoded8, linear_luminance
+
+    rng = np.random.default_rng(2)
+    small = rng.integers(0, 256, (50, 40, 3), np.uint8)
+    rgb = cv2.resize(small, (2000, 2000), interpolation=cv2.INTER_CUBIC)
+    path = tmp_path / "big.png"
+    cv2.imwrite(str(path), rgb[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    tracemalloc.start()
+    photo = read_photo(path, encoding="auto")
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert isinstance(photo.colour, Decoded8) and photo.colour.shape == (2000, 2000, 3)
+    assert peak < 70e6, peak / 1e6  # 53 MB; decoded whole (and its grey from it): 94 MB
+    whole = decode_samples(photo.rgb8, 255.0)
+    assert np.array_equal(np.asarray(photo.colour), whole)
+    assert np.array_equal(photo.colour[300:420, 1500:1720], whole[300:420, 1500:1720])
+    assert np.array_equal(photo.colour[..., ::-1][5:9], whole[..., ::-1][5:9])
+    assert np.array_equal(photo.grey, linear_luminance(whole))
