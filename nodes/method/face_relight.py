@@ -75,10 +75,12 @@ class FaceRelight:
             layer_face &= polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
         self.layer_face = layer_face
         # ``box``: the face's own box in it, where the albedo, shadows and relit face are computed
-        rows, cols = np.nonzero(layer_face) if layer_face.any() else ([0], [0])
+        rows, cols = np.nonzero(layer_face.any(axis=1))[0], np.nonzero(layer_face.any(axis=0))[0]
+        if not rows.size:
+            rows = cols = np.zeros(1, int)
         m = INNER_MARGIN
-        iy0, iy1 = max(0, min(rows) - m), min(ly1 - ly0, max(rows) + 1 + m)
-        ix0, ix1 = max(0, min(cols) - m), min(lx1 - lx0, max(cols) + 1 + m)
+        iy0, iy1 = max(0, int(rows[0]) - m), min(ly1 - ly0, int(rows[-1]) + 1 + m)
+        ix0, ix1 = max(0, int(cols[0]) - m), min(lx1 - lx0, int(cols[-1]) + 1 + m)
         self.inner = (slice(iy0, iy1), slice(ix0, ix1))  # the face's box within the layer's
         y0, y1, x0, x1 = self.box = (ly0 + iy0, ly0 + iy1, lx0 + ix0, lx0 + ix1)
         self.al = al = alignment.cropped(x0, y0)
@@ -90,7 +92,8 @@ class FaceRelight:
         box_grey = grey[y0:y1, x0:x1]
         coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, al, shape)) >= 0.5
         # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
-        self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, skin(photo, face))
+        face_skin = skin(photo, face)
+        self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, face_skin)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
@@ -107,7 +110,7 @@ class FaceRelight:
         # ambient, so a photo with fill light keeps its own pixels further round the face; what is not skin
         # (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the fitted shading
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
-        self.not_skin = face_lit & ~skin(photo, face) if photo.shape[-1] == 3 else np.zeros_like(face_lit)
+        self.not_skin = face_lit & ~face_skin if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.albedo = self.albedo_for(self.trust_for())
         self.alpha = inner_alpha(face, self.feather)
 
