@@ -38,7 +38,7 @@ def test_fit_gives_what_shadowflow_run_writes(tmp_path, procedural_model):
     result.save(tmp_path / "api")
     run = shadowflow.run([photo], tmp_path / "run", model=procedural_model, record=())
     assert [r["status"] for r in run.records] == ["ok"]
-    for name in ("normals.npy", "depth.npy", "albedo.png", "shadow.png", "relit.png", "mesh.ply"):
+    for name in ("normals.npy", "depth.npy", "grid.json", "albedo.png", "shadow.png", "relit.png", "mesh.ply"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "run" / "face" / name).read_bytes(), name
     assert result.iterations == run.records[0]["iterations"] == len(result.history)
     assert result.history[-1]["change_deg"] < 0.05 and result.converged
