@@ -20,7 +20,7 @@ from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
 from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
-                               photo_mesh, relit_lights, relit_photo_8bit, squeeze_channels)
+                               photo_mesh, relit_lights, relit_photo_8bit)
 from ..method.quality import NO_FACE
 from ..model.shape_model import ShapeModel
 from .report import card_pictures
