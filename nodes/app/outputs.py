@@ -21,7 +21,9 @@ from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
 from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
                                photo_mesh, relit_lights, relit_photo_8bit)
+from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..method.quality import NO_FACE
+from ..photo.align import Alignment, scalar_to_input
 from ..model.shape_model import ShapeModel
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
@@ -105,13 +107,12 @@ def _bgr(rgb8: np.ndarray) -> np.ndarray:
 
 
 def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """[0, 1] floats (H, W) or RGB (H, W, 3) -> uint8 (RGB becomes OpenCV's BGR), 0 off the mask."""
-    v = np.clip(np.nan_to_num(values) * 255.0 + 0.5, 0, 255)
-    if v.ndim == 3:
-        v = v[..., ::-1]
-        if mask is not None:
-            mask = mask[..., None]
-    return (v if mask is None else np.where(mask, v, 0)).astype(np.uint8)
+    """[0, 1] floats (H, W) or RGB (H, W, 3) -> uint8 (``products.to_8bit``; RGB becomes OpenCV's BGR), 0 off
+    the mask."""
+    v = rounded_8bit(values)
+    if mask is not None:
+        v = np.where(mask[..., None] if v.ndim == 3 else mask, v, np.uint8(0))
+    return _bgr(v) if v.ndim == 3 else v
 
 
 def faces_of(frame: Frame) -> list[Frame]:
@@ -217,8 +218,9 @@ def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid
 def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np.ndarray]:
     """A face's output folder's arrays: normals (3 channels), weights, depth, as written, or with
     ``on_photo_grid`` on its photo's pixel grid (H, W[, 3]) whichever way they were written: model-grid
-    arrays are brought there through ``grid.json`` as ``--arrays photo`` brings them (bilinear, renormalised
-    at the face's edge, normals made unit again), NaN off ``mask.png``. Read without pickles."""
+    arrays are brought there through ``grid.json`` as ``--arrays photo`` brings them (``align.scalar_to_input``:
+    bilinear, renormalised at the face's edge; normals made unit again), NaN off ``mask.png``. Read without
+    pickles."""
     folder = Path(folder)
     arrays = {name: np.load(folder / f"{name}.npy", allow_pickle=False) for name in ("normals", "weights", "depth")}
     if not on_photo_grid:
@@ -228,24 +230,14 @@ def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np
     if arrays["depth"].shape == (h, w):  # written on the photo's grid already
         return arrays
     mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
-    matrix = np.asarray(place["to_photo"], np.float64)
+    al, known = Alignment(np.asarray(place["to_photo"], np.float64), "grid.json"), np.isfinite(arrays["depth"])
 
-    def warp(values: np.ndarray) -> np.ndarray:
-        return cv2.warpAffine(values.astype(np.float32), matrix, (w, h), flags=cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    def on_photo_grid(values: np.ndarray) -> np.ndarray:  # (the grid's vectors are the photo's already)
+        return np.where(mask, scalar_to_input(values, known, al, (h, w)), np.nan).astype(np.float32)
 
-    known = np.isfinite(arrays["depth"])
-    share = warp(known.astype(np.float32))
-    out = {}
-    for name, values in arrays.items():
-        v = values if values.ndim == 3 else values[..., None]
-        on = np.stack([warp(np.where(known, v[..., i], 0.0)) for i in range(v.shape[-1])], axis=-1)
-        on /= np.maximum(share, 1e-6)[..., None]
-        if name == "normals":
-            on /= np.maximum(np.linalg.norm(on, axis=-1, keepdims=True), 1e-12)
-        on = np.where((mask & (share > 0))[..., None], on, np.nan).astype(np.float32)
-        out[name] = on if values.ndim == 3 else on[..., 0]
-    return out
+    normals = np.stack([on_photo_grid(arrays["normals"][..., i]) for i in range(3)], axis=-1)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    return {"normals": normals, "weights": on_photo_grid(arrays["weights"]), "depth": on_photo_grid(arrays["depth"])}
 
 
 class WriteNode:

@@ -78,9 +78,8 @@ class RunOptions:
 
 def frames_in_flight(fit_workers: int) -> int:
     """How many photos a local run holds at once: one beside each fit worker's, so that the photo steps of
-    one frame run while another is fitted. More wins nothing (30 small faces on two cores: 2.7 s with 2 to
-    60 in flight) and a long pipeline's queues would fill with large photos (twenty 4-megapixel photos:
-    568 MB peak with 2, 1.8 GB with the queues' 53; docs/speed.md)."""
+    one frame run while another is fitted. More wins nothing and a long pipeline's queues would fill with
+    large photos (its 17 stages let 53 in; figures in docs/speed.md, "A photo's whole run")."""
     return 1 + fit_workers
 
 

@@ -113,6 +113,7 @@ class FaceRelight:
         self.not_skin = face_lit & ~face_skin if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.albedo = self.albedo_for(self.trust_for())
         self.alpha = inner_alpha(face, self.feather)
+        self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
 
     def albedo_for(self, trust: np.ndarray) -> np.ndarray:
         """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere."""
@@ -144,7 +145,7 @@ class FaceRelight:
         # into the layer's box: the relit face's light carried over its border into the photo around it
         relit = self._in_layer(np.clip(face_image, 0.0, 1.0))
         return FaceLayer(self.layer_box, self.layer_face, relit,
-                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather), self._in_layer(self.alpha))
+                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather), self.layer_alpha)
 
     def _in_layer(self, values: np.ndarray) -> np.ndarray:
         """(h, w[, C]) values on the face's box -> the layer's box, 0 around."""

@@ -25,6 +25,7 @@ from .eye_detail import CONTRAST as EYE_CONTRAST
 from .face_relight import FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
+from .products import photo_channels
 from .quality import NO_FACE, assess, core_face, explained_variance
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
@@ -207,7 +208,7 @@ def photo_rgb8(frame: Frame) -> np.ndarray:
     for the face finder, whose nets learnt from photos as cameras encode them."""
     if "rgb8" in frame.data:
         return frame.data["rgb8"]
-    img = frame.data["colour"] if "colour" in frame.data else frame.data["image"][..., None]
+    img = photo_channels(frame)
     # a linear photo (Yale B's PGMs) is shown to the nets as a camera would have encoded it: the same face
     # given linear in grey and sRGB in colour is then found at the same place
     rgb = (linear_to_srgb(img) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
@@ -484,7 +485,7 @@ class PhotoRelightNode:
         if d.get("eyes_found") in ("detected", "mesh only"):
             eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
         return FaceRelight(
-            photo=d["colour"] if "colour" in d else d["image"][..., None], grey=d["image"], alignment=al,
+            photo=photo_channels(frame), grey=d["image"], alignment=al,
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
             light=d["light"], iod_px=self.iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
             eyes=eyes, eye_contrast=self.options.eye_contrast)

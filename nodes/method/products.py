@@ -136,44 +136,58 @@ def _relit_faces(frame: Frame) -> list[Frame]:
     return [p for p in frame.parts if p.ok and "photo_layers" in p.data] or [frame]
 
 
+def photo_channels(frame: Frame) -> np.ndarray:
+    """(H, W, C) the frame's photo in linear light: its colour (C = 3; a ``Decoded8`` for 8-bit sRGB) or its
+    grey with a channel axis (C = 1)."""
+    d = frame.data
+    return d["colour"] if "colour" in d else d["image"][..., None]
+
+
 def relit_photo(frame: Frame, index: int) -> np.ndarray:
     """(H, W, C) float32 in [0, 1]: the frame's photo relit by its ``index``-th light (``relit_lights``), the
     layers of every face that came through composed in, in the photo's own encoding (``meta["encoding"]``):
     the relighting is done in linear light, and an sRGB photo's pixels no face changes keep the file's
     values exactly. Made when asked, not kept: a 4-megapixel photo relit is 48 MB."""
-    d = frame.data
-    photo = d["colour"] if "colour" in d else d["image"][..., None]
-    layers = [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
     if frame.meta.get("encoding", "linear") != "srgb":
-        return compose(photo, layers)
-    image = _file_values(photo, d["rgb8"]).astype(np.float32)
+        return compose(photo_channels(frame), _layers(frame, index))
+    (y0, y1, x0, x1), encoded = _encoded_faces(frame, index)
+    image = photo_8bit(frame).astype(np.float32)
     image /= np.float32(255.0)
-    y0, y1, x0, x1 = _around(layers)
-    image[y0:y1, x0:x1] = linear_to_srgb(compose(photo[y0:y1, x0:x1], _shifted(layers, y0, x0)))
+    image[y0:y1, x0:x1] = encoded
     return image
 
 
 def relit_photo_8bit(frame: Frame, index: int) -> np.ndarray:
     """(H, W, C) uint8 RGB (C = 1 for grey): ``relit_photo`` as its PNG holds it (rounded), made without the
     float copy of the whole photo where it can be: an sRGB photo's file values with its faces' box encoded in."""
-    d = frame.data
     if frame.meta.get("encoding", "linear") != "srgb":
         return to_8bit(relit_photo(frame, index))
-    photo = d["colour"] if "colour" in d else d["image"][..., None]
-    layers = [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
-    image = _file_values(photo, d["rgb8"]).copy()
-    y0, y1, x0, x1 = _around(layers)
-    image[y0:y1, x0:x1] = to_8bit(linear_to_srgb(compose(photo[y0:y1, x0:x1], _shifted(layers, y0, x0))))
+    (y0, y1, x0, x1), encoded = _encoded_faces(frame, index)
+    image = photo_8bit(frame).copy()
+    image[y0:y1, x0:x1] = to_8bit(encoded)
     return image
+
+
+def _layers(frame: Frame, index: int) -> list[FaceLayer]:
+    """The ``index``-th light's layer of every face that came through."""
+    return [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
+
+
+def _encoded_faces(frame: Frame, index: int) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    """An sRGB photo's faces relit by its ``index``-th light: ``(box, values)``, the box ``(y0, y1, x0, x1)``
+    around every face's layer and the photo there with the layers composed in linear light, sRGB-encoded
+    (h, w, C) float32. Beyond the box the relit photo is the file's values."""
+    layers = _layers(frame, index)
+    y0, y1, x0, x1 = _around(layers)
+    return (y0, y1, x0, x1), linear_to_srgb(compose(photo_channels(frame)[y0:y1, x0:x1], _shifted(layers, y0, x0)))
 
 
 def photo_8bit(frame: Frame) -> np.ndarray:
     """(H, W, C) uint8 RGB (C = 1 for grey): the photo as its file shows it, in its own encoding (an sRGB
     photo's file values; a linear one's values, rounded)."""
-    d = frame.data
-    photo = d["colour"] if "colour" in d else d["image"][..., None]
+    photo = photo_channels(frame)
     if frame.meta.get("encoding", "linear") == "srgb":
-        return _file_values(photo, d["rgb8"])
+        return _file_values(photo, frame.data["rgb8"])
     return to_8bit(photo)
 
 

@@ -192,8 +192,8 @@ def load_photo(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
 @dataclass
 class Photo:
     """grey: (H, W) float32 brightness in [0, 1]; colour: (H, W, 3) float32 RGB in [0, 1] (for 8-bit sRGB a
-    ``Decoded8`` of ``rgb8``, decoded where it is indexed), or None for a grey image; scale: its pixels per pixel of the file (1, or less when it was reduced to
-    ``max_pixels``); size: the file's (width, height), upright (its EXIF orientation applied); encoding: "linear" (the values are the file's)
+    ``Decoded8`` of ``rgb8``, decoded where it is indexed), or None for a grey image; scale: its pixels per
+    pixel of the file (1, or less when it was reduced to ``max_pixels``); size: the file's (width, height), upright (its EXIF orientation applied); encoding: "linear" (the values are the file's)
     or "srgb" (the file's values decoded to linear light, ``photo.encoding``); rgb8: (H, W, 3) uint8
     RGB, the file's own (encoded) values at 8 bits, when it was decoded from sRGB."""
 
