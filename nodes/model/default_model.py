@@ -13,11 +13,14 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from pathlib import Path
+
+import numpy as np
 
 from .faces.ict import SHIPPED
 from .shape_model import ShapeModel, load_model, save_model, train_shape_model
-from .sources import training_faces
+from .sources import mirror_map, training_faces
 
 GENERATOR_VERSION = 2  # bump when nodes/model/faces/facegen.py changes the faces it makes
 # 200 identities, K = 60: more of either barely moves the normals (docs/tuning.md, "The default model")
@@ -40,7 +43,8 @@ def cache_dir() -> Path:
 
 def train_from_recipe(recipe: dict) -> ShapeModel:
     """Train the model a recipe describes (``source``, ``n``, ``seed``, ``modes``, ``size``, and
-    optionally ``expressions``: an ICT face's chance of each expression blendshape)."""
+    optionally ``expressions``: an ICT face's chance of each expression blendshape; ``view``: (yaw,
+    pitch) degrees, the ICT heads turned so, ``posed``)."""
 
     from threadpoolctl import threadpool_limits
 
@@ -48,9 +52,14 @@ def train_from_recipe(recipe: dict) -> ShapeModel:
     # on one BLAS thread, always: the decomposition's last bits depend on BLAS's threads, and a model built
     # under two of them differed in one of its 915,600 mode values from one built under one (so did the fits)
     with threadpool_limits(limits=1, user_api="blas"):
-        depths, mouth = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid,
-                                       recipe.get("expressions", 0.0))
-        return train_shape_model(depths, recipe["modes"], source=json.dumps(recipe, sort_keys=True), mouth=mouth)
+        view = tuple(float(a) for a in recipe.get("view", (0.0, 0.0)))
+        depths, mouth, eyes = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid,
+                                             recipe.get("expressions", 0.0), view)
+        model = train_shape_model(depths, recipe["modes"], eyes=eyes, source=json.dumps(recipe, sort_keys=True),
+                                  mouth=mouth, view=view)
+    if view != (0.0, 0.0):
+        model.mirror = mirror_map(recipe["source"], model.mask, view)
+    return model
 
 
 def _cache_key(recipe: dict) -> str:
@@ -64,7 +73,12 @@ def built_in_model(name: str = DEFAULT) -> ShapeModel:
     """Load a built-in model (``ict`` or ``procedural``), building and caching it first if needed."""
     if name not in RECIPES:
         raise ValueError(f"unknown built-in model {name!r}: {' or '.join(BUILT_IN)}")
-    recipe = RECIPES[name]
+    return _cached(RECIPES[name], name)
+
+
+def _cached(recipe: dict, name: str, note=None) -> ShapeModel:
+    """The model of ``recipe`` from the cache (``name`` begins its file's name), built and cached first if
+    it is not there (``note`` is told, when given, before the build)."""
     path = cache_dir() / f"{name}-{_cache_key(recipe)}.npz"
     if path.exists() or path.is_symlink():
         try:
@@ -74,12 +88,63 @@ def built_in_model(name: str = DEFAULT) -> ShapeModel:
                 path.unlink()
             except OSError:
                 pass
+    if note is not None:
+        note(path)
     model = train_from_recipe(recipe)
     try:
         save_model(model, path)
     except OSError:
         pass  # a read-only cache only costs the rebuild next time
     return model
+
+
+# a turned head is fitted with the model of its heads turned to the nearest view (docs/accuracy.md, "Turned
+# heads"): a view every VIEW_STEP degrees of yaw out to MAX_VIEW_YAW, and of pitch out to MAX_VIEW_PITCH
+VIEW_STEP = 5.0
+MAX_VIEW_YAW = 35.0
+PITCH_STEP = 10.0
+MAX_VIEW_PITCH = 10.0
+_views: dict[tuple[str, tuple[float, float]], ShapeModel] = {}
+_views_lock = threading.Lock()
+
+
+def view_of(yaw: float, pitch: float) -> tuple[float, float]:
+    """The (yaw, pitch) degrees of the turned model for a head at ``yaw``, ``pitch``: yaw to the nearest
+    multiple of ``VIEW_STEP`` within ``MAX_VIEW_YAW``; pitch a whole ``PITCH_STEP`` once it reaches one, within
+    ``MAX_VIEW_PITCH`` (the landmarks' pitch of a level real face reads up to 9.6 deg, Yale B)."""
+    y = float(np.clip(VIEW_STEP * np.round(yaw / VIEW_STEP), -MAX_VIEW_YAW, MAX_VIEW_YAW))
+    p = float(np.clip(PITCH_STEP * np.trunc(pitch / PITCH_STEP), -MAX_VIEW_PITCH, MAX_VIEW_PITCH))
+    return y + 0.0, p + 0.0  # no -0.0
+
+
+def views_near(yaw: float, pitch: float) -> list[tuple[float, float]]:
+    """The views a head measured at ``yaw``, ``pitch`` degrees may be fitted with: ``view_of`` it and its
+    neighbours in yaw (the landmarks' yaw is good to a few degrees; the fit tells the rest apart)."""
+    y, p = view_of(yaw, pitch)
+    return [(float(np.clip(y + k * VIEW_STEP, -MAX_VIEW_YAW, MAX_VIEW_YAW)) + 0.0, p) for k in (0, -1, 1)
+            if abs(y + k * VIEW_STEP) <= MAX_VIEW_YAW]
+
+
+def turned_model(model: ShapeModel, view: tuple[float, float], note=None) -> ShapeModel | None:
+    """``model`` with its training heads turned by ``view`` (yaw, pitch) degrees: ``model`` itself for
+    (0, 0); else the model of the same recipe (a built-in or ``train``'s ICT model) at that view, built on
+    first use (``note`` is told the cache file it is built into, once) and cached like the built-in
+    models; None for a model whose recipe is not known or not of the ICT source (a model file)."""
+    view = (float(view[0]), float(view[1]))
+    if view == (0.0, 0.0):
+        return model
+    try:
+        recipe = json.loads(model.source)
+    except ValueError:
+        return None
+    if not isinstance(recipe, dict) or recipe.get("source") != "ict" or "view" in recipe:
+        return None
+    key = (model.fingerprint, view)
+    with _views_lock:  # a face of each fit worker may ask at once: built once
+        if key not in _views:
+            name = f"ict-yaw{view[0]:+03.0f}-pitch{view[1]:+03.0f}"
+            _views[key] = _cached({**recipe, "view": list(view)}, name, note)
+        return _views[key]
 
 
 def default_model() -> ShapeModel:

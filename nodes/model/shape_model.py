@@ -39,7 +39,11 @@ class ShapeModel:
     modes: (2N, K) orthonormal columns, rows ordered (pixel, tangent axis);
     eigenvalues: (K,) variance of each mode (radians squared); source: provenance text;
     mouth: (2,) the mean face's mouth centre ``[x, y]`` (lips' parting line, pixels) if the training
-    source knows it (a found face's length is then measured against it, ``photo.faces``), else None.
+    source knows it (a found face's length is then measured against it, ``photo.faces``), else None;
+    view: (yaw, pitch) degrees the training heads were turned (``faces.placement.turn_to_view``; (0, 0)
+    frontal); mirror: (N,) int, each mask pixel's mirror image across the face's midline (an index into
+    the mask pixels, -1 where the camera does not see it), for a turned model; None: the column mirrored
+    about the eyes' midpoint.
     """
 
     grid: tuple[int, int]
@@ -51,6 +55,8 @@ class ShapeModel:
     eigenvalues: np.ndarray
     source: str
     mouth: np.ndarray | None = None
+    view: tuple[float, float] = (0.0, 0.0)
+    mirror: np.ndarray | None = None
     e1: np.ndarray = field(init=False, repr=False)
     e2: np.ndarray = field(init=False, repr=False)
     _derived: dict = field(init=False, repr=False, compare=False, default_factory=dict)
@@ -59,6 +65,8 @@ class ShapeModel:
         self.grid = (int(self.grid[0]), int(self.grid[1]))
         self.mask = np.asarray(self.mask, bool)
         self.mouth = None if self.mouth is None else np.asarray(self.mouth, np.float64).reshape(2)
+        self.view = (float(self.view[0]), float(self.view[1]))
+        self.mirror = None if self.mirror is None else np.asarray(self.mirror, np.int32).reshape(-1)
         self.e1, self.e2 = tangent_basis(self.mean_normals.astype(np.float64))
 
     def modes_as(self, dtype) -> np.ndarray:
@@ -86,6 +94,9 @@ class ShapeModel:
                 a = np.ascontiguousarray(a)
                 h.update(f"{a.dtype.str}{a.shape}".encode())
                 h.update(a.tobytes())
+            if self.view != (0.0, 0.0):  # a frontal model's text is what it was before models had views
+                h.update(repr(self.view).encode())
+                h.update(np.ascontiguousarray(self.mirror).tobytes() if self.mirror is not None else b"")
             self._derived["fingerprint"] = h.hexdigest()[:16]
         return self._derived["fingerprint"]
 
@@ -103,7 +114,8 @@ class ShapeModel:
         key = ("truncated", k)
         if key not in self._derived:  # kept: a stream asks for the same one every frame
             self._derived[key] = ShapeModel(self.grid, self.eyes, self.mask, self.mean_normals, self.mean_proj,
-                                            self.modes[:, :k], self.eigenvalues[:k], self.source, self.mouth)
+                                            self.modes[:, :k], self.eigenvalues[:k], self.source, self.mouth,
+                                            self.view, self.mirror)
         return self._derived[key]
 
     def project(self, normals: np.ndarray) -> np.ndarray:
@@ -156,13 +168,15 @@ def train_shape_model(
     source: str = "",
     min_coverage: float = 1.0,
     mouth: np.ndarray | None = None,
+    view: tuple[float, float] = (0.0, 0.0),
 ) -> ShapeModel:
     """Train a needle-map model from aligned height fields.
 
     depths: (M, H, W) heights in pixel units on the canonical grid, NaN off each face.
     The model region is the pixels covered by at least ``min_coverage`` of the faces, with
     interior holes filled, eroded by one pixel so every normal there has a full stencil.
-    n_modes: K, at most M - 1. mouth: (2,) the faces' mean mouth centre, if known. Returns the model.
+    n_modes: K, at most M - 1. mouth: (2,) the faces' mean mouth centre, if known; view: the (yaw, pitch)
+    the faces are seen at (their mirror map is set by the source, ``faces.ict.mirror_pixels``). Returns the model.
     """
     depths = np.asarray(depths, np.float64)
     m, h, w = depths.shape
@@ -176,7 +190,9 @@ def train_shape_model(
         normals[i] = normals_from_depth(d)[region]
     if not np.all(np.isfinite(normals)):
         raise ValueError("training faces do not cover the model region")
-    return train_from_normals(normals, region, n_modes, eyes, source, mouth)
+    model = train_from_normals(normals, region, n_modes, eyes, source, mouth)
+    model.view = (float(view[0]), float(view[1]))
+    return model
 
 
 def train_from_normals(
@@ -229,6 +245,8 @@ def save_model(model: ShapeModel, path: str | os.PathLike) -> Path:
         eigenvalues=model.eigenvalues,
         source=np.array(model.source),
         **({} if model.mouth is None else {"mouth": np.asarray(model.mouth, np.float64)}),
+        **({} if model.view == (0.0, 0.0) else {"view": np.asarray(model.view, np.float64)}),
+        **({} if model.mirror is None else {"mirror": model.mirror.astype(np.int32)}),
     )
     return atomic_write_bytes(path, buf.getvalue())
 
@@ -317,6 +335,13 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
     mouth = data.get("mouth")
     if mouth is not None and (mouth.shape != (2,) or not np.all(np.isfinite(mouth))):
         raise ValueError(f"{path}: 'mouth' must be two finite numbers [x, y]")
+    view = data.get("view", np.zeros(2))
+    if view.shape != (2,) or not np.all(np.abs(view) <= 90.0):
+        raise ValueError(f"{path}: 'view' must be two angles [yaw, pitch] within 90 degrees")
+    mirror = data.get("mirror")
+    n = int(mask.sum())
+    if mirror is not None and (mirror.shape != (n,) or mirror.dtype.kind not in "iu" or mirror.min() < -1 or mirror.max() >= n):
+        raise ValueError(f"{path}: 'mirror' must be one index per mask pixel, -1 to {n - 1}")
     return ShapeModel(
         grid=tuple(int(x) for x in data["grid"]),
         eyes=data["eyes"].astype(float),
@@ -327,4 +352,6 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
         eigenvalues=data["eigenvalues"].astype(np.float32),
         source=str(data.get("source", "")),
         mouth=None if mouth is None else mouth.astype(np.float64),
+        view=(float(view[0]), float(view[1])),
+        mirror=None if mirror is None else mirror.astype(np.int32),
     )

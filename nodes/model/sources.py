@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .faces.facegen import render_face, sample_face
-from .faces.ict import canonical_mouth, ict_faces, read_ict, shipped_basis
+from .faces.ict import canonical_mouth, ict_faces, mirror_pixels, placed, read_ict, shipped_basis
 from .faces.placement import align_to_eyes, render_mesh
 
 
@@ -115,16 +115,29 @@ def parse_source(spec: str) -> tuple[str, str | None]:
     return (m.group(1), None) if m.group(1) else (m.group(2), m.group(3))
 
 
-def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int],
-                   expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
-    """Faces to train a model on (``load_source``) and their mean face's mouth centre (2,) on
-    ``grid`` where the source knows it (ICT; else None), the ICT model read once for both."""
+def training_faces(spec: str, n: int, seed: int, grid: tuple[int, int], expressions: float = 0.0,
+                   view: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Faces to train a model on (``load_source``), their mean face's mouth centre (2,) and eye centres
+    (2, 2) on ``grid`` where the source knows them (ICT; else None: the canonical eyes), the ICT model
+    read once for all. ``view`` (yaw, pitch) degrees: the heads turned so (ICT only, ``faces.ict.placed``)."""
     kind, arg = parse_source(spec)
     if kind != "ict":
-        return load_source(spec, n, seed, grid, expressions)[0], None
+        if tuple(view) != (0.0, 0.0):
+            raise ValueError(f"turned heads are a view of the ICT source, not of {spec!r}")
+        return load_source(spec, n, seed, grid, expressions)[0], None, None
 
     basis = _ict_basis(arg)
-    return ict_faces(basis, n, seed, grid, expressions)[0], canonical_mouth(basis, grid)
+    eyes = placed(basis.eyes, basis.eyes, grid, view)[:, :2] if tuple(view) != (0.0, 0.0) else None
+    return ict_faces(basis, n, seed, grid, expressions, view)[0], canonical_mouth(basis, grid, view), eyes
+
+
+def mirror_map(spec: str, mask: np.ndarray, view: tuple[float, float]) -> np.ndarray:
+    """(N,) the mirror pixels of a model of the ICT source ``spec`` whose heads are turned by ``view``
+    (``faces.ict.mirror_pixels``)."""
+    kind, arg = parse_source(spec)
+    if kind != "ict":
+        raise ValueError(f"turned heads are a view of the ICT source, not of {spec!r}")
+    return mirror_pixels(_ict_basis(arg), mask, view)
 
 
 def _ict_basis(path: str | None):

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ....flow.files import atomic_write_bytes
-from .placement import align_to_eyes, render_mesh
+from .placement import align_to_eyes, render_mesh, turn_to_view
 
 FACE_VERTICES = 9409  # upstream vertex ranges: 0-9408 is the full face area
 IRIS_RIGHT = (23791, 24591)  # the subject's right iris: the image's left eye
@@ -109,9 +109,10 @@ def write_compact(basis: IctBasis, path: str | os.PathLike, dtype=np.float16) ->
 
 
 def ict_faces(basis: IctBasis, n: int, seed: int = 0, grid: tuple[int, int] = (128, 128),
-              expressions: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+              expressions: float = 0.0, view: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """``n`` random identities rendered on ``grid`` with their iris centres on the canonical eye
-    pixels: ``(depths (n, H, W) float32 px, NaN off the face; albedos, 1 on the face)``.
+    pixels: ``(depths (n, H, W) float32 px, NaN off the face; albedos, 1 on the face)``; with a
+    ``view`` (yaw, pitch) degrees, each head turned so (``placed``).
 
     Identity weights are N(0, 1) per mode, as the model defines them (deterministic in ``seed``).
     ``expressions`` > 0: each face also gets each blendshape with that probability, at a weight
@@ -128,24 +129,68 @@ def ict_faces(basis: IctBasis, n: int, seed: int = 0, grid: tuple[int, int] = (1
         if expressions > 0:
             e = len(basis.expressions)
             we = rng.random(e) * (rng.random(e) < expressions)
-        depths.append(render_identity(basis, w, grid, we))
+        depths.append(render_identity(basis, w, grid, we, view))
     d = np.stack(depths).astype(np.float32)
     return d, np.where(np.isfinite(d), 1.0, np.nan).astype(np.float32)
 
 
-def canonical_mouth(basis: IctBasis, grid: tuple[int, int] = (128, 128)) -> np.ndarray:
+def canonical_mouth(basis: IctBasis, grid: tuple[int, int] = (128, 128),
+                    view: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """(2,) ``[x, y]`` pixels: the mean face's mouth centre (stomion) with its irises on the
-    canonical eye pixels of ``grid``."""
+    canonical eye pixels of ``grid`` (the head turned by ``view``, ``placed``)."""
     verts, eyes = basis.face(np.zeros(basis.n_identity))
-    return align_to_eyes(verts[list(STOMION)].mean(axis=0, keepdims=True), eyes[0], eyes[1], grid)[0, :2]
+    return placed(verts[list(STOMION)].mean(axis=0, keepdims=True), eyes, grid, view)[0, :2]
+
+
+def placed(points: np.ndarray, eyes: np.ndarray, grid: tuple[int, int], view: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """(P, 3) points of a face (cm, the model's frame) on ``grid`` (column, row, height px): its iris
+    centres ``eyes`` (2, 3) on the canonical eye pixels (``align_to_eyes``), then the head turned by
+    ``view`` = (yaw, pitch) degrees as the camera sees it (``placement.turn_to_view``)."""
+    p = align_to_eyes(np.asarray(points, np.float64), eyes[0], eyes[1], grid)
+    if tuple(view) == (0.0, 0.0):
+        return p
+    e = align_to_eyes(np.asarray(eyes, np.float64), eyes[0], eyes[1], grid)
+    px_per_cm = float(np.linalg.norm(e[1, :2] - e[0, :2]) / np.linalg.norm(eyes[1, :2] - eyes[0, :2]))
+    return turn_to_view(p, e, view, px_per_cm)
+
+
+def mirror_pixels(basis: IctBasis, mask: np.ndarray, view: tuple[float, float]) -> np.ndarray:
+    """(N,) int32: for each of the N pixels of a model's ``mask`` (H, W) whose heads are turned by
+    ``view`` (yaw, pitch) degrees, the mask pixel (an index into them, row-major) that shows its mirror
+    image across the face's midline, -1 where the camera does not see that (the far cheek's mirror of
+    the near one) or it is off the mask. Found on the mean face: each vertex's mirror is the vertex
+    nearest its reflection in x (the model's frame is symmetric about x = 0)."""
+    from scipy.spatial import cKDTree
+
+    from ...geometry.raster import rasterize
+
+    grid = mask.shape
+    verts, eyes = basis.face(np.zeros(basis.n_identity))
+    px = placed(verts, eyes, grid, view)
+    twin = cKDTree(verts).query(verts * [-1.0, 1.0, 1.0])[1]
+    depth, at = rasterize(px, basis.triangles, grid, attributes=px[twin])  # each pixel's mirror point, placed
+    index = np.full(grid, -1, np.int64)
+    index[mask] = np.arange(int(mask.sum()))
+    rows, cols = np.nonzero(mask)
+    m = at[rows, cols]
+    r, c = np.rint(m[:, 1]), np.rint(m[:, 0])
+    ok = np.isfinite(m).all(axis=1)
+    ok[ok] &= (r[ok] >= 0) & (r[ok] < grid[0]) & (c[ok] >= 0) & (c[ok] < grid[1])
+    out = np.full(len(rows), -1, np.int64)
+    ri, ci = r[ok].astype(np.int64), c[ok].astype(np.int64)
+    # seen: the mirror point is the surface the camera sees there (within a pixel of its height), not hidden behind it
+    seen = np.abs(depth[ri, ci] - m[ok, 2]) <= 1.0
+    out[np.flatnonzero(ok)[seen]] = index[ri[seen], ci[seen]]
+    return out.astype(np.int32)
 
 
 def render_identity(basis: IctBasis, w_identity: np.ndarray, grid: tuple[int, int] = (128, 128),
-                    w_expression: np.ndarray | None = None) -> np.ndarray:
+                    w_expression: np.ndarray | None = None, view: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """Height field (H, W) float32 px, NaN off the face, of one face with its iris centres on the
-    canonical eye pixels of ``grid`` (interior holes, the eyes and mouth, filled smoothly)."""
+    canonical eye pixels of ``grid`` (interior holes, the eyes and mouth, filled smoothly), the head
+    turned by ``view`` (yaw, pitch) degrees (``placed``)."""
     verts, eyes = basis.face(w_identity, w_expression)
-    return render_mesh(align_to_eyes(verts, eyes[0], eyes[1], grid), basis.triangles, grid)
+    return render_mesh(placed(verts, eyes, grid, view), basis.triangles, grid)
 
 
 # --- readers -------------------------------------------------------------------------------
