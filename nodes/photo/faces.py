@@ -67,11 +67,14 @@ TIGHT_CROPS = (1.15, 1.5)
 class Pose:
     """Head rotation in degrees, camera frame (x right, y up, z toward the viewer): yaw > 0 the face
     turned toward the image's right, pitch > 0 the face tilted up, roll > 0 turned counter-clockwise
-    as seen in the photo."""
+    as seen in the photo (``R = Ry(yaw) Rx(-pitch) Rz(roll)``). view: the same rotation as ``Rz(roll')
+    Ry(yaw') Rx(-pitch')``, the head turned and tilted, then rolled in the photo's plane: (yaw', pitch')
+    is how the model grid sees the head once its placement has taken the roll off."""
 
     yaw: float
     pitch: float
     roll: float
+    view: tuple[float, float] = (0.0, 0.0)  # (yaw, pitch) of the head with the photo's own roll taken off
 
     def record(self) -> dict[str, float]:
         return {"yaw": round(self.yaw, 1), "pitch": round(self.pitch, 1), "roll": round(self.roll, 1)}
@@ -257,8 +260,10 @@ def head_pose(face: FoundFace) -> Pose:
     from scipy.spatial.transform import Rotation
 
     # R = Ry(yaw) Rx(-pitch) Rz(roll): turned about the vertical, then tilted, then rolled in its own plane
-    yaw, minus_pitch, roll = Rotation.from_matrix(_rotation(src, dst)).as_euler("YXZ", degrees=True)
-    return Pose(float(yaw), float(-minus_pitch), float(roll))
+    rotation = Rotation.from_matrix(_rotation(src, dst))
+    yaw, minus_pitch, roll = rotation.as_euler("YXZ", degrees=True)
+    _, view_yaw, view_minus_pitch = rotation.as_euler("ZYX", degrees=True)
+    return Pose(float(yaw), float(-minus_pitch), float(roll), (float(view_yaw), float(-view_minus_pitch)))
 
 
 def _rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
@@ -287,19 +292,20 @@ def _template_3d() -> np.ndarray:
     return basis.neutral[list(LANDMARKS)].astype(np.float64)
 
 
-@lru_cache(maxsize=8)
-def grid_landmarks(grid: tuple[int, int], mouth: tuple[float, float] | None) -> np.ndarray:
+@lru_cache(maxsize=32)
+def grid_landmarks(grid: tuple[int, int], mouth: tuple[float, float] | None,
+                   view: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """(68, 2) the model grid's landmarks ``(col, row)``: ICT-FaceKit's neutral face placed as every
-    training face is (``model.faces.placement.align_to_eyes``), then stretched about the eye row so its
-    lips' parting line falls on the model's ``mouth`` (when the model knows it)."""
-    from ..model.faces.ict import STOMION, shipped_basis
-    from ..model.faces.placement import align_to_eyes
+    training face is (``model.faces.ict.placed``: its heads turned by ``view``, (yaw, pitch) degrees), then
+    stretched about the eye row so its lips' parting line falls on the model's ``mouth`` (when the model
+    knows it)."""
+    from ..model.faces.ict import STOMION, placed, shipped_basis
 
     basis = shipped_basis()
     verts = np.vstack([_template_3d(), basis.neutral[list(STOMION)].mean(axis=0, keepdims=True)])
-    px = align_to_eyes(verts, basis.eyes[0], basis.eyes[1], grid)[:, :2]
+    px = placed(verts, basis.eyes, grid, view)[:, :2]
     if mouth is not None:
-        eye_row = float(np.mean(align_to_eyes(basis.eyes, basis.eyes[0], basis.eyes[1], grid)[:, 1]))
+        eye_row = float(np.mean(placed(basis.eyes, basis.eyes, grid, view)[:, 1]))
         k = (mouth[1] - eye_row) / (px[-1, 1] - eye_row)
         px[:, 1] = eye_row + k * (px[:, 1] - eye_row)
     return px[:-1]
@@ -339,13 +345,14 @@ def fit_placement(grid_points: np.ndarray, photo_points: np.ndarray, weights: np
 
 
 def place_on_grid(face: FoundFace, grid: tuple[int, int], eyes: np.ndarray,
-                  mouth: np.ndarray | None) -> tuple[np.ndarray, float, float]:
+                  mouth: np.ndarray | None, view: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, float, float]:
     """``fit_placement`` of the model grid's landmarks (``grid_landmarks``; grid (Hm, Wm), the model's
-    ``eyes`` (2, 2) and ``mouth`` (2,) or None) to the face's mesh: ``(matrix (2, 3) model pixel ->
-    photo pixel, stretch, rms / the face's eye distance)``. Each feature (eyes, nose, mouth) weighs
-    the same; without a model mouth the stretch is 1."""
+    ``eyes`` (2, 2), ``mouth`` (2,) or None and ``view``) to the face's mesh: ``(matrix (2, 3) model
+    pixel -> photo pixel, stretch, rms / the face's eye distance)``. Each feature (eyes, nose, mouth)
+    weighs the same; without a model mouth the stretch is 1."""
     mesh_idx, template = _pairs()
-    grid_pts = grid_landmarks(tuple(grid), None if mouth is None else (float(mouth[0]), float(mouth[1])))[template]
+    grid_pts = grid_landmarks(tuple(grid), None if mouth is None else (float(mouth[0]), float(mouth[1])),
+                              (float(view[0]), float(view[1])))[template]
     weights = np.concatenate([np.full(len(g), 1.0 / len(g)) for g in LANDMARK_PAIRS.values()])
     limits = STRETCH_LIMITS if mouth is not None else (1.0, 1.0 + 1e-9)
     matrix, k, rms = fit_placement(grid_pts, face.mesh[mesh_idx, :2], weights, float(np.mean(eyes[:, 1])), limits)

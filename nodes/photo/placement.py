@@ -20,8 +20,11 @@ from ..model.shape_model import ShapeModel
 from .align import Alignment, centred_alignment, eyes_alignment, inside_input, stretch_vertically, to_model_grid
 from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
 
-# the frontal model's reach in yaw: turned further, a face is fitted but doubtful (docs/accuracy.md, "Pose")
+# the frontal model's reach in yaw: turned further, a face fitted with it (a model without turned views, a
+# model file) is doubtful (docs/accuracy.md, "Pose")
 MAX_FRONTAL_YAW = 15.0
+# turned further than this, a face is refused: the far half of the face is hidden (docs/accuracy.md, "Turned heads")
+MAX_YAW = 35.0
 # the landmarks' placement fit leaves at most this much (root-mean-square, in eye distances) on a face: real
 # faces well under it, concentric rings (which both nets take for a face) over it (docs/tuning.md)
 MAX_PLACEMENT_RMS = 0.12
@@ -41,7 +44,10 @@ class FacePlacement:
     image-left first; box: (4,) ``x0, y0, x1, y1`` photo pixels; pose: the head's rotation (found
     faces); outlines: the parts' outlines in photo pixels (``FoundFace.outlines``; found faces);
     doubts: one phrase per problem the placement sees; stretch: the face's length against the model's;
-    presence: the face mesh's score; plausible: whether the landmarks have a face's proportions."""
+    presence: the face mesh's score; plausible: whether the landmarks have a face's proportions; face: the
+    found face (its landmarks) it was placed by; view: the (yaw, pitch) of the model it is placed for (the
+    model's heads turned so, ``model.default_model.turned_model``); refused: why it is not fitted at all
+    (turned too far), else empty."""
 
     alignment: Alignment
     found: str
@@ -53,6 +59,9 @@ class FacePlacement:
     stretch: float = 1.0
     presence: float | None = None
     plausible: bool = True
+    face: FoundFace | None = None
+    view: tuple[float, float] = (0.0, 0.0)
+    refused: str = ""
 
     def record(self) -> dict:
         """What ``summary.json`` says of the face: box, eyes and pose (rounded, photo pixels, degrees)."""
@@ -60,6 +69,8 @@ class FacePlacement:
                "found": self.found, "pose": None if self.pose is None else self.pose.record()}
         if self.presence is not None:
             rec["presence"] = round(self.presence, 3)
+        if self.view != (0.0, 0.0):
+            rec["model_view"] = {"yaw": self.view[0], "pitch": self.view[1]}
         return rec
 
     def grid_outline(self, name: str = "oval") -> list[np.ndarray]:
@@ -106,10 +117,12 @@ def place_given_eyes(model: ShapeModel, eyes: np.ndarray, how: str, face_length:
 
 
 def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face_length: str | float) -> FacePlacement:
-    """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``); with
-    ``face_length`` "off" the stretch is 1, with a number it is that."""
+    """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``) on ``model``'s
+    grid, seen at the model's ``view``; with ``face_length`` "off" the stretch is 1, with a number it is
+    that. Turned more than ``MAX_YAW``, it is refused; more than ``MAX_FRONTAL_YAW`` from a frontal
+    model's view, doubtful."""
     mouth = model.mouth if face_length == "auto" else None
-    matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth)
+    matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth, model.view)
     how = f"landmarks; face length x{stretch:.3f}"
     al = Alignment(matrix, how)
     if isinstance(face_length, (int, float)) and not isinstance(face_length, bool):
@@ -123,8 +136,12 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     cut = np.mean((core[:, 0] < 0) | (core[:, 0] > w - 1) | (core[:, 1] < 0) | (core[:, 1] > h - 1))
     if cut > MAX_CUT:
         doubts.append(f"the face is cut by the frame ({100 * cut:.0f} % of its eyes, brows and lips outside)")
-    if abs(pose.yaw) > MAX_FRONTAL_YAW:
-        doubts.append(f"the head is turned {pose.yaw:+.0f} deg (yaw); the frontal model fits up to "
+    yaw = pose.view[0]
+    refused = ""
+    if abs(yaw) > MAX_YAW:
+        refused = f"the head is turned {yaw:+.0f} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
+    elif model.view == (0.0, 0.0) and abs(yaw) > MAX_FRONTAL_YAW:
+        doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to "
                       f"{MAX_FRONTAL_YAW:.0f} deg")
     if rms > MAX_PLACEMENT_RMS:
         doubts.append(f"the landmarks do not fit a face's proportions (off by {rms:.2f} of the eye distance)")
@@ -132,7 +149,7 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     box = np.clip(face.box, 0.0, [w - 1, h - 1, w - 1, h - 1])
     found = "detected" if face.detected else "mesh only"
     return FacePlacement(al, found, face.eyes, box, pose, face.outlines(), tuple(doubts), stretch, face.presence,
-                         rms <= MAX_PLACEMENT_RMS)
+                         rms <= MAX_PLACEMENT_RMS, face, model.view, refused)
 
 
 def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | None = None, eyes_how: str = "given eyes",
