@@ -22,6 +22,7 @@ from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
 from ..method.nodes import MethodOptions, photo_nodes
 from ..method.products import input_grid_products, photo_mesh, relit_photos
+from ..method.turned import face_model
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, checked_light, parse_light
@@ -160,7 +161,8 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
                     relit=p["relit"], relit_extra=p["relit_extra"], quality=face.meta["quality"], mask=p["mask"],
                     novel_view=face.data["novel_view"], light=np.asarray(face.data["light"], np.float64),
                     history=list(r.history), iterations=r.iterations, converged=r.converged, frame=face,
-                    model=shape_model, faces=[face_record(photo, f, None) for f in photo.parts], photo=photo)
+                    model=face_model(face, shape_model), faces=[face_record(photo, f, None) for f in photo.parts],
+                    photo=photo)
 
 
 def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: ShapeModel | str | None = None,

@@ -30,6 +30,7 @@ from ..method.nodes import (
 )
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
+from ..method.turned import face_model
 from ..model.shape_model import ShapeModel
 
 # The method's channel names (``channels.py``), for the engine's replay (``flow/replay`` knows none of them).
@@ -89,7 +90,7 @@ class FitRecorder:
 
     def _emit(self, frame: Frame, it: FitIteration) -> None:
         """Face-pixel copies only: the recorder's thread puts them on the grid (``OnMask``)."""
-        mask, r, k, fid = self.model.mask, self.recorder, it.iteration, frame.id
+        mask, r, k, fid = face_model(frame, self.model).mask, self.recorder, it.iteration, frame.id
 
         def on_face(values: np.ndarray) -> OnMask:
             return OnMask(np.array(values, np.float32), mask)
@@ -112,7 +113,7 @@ class RecordNode:
         self.model, self.recorder = model, recorder
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m, fid = frame.data, self.model, frame.id
+        d, m, fid = frame.data, face_model(frame, self.model), frame.id
         self.recorder.name_frame(fid, frame.meta.get("stem"))
 
         def emit(path: str, kind: Kind, value) -> None:

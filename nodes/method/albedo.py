@@ -58,7 +58,7 @@ def estimate_albedo(
     light: np.ndarray,
     lit: np.ndarray,
     mask: np.ndarray,
-    axis_col: float,
+    axis_col: float | np.ndarray,
     min_shading: float = MIN_SHADING,
     symmetric_fill: bool = True,
     boundary_px: int = 1,
@@ -68,7 +68,8 @@ def estimate_albedo(
 
     image (H, W) brightness in [0, 1]; normals (H, W, 3) camera frame; light (3,) unit;
     lit (H, W) bool (not in cast or attached shadow); mask (H, W) bool face;
-    axis_col: column of the face's vertical symmetry axis (model grid). boundary_px: pixels
+    axis_col: column of the face's vertical symmetry axis (model grid), or (N,) int the mirror pixel of each
+    of the N mask pixels (an index into them, -1: none; a turned face's, ``ShapeModel.mirror``). boundary_px: pixels
     this close to a predicted shadow are not trusted either (a shadow edge a pixel off
     would otherwise leave a black seam of albedo near 0). min_shading: see ``MIN_SHADING``;
     fill_ceiling: see ``FILL_CEILING`` (None: the paper's fill).
@@ -85,10 +86,17 @@ def estimate_albedo(
     todo = m & ~trusted
     if symmetric_fill and todo.any():
         rows, cols = np.nonzero(todo)
-        mc = np.rint(2.0 * axis_col - cols).astype(np.int64)
-        ok = (mc >= 0) & (mc < m.shape[1])
-        ok[ok] = trusted[rows[ok], mc[ok]]
-        albedo[rows[ok], cols[ok]] = albedo[rows[ok], mc[ok]]
+        if np.ndim(axis_col) == 0:
+            mr, mc = rows, np.rint(2.0 * axis_col - cols).astype(np.int64)
+            ok = (mc >= 0) & (mc < m.shape[1])
+        else:  # the mirror pixels of a turned face
+            index = np.full(m.shape, -1, np.int64)
+            index[m] = np.arange(int(m.sum()))
+            mirror_flat = np.flatnonzero(m)[np.maximum(np.asarray(axis_col)[index[rows, cols]], 0)]
+            mr, mc = np.divmod(mirror_flat, m.shape[1])
+            ok = np.asarray(axis_col)[index[rows, cols]] >= 0
+        ok[ok] = trusted[mr[ok], mc[ok]]
+        albedo[rows[ok], cols[ok]] = albedo[mr[ok], mc[ok]]
         source[rows[ok], cols[ok]] = 2
         todo[rows[ok], cols[ok]] = False
     if todo.any():

@@ -31,6 +31,7 @@ from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import confirm_with_image, far_darker, shadow_maps
+from .turned import ViewChoiceNode, face_model, turned_placements
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 # every option of ``MethodOptions`` that is one of a few names, and those names, the default first: the
@@ -237,16 +238,40 @@ class FacesNode:
                                      self.options.find_faces, self.options.face_length)
         if not placements:
             raise FrameFailed(f"{frame.source}: {NO_FACE}")
-        frame.parts = [self._face(frame, k, p) for k, p in enumerate(placements)]
+        frame.parts = []
+        for k, placement in enumerate(placements):
+            candidates = turned_placements(m, placement, image.shape, self.options.face_length)
+            face = self._face(frame, k, candidates[0])
+            if len(candidates) > 1 and face.ok:
+                face.data["view_candidates"] = candidates
+            frame.parts.append(face)
         return frame
 
-    def _face(self, frame: Frame, k: int, placement: FacePlacement) -> Frame:
-        """Face ``k`` (0 the largest) of the photo as a frame of its own."""
-        d, m = frame.data, self.model
-        source = frame.source if k == 0 else f"{frame.source} (face {k + 1})"
+    def again(self, face: Frame, placement: FacePlacement) -> Frame:
+        """The face of frame ``face`` (a part ``__call__`` made) made again with ``placement``."""
+        photo = Frame(face.id, face.source, data={key: face.data[key] for key in ("image", "colour", "rgb8")
+                                                  if key in face.data},
+                      meta={"stem": face.meta.get("stem"), "encoding": face.meta.get("encoding", "linear")})
+        if face.meta.get("light_source", "estimated") != "estimated":  # given: the same for every placement
+            photo.data["light"], photo.meta["light_source"] = face.data["light"], face.meta["light_source"]
+        return self._face(photo, int(face.meta.get("face", 1)) - 1, placement, face.source)
+
+    def _face(self, frame: Frame, k: int, placement: FacePlacement, source: str | None = None) -> Frame:
+        """Face ``k`` (0 the largest) of the photo as a frame of its own (failed when it is refused), fitted
+        with the model of its view (``turned.face_model``)."""
+        d = frame.data
+        if source is None:
+            source = frame.source if k == 0 else f"{frame.source} (face {k + 1})"
         face = Frame(frame.id, source, data={key: d[key] for key in ("image", "colour", "rgb8") if key in d},
                      meta={"stem": frame.meta.get("stem"), "face": k + 1,
                            "encoding": frame.meta.get("encoding", "linear")})
+        if placement.view != (0.0, 0.0):
+            face.meta["model_view"] = list(placement.view)
+        m = face_model(face, self.model)
+        if placement.refused:
+            face.meta["placement"] = placement.record()
+            face.fail(self.name, f"{source}: {placement.refused}")
+            return face
         al = placement.alignment
         grid_image, seen = face_on_grid(d["image"], placement, m)
         if "light" in d:
@@ -281,20 +306,20 @@ class RemapNode:
         self.saturation, self.max_clipped = saturation, max_clipped
 
     def __call__(self, frame: Frame) -> Frame:
-        image, s = frame.data["grid_image"], frame.data["grid_light"]
-        seen = seen_pixels(frame, self.model)  # face pixels the photo shows
-        face = image[self.model.mask][seen]
-        saturated = np.zeros(self.model.n_pixels, bool)  # over-exposure decided here, once
+        image, s, model = frame.data["grid_image"], frame.data["grid_light"], face_model(frame, self.model)
+        seen = seen_pixels(frame, model)  # face pixels the photo shows
+        face = image[model.mask][seen]
+        saturated = np.zeros(model.n_pixels, bool)  # over-exposure decided here, once
         saturated[seen] = clipped_pixels(face, self.saturation, self.max_clipped)
         frame.data["saturated"] = saturated
         clipped = float(np.mean(saturated[seen]))
         if self.scale == "ratio" or clipped > 0:  # over-exposed: no peak to go by
-            scale = ratio_scale(face, self.model.mean_normals[seen] @ s, self.saturation)
+            scale = ratio_scale(face, model.mean_normals[seen] @ s, self.saturation)
             frame.data["remapped"] = np.clip(image / scale, 0.0, 1.0).astype(np.float32)
             frame.meta.update(remap_scale=scale, clipped_fraction=round(clipped, 4))
             return frame
-        peak = expected_peak_shading(self.model.mean_normals, s) if self.model_peak else 1.0
-        m = self.model.to_image(seen, fill=False).astype(bool)
+        peak = expected_peak_shading(model.mean_normals, s) if self.model_peak else 1.0
+        m = model.to_image(seen, fill=False).astype(bool)
         frame.data["remapped"], frame.meta["remap_scale"] = lambertian_remap(image, m, peak_shading=peak)
         return frame
 
@@ -306,7 +331,8 @@ class SfsInitNode:
         self.model, self.config = model, config
 
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["initial"] = initial_normals(self.model, frame.data["remapped"], frame.data["grid_light"], self.config)
+        frame.data["initial"] = initial_normals(face_model(frame, self.model), frame.data["remapped"],
+                                                frame.data["grid_light"], self.config)
         return frame
 
 
@@ -327,9 +353,10 @@ class RobustFitNode:
             if self.observer is not None:
                 self.observer.iteration(frame, it)
 
-        intensity = frame.data["remapped"][self.model.mask]
-        unreliable = frame.data["saturated"] | ~seen_pixels(frame, self.model)
-        result = fit(self.model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
+        model = face_model(frame, self.model)
+        intensity = frame.data["remapped"][model.mask]
+        unreliable = frame.data["saturated"] | ~seen_pixels(frame, model)
+        result = fit(model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
                      unreliable=unreliable)
         if self.observer is not None:
             self.observer.finish(frame)
@@ -350,13 +377,13 @@ class CombineNode:
         self.model, self.cone_trust = model, cone_trust
 
     def __call__(self, frame: Frame) -> Frame:
-        r = frame.data["fit"]
-        paper = self.model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
+        r, model = frame.data["fit"], face_model(frame, self.model)
+        paper = model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
         if self.cone_trust == 1.0:
             frame.data["normals"] = paper
         else:
             w = self.cone_trust * r.weights
-            frame.data["normals"] = self.model.to_image(combine(r.normals, r.model_normals, w).astype(np.float32))
+            frame.data["normals"] = model.to_image(combine(r.normals, r.model_normals, w).astype(np.float32))
             frame.data["shading_normals"] = paper
         return frame
 
@@ -370,7 +397,7 @@ class IntegrateNode:
         self.model, self.integrate = model, INTEGRATORS[integrator]
 
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["depth"] = self.integrate(frame.data["normals"], self.model.mask)
+        frame.data["depth"] = self.integrate(frame.data["normals"], face_model(frame, self.model).mask)
         return frame
 
 
@@ -404,13 +431,15 @@ class AlbedoNode:
         if fill not in ("ceiling", "mirror"):
             raise ValueError(f"albedo fill must be 'ceiling' or 'mirror', not {fill!r}")
         self.model = model
-        self.axis_col = float(np.mean(model.eyes[:, 0]))
         self.ceiling = FILL_CEILING if fill == "ceiling" else None
 
     def __call__(self, frame: Frame) -> Frame:
+        model = face_model(frame, self.model)
+        # a frontal face's mirror image is across the eyes' midpoint column; a turned one's, the model's own map
+        mirror = float(np.mean(model.eyes[:, 0])) if model.mirror is None else model.mirror
         frame.data["albedo"], frame.data["albedo_source"] = estimate_albedo(
             frame.data["grid_image"], shading_normals(frame), frame.data["grid_light"],
-            frame.data["shadow"].lit, self.model.mask, self.axis_col, fill_ceiling=self.ceiling)
+            frame.data["shadow"].lit, model.mask, mirror, fill_ceiling=self.ceiling)
         return frame
 
 
@@ -442,7 +471,7 @@ class NovelViewNode:
         d = frame.data
         albedo, depth = d["albedo"], d["depth"]
         if "photo_albedo" in d:
-            measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"], self.model.grid)
+            measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"], face_model(frame, self.model).grid)
             depth = np.where(np.isfinite(measured[..., 0]), depth, np.nan)
             albedo = measured[..., 0] if measured.shape[-1] == 1 else measured
         if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
@@ -462,7 +491,6 @@ class PhotoRelightNode:
 
     def __init__(self, model: ShapeModel, options: MethodOptions):
         self.model, self.options = model, options
-        self.iod = float(np.linalg.norm(np.subtract(*model.eyes)))  # model pixels
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
@@ -475,7 +503,7 @@ class PhotoRelightNode:
 
     def face_relight(self, frame: Frame) -> FaceRelight:
         """The frame's entries as ``FaceRelight``'s arrays."""
-        d, m = frame.data, self.model
+        d, m = frame.data, face_model(frame, self.model)
         al: Alignment = d["alignment"]
         placement: FacePlacement | None = d.get("placement")
         meshed = placement is not None and bool(placement.outlines)
@@ -487,7 +515,7 @@ class PhotoRelightNode:
         return FaceRelight(
             photo=photo_channels(frame), grey=d["image"], alignment=al,
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
-            light=d["light"], iod_px=self.iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
+            light=d["light"], iod_px=float(np.linalg.norm(np.subtract(*m.eyes))) * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
             eyes=eyes, eye_contrast=self.options.eye_contrast)
 
 
@@ -499,10 +527,9 @@ class QualityNode:
 
     def __init__(self, model: ShapeModel):
         self.model = model
-        self.core = core_face(model)[model.mask]
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m = frame.data, self.model
+        d, m = frame.data, face_model(frame, self.model)
         seen = seen_pixels(frame, m)
         r = d["fit"]
         shading = np.clip(r.model_normals @ np.asarray(d["grid_light"], np.float64), 0.0, None)
@@ -513,7 +540,7 @@ class QualityNode:
                    explained=explained_variance(d["remapped"][m.mask], shading, use, r.weights),
                    downweighted=float(np.mean(r.weights[seen] < 0.5)) if seen.any() else 1.0,
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
-                   inside=float(np.mean(seen[self.core])),
+                   inside=float(np.mean(seen[core_face(m)[m.mask]])),
                    doubts=placement.doubts if placement is not None else (),
                    plausible=placement.plausible if placement is not None else True)
         frame.meta["quality"] = q.record()
@@ -547,5 +574,8 @@ def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver
     then each of ``after``, e.g. recording). With ``with_views`` each face's relit layers are made
     (``photo_layers``); the photo relit with every face is made from them when asked
     (``products.relit_photo``)."""
-    per_face = [*method_nodes(model, options, observer, with_views), *after]
-    return [LoadNode(model, options), FacesNode(model, options), *(EachPart(n) for n in per_face)]
+    faces = FacesNode(model, options)
+    # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
+    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3])
+    per_face = [choice, *method_nodes(model, options, observer, with_views), *after]
+    return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]

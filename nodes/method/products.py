@@ -12,11 +12,13 @@ from ..photo.align import face_box, mask_to_input, normals_to_input, reach_margi
 from ..photo.encoding import linear_to_srgb
 from .photo_relight import FaceLayer, compose
 from .relight import surface_mesh
+from .turned import face_model
 
 
 def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.ndarray:
     """(H, W) bool over a photo (H, W): the model's face under the frame's alignment, within the
     face's own outline when its landmarks gave one (``placement.outlines["oval"]``)."""
+    model = face_model(frame, model)
     box = product_box(frame, model, shape)
     return on_photo(_box_mask(frame, model, box), box, shape)
 
@@ -24,6 +26,7 @@ def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.nda
 def product_box(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> tuple[int, int, int, int]:
     """``(row0, row1, col0, col1)`` of the photo (H, W) that holds everything the face's products
     know: beyond it they are NaN (0 in masks), so only this box is computed."""
+    model = face_model(frame, model)
     al = frame.data["alignment"]
     return face_box(model.mask, al, shape, margin=reach_margin(al))
 
@@ -54,6 +57,7 @@ def face_products(frame: Frame, model: ShapeModel, arrays: bool = True
     ``input_grid_products`` describes them, each (h, w[, C]) the box's size; without ``arrays``, only
     mask, albedo and lit (the fit's arrays are written on its own grid, ``grid_products``). Only the box
     is computed: a 4-megapixel photo's background costs nothing."""
+    model = face_model(frame, model)
     d = frame.data
     box = product_box(frame, model, d["image"].shape[:2])
     mask = _box_mask(frame, model, box)
@@ -82,6 +86,7 @@ def grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
     the PHOTO's camera frame (rotated with the face's roll: the same vectors ``input_grid_products`` puts on
     the photo's pixels); weights (Hm, Wm) in [0, 1]; depth (Hm, Wm) in photo pixels. ``grid_placement``
     says where each model pixel lies on the photo."""
+    model = face_model(frame, model)
     d = frame.data
     al = d["alignment"]
     seen = model.mask & np.asarray(d.get("grid_valid", model.mask), bool)
@@ -98,6 +103,7 @@ def grid_placement(frame: Frame, model: ShapeModel) -> dict:
     matrix taking a model pixel (col, row, 1) to its photo pixel (x, y), pixel centres at integers, as
     OpenCV's ``warpAffine`` takes it (``cv2.warpAffine(depth, to_photo, (W, H))`` puts a grid array on the
     photo); ``photo`` [H, W]; ``scale`` photo pixels per model pixel."""
+    model = face_model(frame, model)
     al = frame.data["alignment"]
     h, w = frame.data["image"].shape[:2]
     return {"grid": list(model.grid), "to_photo": np.round(al.matrix, 9).tolist(), "photo": [h, w],
@@ -117,6 +123,7 @@ def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = No
     W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)``
     for each of ``extra_lights``. frame: the face's frame; relit: the photo's relit images with every
     face (``relit_photos`` of the photo's frame), default this face's alone."""
+    model = face_model(frame, model)
     shape = frame.data["image"].shape[:2]
     box, products = face_products(frame, model)
     relit = relit_photos(frame) if relit is None else relit
@@ -236,6 +243,7 @@ def photo_mesh(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
     its size is what the fit knows, whatever the photo's), placed in the photo's pixel frame:
     vertices (V, 3) float32 (x = input column, y = -input row, z = height in input pixels),
     triangles (T, 3) uint32, colours (V, 3) uint8 grey albedo."""
+    model = face_model(frame, model)
     d = frame.data
     al = d["alignment"]
     mesh = surface_mesh(d["depth"], d["albedo"])

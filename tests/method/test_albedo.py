@@ -85,3 +85,33 @@ def test_filled_albedo_is_never_brighter_than_typical_skin_but_keeps_dark_featur
     measured = source == 1
     np.testing.assert_allclose(albedo[measured], paper[measured])
     assert np.all(albedo[measured & shine] > 1.9)
+
+
+def test_a_mirror_map_fills_the_shadowed_side_from_the_pixels_it_names():
+    """A turned face's mirror pixels come as an index map (``ShapeModel.mirror``): the same face as above,
+    its mirror map the column flip, gives the column flip's albedo exactly; a map that names other pixels
+    takes their values, and -1 leaves a pixel to the smooth fill."""
+    from shadowflow.nodes.method.albedo import estimate_albedo
+
+    h = w = 80
+    yy, xx = np.mgrid[:h, :w]
+    x, y = (xx - 40.0) / 36.0, -(yy - 39.5) / 36.0
+    mask = x**2 + y**2 < 1.0
+    z = np.sqrt(np.clip(1.0 - x**2 - y**2, 0.0, None))
+    n = np.dstack([x, y, z]) * mask[..., None]
+    truth = 0.8 - 0.2 * x**2 + 0.1 * (xx % 7 == 0)
+    s = np.array([-0.6, 0.0, 0.8])
+    lit = mask & (n @ s > 0)
+    image = np.where(lit, truth * np.clip(n @ s, 0, None), 0.0)
+    index = np.full(mask.shape, -1)
+    index[mask] = np.arange(mask.sum())
+    rows, cols = np.nonzero(mask)
+    flip = index[rows, np.clip(80 - cols, 0, 79)]  # the column mirror about column 40
+    by_column = estimate_albedo(image, n, s, lit, mask, axis_col=40.0, fill_ceiling=None)
+    by_map = estimate_albedo(image, n, s, lit, mask, axis_col=flip, fill_ceiling=None)
+    np.testing.assert_array_equal(by_map[1], by_column[1])
+    np.testing.assert_array_equal(by_map[0], by_column[0])
+    assert (by_map[1] == 2).sum() > 0.2 * mask.sum()
+    none = np.full(mask.sum(), -1)  # no mirror anywhere: what the light does not reach is filled smoothly
+    alone = estimate_albedo(image, n, s, lit, mask, axis_col=none, fill_ceiling=None)[1]
+    assert not (alone == 2).any() and (alone == 3).sum() == (by_map[1] >= 2).sum()
