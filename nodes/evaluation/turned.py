@@ -1,0 +1,143 @@
+"""Turned heads: ICT-FaceKit identities rendered as a photo of a head turned by a yaw and a pitch, with
+painted eyes, brows and lips (so the face finder's landmarks find them) and their true normals, and the
+score of a run of the whole photo path on them against that truth (docs/accuracy.md, "Turned heads").
+
+A render (``render_turned``): the identity placed on a square grid as the model's training faces are
+(its iris centres on the grid's canonical eye pixels), turned (``model.faces.ict.placed``), rendered
+nearest surface first with each pixel's point on the frontal face as an attribute; the albedo is a
+painting on the frontal face looked up there, Lambertian under the light with cast and attached
+shadows, on a grey background, sRGB-encoded as a camera's photo. The face's truth is the visible part
+of what the model calls the face: the pixels whose frontal point lies on the frontal model's mask.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from ..geometry.integrate import fill_holes
+from ..geometry.normals import angle_deg, normals_from_depth
+from ..geometry.raster import polygon_mask, rasterize
+from ..method.shadow import shadow_maps
+from ..model.faces.ict import LANDMARKS, IctBasis, placed
+from ..model.shape_model import ShapeModel
+from ..photo.encoding import linear_to_srgb
+
+SKIN = (0.62, 0.42, 0.32)  # linear RGB albedos
+LIPS = (0.45, 0.16, 0.15)
+BROWS = (0.05, 0.035, 0.03)
+SCLERA = (0.65, 0.62, 0.6)
+IRIS = (0.09, 0.06, 0.04)
+MOUTH = (0.06, 0.02, 0.02)
+BACKGROUND = 0.18
+AMBIENT = 0.1  # a share of each albedo lit by the room (shadows are then dark, not black)
+
+
+@dataclass
+class TurnedRender:
+    """A photo of a turned head and its truth. photo: (S, S, 3) uint8 sRGB; normals: (S, S, 3) true
+    normals, camera frame, NaN off the head; face: (S, S) bool, the visible face (module docstring);
+    light: (3,) toward the light; view: (yaw, pitch) degrees."""
+
+    photo: np.ndarray
+    normals: np.ndarray
+    face: np.ndarray
+    light: np.ndarray
+    view: tuple[float, float]
+
+
+def _painting(basis: IctBasis, verts: np.ndarray, eyes: np.ndarray, size: int) -> np.ndarray:
+    """(size, size, 3) linear albedo painted on the frontal face placed on a ``size`` grid: skin, the
+    eyes (sclera, iris and lashes) within the eye-lid landmarks, brows along theirs, lips between the
+    outer and inner lip lines."""
+    lm = placed(verts[list(LANDMARKS)], eyes, (size, size))[:, :2]
+    iod = float(np.linalg.norm(lm[45] - lm[36]) / 1.6)
+    img = np.empty((size, size, 3), np.float32)
+    img[:] = SKIN
+    px = lambda pts: np.round(np.asarray(pts) * 16).astype(np.int32)  # 4 fractional bits
+    kw = {"lineType": cv2.LINE_AA, "shift": 4}
+    for a, b in ((36, 42), (42, 48)):
+        eye = lm[a:b]
+        cv2.fillPoly(img, [px(eye)], SCLERA, **kw)
+        centre = eye.mean(axis=0)
+        clip = np.zeros((size, size), np.uint8)
+        cv2.fillPoly(clip, [px(eye)], 1, **kw)
+        iris = img.copy()
+        cv2.circle(iris, tuple(px(centre)), int(0.13 * iod * 16), IRIS, -1, **kw)
+        img = np.where(clip[..., None] > 0, iris, img)
+        cv2.polylines(img, [px(eye[:4])], False, BROWS, max(1, round(0.03 * iod)), **kw)  # the upper lid's lashes
+    for a, b in ((17, 22), (22, 27)):
+        cv2.polylines(img, [px(lm[a:b])], False, BROWS, max(2, round(0.09 * iod)), **kw)
+    cv2.fillPoly(img, [px(lm[48:60])], LIPS, **kw)
+    cv2.fillPoly(img, [px(lm[60:68])], MOUTH, **kw)
+    return img
+
+
+def render_turned(basis: IctBasis, w_identity: np.ndarray, view: tuple[float, float], light: np.ndarray,
+                  model: ShapeModel, size: int = 320, pad: int = 80) -> TurnedRender:
+    """One identity (weights ``w_identity``) turned by ``view`` (yaw, pitch) degrees under ``light``
+    (3,), on a ``size`` grid framed like the model's, with ``pad`` pixels of background around it;
+    the visible face is the frontal ``model``'s (module docstring)."""
+    grid = (size, size)
+    verts, eyes = basis.face(w_identity)
+    frontal = placed(verts, eyes, grid)
+    turned = placed(verts, eyes, grid, view)
+    depth, at = rasterize(turned, basis.triangles, grid, attributes=frontal[:, :2])
+    region = ndimage.binary_fill_holes(np.isfinite(depth))  # the eyes' and mouth's openings: filled smoothly
+    depth = fill_holes(depth, region)
+    at = np.stack([fill_holes(at[..., c], region) for c in range(2)], axis=-1)
+    normals = normals_from_depth(depth)
+    shadows = shadow_maps(depth, normals, light)
+    shading = np.clip(np.nan_to_num(normals) @ np.asarray(light, np.float64), 0.0, None) * shadows.lit
+    paint = _painting(basis, verts, eyes, size)
+    albedo = cv2.remap(paint, np.nan_to_num(at[..., 0], nan=-1).astype(np.float32),
+                       np.nan_to_num(at[..., 1], nan=-1).astype(np.float32), cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_CONSTANT, borderValue=SKIN)
+    head = np.isfinite(depth)
+    linear = np.where(head[..., None], albedo * (AMBIENT + (1.0 - AMBIENT) * shading[..., None]), BACKGROUND)
+    linear = linear.astype(np.float32)
+    photo = np.full((size + 2 * pad, size + 2 * pad, 3), BACKGROUND, np.float32)
+    photo[pad:pad + size, pad:pad + size] = linear
+    outline = face_outline(placed(verts[list(LANDMARKS)], eyes, grid)[:, :2])
+    face = visible_face(at, head, model, outline, size)
+
+    def full(a: np.ndarray, fill) -> np.ndarray:
+        return np.pad(a, [(pad, pad), (pad, pad)] + [(0, 0)] * (a.ndim - 2), constant_values=fill)
+
+    return TurnedRender(photo=(linear_to_srgb(np.clip(photo, 0, 1)) * 255 + 0.5).astype(np.uint8),
+                        normals=full(normals, np.nan), face=full(face, False), light=np.asarray(light, np.float64),
+                        view=(float(view[0]), float(view[1])))
+
+
+def face_outline(landmarks: np.ndarray) -> np.ndarray:
+    """(27, 2) the face's own outline from its 68 landmarks ``(col, row)``: the jaw line (0-16), closed over
+    the forehead along the brows (26-17) raised by half the eyes' distance (the skin below the hairline)."""
+    iod = float(np.linalg.norm(landmarks[42:48].mean(axis=0) - landmarks[36:42].mean(axis=0)))
+    return np.vstack([landmarks[0:17], landmarks[26:16:-1] - [0.0, 0.5 * iod]])
+
+
+def visible_face(at: np.ndarray, head: np.ndarray, model: ShapeModel, outline: np.ndarray, size: int) -> np.ndarray:
+    """(S, S) bool: the head's pixels whose frontal point (``at`` (S, S, 2) column, row on the ``size``
+    grid) lies on the frontal ``model``'s mask and within the face's ``outline`` (``face_outline``, on the
+    same frontal grid)."""
+    inside = polygon_mask(outline, (size, size))
+    k = model.grid[1] / size
+    c = np.rint(np.nan_to_num(at[..., 0], nan=-1)).astype(np.int64)
+    r = np.rint(np.nan_to_num(at[..., 1], nan=-1)).astype(np.int64)
+    ok = head & (c >= 0) & (c < size) & (r >= 0) & (r < size)
+    mc = np.clip(np.rint((c + 0.5) * k - 0.5).astype(np.int64), 0, model.grid[1] - 1)
+    mr = np.clip(np.rint((r + 0.5) * k - 0.5).astype(np.int64), 0, model.grid[0] - 1)
+    out = np.zeros(head.shape, bool)
+    out[ok] = model.mask[mr[ok], mc[ok]] & inside[r[ok], c[ok]]
+    return out
+
+
+def score_turned(normals: np.ndarray, truth: np.ndarray, face: np.ndarray) -> dict[str, float]:
+    """Mean angular error (degrees) of ``normals`` (S, S, 3, NaN where the fit did not cover) against
+    ``truth`` over the covered pixels of ``face`` (S, S) bool, and the share of ``face`` covered."""
+    covered = face & np.all(np.isfinite(normals), axis=-1)
+    err = angle_deg(np.nan_to_num(normals), np.nan_to_num(truth))
+    return {"error": float(np.mean(err[covered])) if covered.any() else float("nan"),
+            "coverage": float(np.mean(covered[face])) if face.any() else 0.0}
