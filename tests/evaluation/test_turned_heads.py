@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import shadowflow
 from shadowflow.nodes.evaluation.turned import render_turned, score_turned
 from shadowflow.nodes.geometry.reflectance import light_from_angles
@@ -53,7 +52,7 @@ def test_a_head_turned_50_degrees_is_refused_with_its_yaw(identities):
 
 def test_the_frontal_model_alone_cannot_fit_a_turned_head(identities, monkeypatch):
     """What the turned models are for: the same 30-degree render fitted frontally is 3x off."""
-    import shadowflow.nodes.method.turned as turned
+    from shadowflow.nodes.method import turned
 
     basis, ids = identities
     turned_error = _run(basis, ids[0], (30.0, 0.0))[2]["error"]

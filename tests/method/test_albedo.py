@@ -2,6 +2,16 @@
 import numpy as np
 
 
+def _dome(axis_col: float):
+    """An 80 x 80 hemisphere, symmetric about column ``axis_col``: rows, columns, x, y (unit radius), its
+    mask and normals (80, 80, 3)."""
+    yy, xx = np.mgrid[:80, :80]
+    x, y = (xx - axis_col) / 36.0, -(yy - 39.5) / 36.0
+    mask = x**2 + y**2 < 1.0
+    z = np.sqrt(np.clip(1.0 - x**2 - y**2, 0.0, None))
+    return yy, xx, x, y, mask, np.dstack([x, y, z]) * mask[..., None]
+
+
 def test_smooth_albedo_recovers_slow_skin_changes_and_leaves_shadow_alone():
     """``I / shading`` averaged over trusted pixels: a slow albedo ramp comes back relative to its
     median; a pixel far from any trusted one (deep shadow) gets 1; a dark speck does not move it."""
@@ -30,12 +40,7 @@ def test_estimated_albedo_is_measured_where_lit_mirrored_in_shadow_and_filled_be
     their neighbours. Source codes say which is which. (The paper's fill: ``fill_ceiling=None``.)"""
     from shadowflow.nodes.method.albedo import MIN_SHADING, estimate_albedo
 
-    h = w = 80
-    yy, xx = np.mgrid[:h, :w]
-    x, y = (xx - 39.5) / 36.0, -(yy - 39.5) / 36.0
-    mask = x**2 + y**2 < 1.0
-    z = np.sqrt(np.clip(1.0 - x**2 - y**2, 0.0, None))
-    n = np.dstack([x, y, z]) * mask[..., None]
+    yy, xx, x, y, mask, n = _dome(39.5)
     truth = np.where(np.abs(y - 0.4) < 0.08, 0.45, 0.8) - 0.1 * y**2 - 0.2 * x**2  # symmetric about column 39.5
     s = np.array([-0.6, 0.0, 0.8])  # toward the image's left: the right half is dark
     shading = n @ s
@@ -93,12 +98,7 @@ def test_a_mirror_map_fills_the_shadowed_side_from_the_pixels_it_names():
     takes their values, and -1 leaves a pixel to the smooth fill."""
     from shadowflow.nodes.method.albedo import estimate_albedo
 
-    h = w = 80
-    yy, xx = np.mgrid[:h, :w]
-    x, y = (xx - 40.0) / 36.0, -(yy - 39.5) / 36.0
-    mask = x**2 + y**2 < 1.0
-    z = np.sqrt(np.clip(1.0 - x**2 - y**2, 0.0, None))
-    n = np.dstack([x, y, z]) * mask[..., None]
+    yy, xx, x, y, mask, n = _dome(40.0)
     truth = 0.8 - 0.2 * x**2 + 0.1 * (xx % 7 == 0)
     s = np.array([-0.6, 0.0, 0.8])
     lit = mask & (n @ s > 0)

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from shadowflow.nodes.model import default_model as dm
 from shadowflow.nodes.model.faces.ict import STOMION, mirror_pixels, placed, shipped_basis
 from shadowflow.nodes.model.faces.placement import turn_to_view, view_rotation
