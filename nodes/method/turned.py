@@ -36,8 +36,8 @@ def turned_placements(model: ShapeModel, placement: FacePlacement, shape: tuple[
         return [placement]
     yaw, pitch = placement.pose.view
     views = views_near(yaw, pitch)
-    if abs(yaw) < FRONTAL_YAW and views[0][1] == 0.0:
-        return [placement]
+    if abs(yaw) < FRONTAL_YAW:  # pitch alone is not turned: a misplaced face (nostrils for eyes) read pitched
+        return [placement]  # was fitted "ok" by a pitched view where the frontal fit refused it
     out = []
     for view in views:
         turned = model if view == (0.0, 0.0) else turned_model(model, view, note)
