@@ -6,6 +6,8 @@ from contextlib import contextmanager
 from functools import cache
 from typing import Callable, Iterator
 
+from ...flow.blas import single_threaded_blas
+
 
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
@@ -13,9 +15,7 @@ def one_blas_thread() -> Iterator[None]:
     pipeline already runs frames on several threads, so BLAS's own threads only contend. Measured on
     this 2-core machine: 16 demo faces 1.7-1.9 s against 3.4-4.5 s, one fit 51-55 ms against
     166-210 ms (``benchmarks/bench_nodes.py`` without ``OPENBLAS_NUM_THREADS=1``)."""
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
+    with single_threaded_blas():  # shared with the model builds: the last one out puts the limit back
         yield
 
 

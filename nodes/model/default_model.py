@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...flow.blas import single_threaded_blas
 from .faces.ict import SHIPPED
 from .shape_model import ShapeModel, load_model, save_model, train_shape_model
 from .sources import mirror_map, training_faces
@@ -44,19 +45,18 @@ def cache_dir() -> Path:
 def train_from_recipe(recipe: dict) -> ShapeModel:
     """Train the model a recipe describes (``source``, ``n``, ``seed``, ``modes``, ``size``, and
     optionally ``expressions``: an ICT face's chance of each expression blendshape; ``view``: (yaw,
-    pitch) degrees, the ICT heads turned so, ``posed``)."""
-
-    from threadpoolctl import threadpool_limits
+    pitch) degrees, the ICT heads turned so (``turned_model``); ``coverage``: the share of the faces that
+    must cover a pixel of the model's region, default all)."""
 
     grid = tuple(recipe["size"])
     # on one BLAS thread, always: the decomposition's last bits depend on BLAS's threads, and a model built
     # under two of them differed in one of its 915,600 mode values from one built under one (so did the fits)
-    with threadpool_limits(limits=1, user_api="blas"):
+    with single_threaded_blas():
         view = tuple(float(a) for a in recipe.get("view", (0.0, 0.0)))
         depths, mouth, eyes = training_faces(recipe["source"], recipe["n"], recipe["seed"], grid,
                                              recipe.get("expressions", 0.0), view)
         model = train_shape_model(depths, recipe["modes"], eyes=eyes, source=json.dumps(recipe, sort_keys=True),
-                                  mouth=mouth, view=view)
+                                  mouth=mouth, view=view, min_coverage=recipe.get("coverage", 1.0))
     if view != (0.0, 0.0):
         model.mirror = mirror_map(recipe["source"], model.mask, view)
     return model
@@ -104,6 +104,10 @@ VIEW_STEP = 5.0
 MAX_VIEW_YAW = 35.0
 PITCH_STEP = 10.0
 MAX_VIEW_PITCH = 10.0
+# a turned model's region: the pixels at least this share of its heads cover (the others' heights filled
+# smoothly there). All of them, as for the frontal model, stops at the narrowest of 200 far cheeks: 0.85 of a
+# 30 deg face's visible skin against 0.87-0.90, for the same normals (docs/accuracy.md, "Turned heads")
+TURNED_COVERAGE = 0.9
 _views: dict[tuple[str, tuple[float, float]], ShapeModel] = {}
 _views_lock = threading.Lock()
 
@@ -143,7 +147,7 @@ def turned_model(model: ShapeModel, view: tuple[float, float], note=None) -> Sha
     with _views_lock:  # a face of each fit worker may ask at once: built once
         if key not in _views:
             name = f"ict-yaw{view[0]:+03.0f}-pitch{view[1]:+03.0f}"
-            _views[key] = _cached({**recipe, "view": list(view)}, name, note)
+            _views[key] = _cached({**recipe, "view": list(view), "coverage": TURNED_COVERAGE}, name, note)
         return _views[key]
 
 
