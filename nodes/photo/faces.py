@@ -119,6 +119,13 @@ class FoundFace:
         return self.mesh[list(OVAL), :2]
 
     @property
+    def silhouette(self) -> np.ndarray:
+        """(n, 2) the outline of the whole mesh as the photo shows it (its convex hull), photo pixels, in
+        order: a turned face's outline, whose far cheek reaches past the oval's vertices (they lie behind
+        it); the oval itself on a frontal face."""
+        return cv2.convexHull(self.mesh[:, :2].astype(np.float32))[:, 0].astype(np.float64)
+
+    @property
     def box(self) -> np.ndarray:
         """(4,) ``x0, y0, x1, y1``: the outline's extent."""
         o = self.oval

@@ -146,9 +146,14 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     if rms > MAX_PLACEMENT_RMS:
         doubts.append(f"the landmarks do not fit a face's proportions (off by {rms:.2f} of the eye distance)")
     doubts += small_face(face.iod, model)
-    box = np.clip(face.box, 0.0, [w - 1, h - 1, w - 1, h - 1])
+
     found = "detected" if face.detected else "mesh only"
-    return FacePlacement(al, found, face.eyes, box, pose, face.outlines(), tuple(doubts), stretch, face.presence,
+    outlines = face.outlines()
+    if model.view != (0.0, 0.0):  # turned: the oval's far-cheek vertices lie behind the cheek, inside its outline
+        outlines["oval"] = [face.silhouette]
+    o = outlines["oval"][0]
+    box = np.clip(np.concatenate([o.min(axis=0), o.max(axis=0)]), 0.0, [w - 1, h - 1, w - 1, h - 1])
+    return FacePlacement(al, found, face.eyes, box, pose, outlines, tuple(doubts), stretch, face.presence,
                          rms <= MAX_PLACEMENT_RMS, face, model.view, refused)
 
 
