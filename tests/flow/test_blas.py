@@ -5,9 +5,8 @@ from __future__ import annotations
 import threading
 
 import numpy  # noqa: F401  (loads the BLAS the limit applies to)
-from threadpoolctl import threadpool_info, threadpool_limits
-
 from shadowflow.flow.blas import single_threaded_blas
+from threadpoolctl import threadpool_info, threadpool_limits
 
 
 def _blas_threads() -> list[int]:
