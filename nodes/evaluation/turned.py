@@ -12,6 +12,7 @@ of what the model calls the face: the pixels whose frontal point lies on the fro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -48,24 +49,28 @@ class TurnedRender:
     view: tuple[float, float]
 
 
-def _painting(basis: IctBasis, verts: np.ndarray, eyes: np.ndarray, size: int) -> np.ndarray:
-    """(size, size, 3) linear albedo painted on the frontal face placed on a ``size`` grid: skin, the
-    eyes (sclera, iris and lashes) within the eye-lid landmarks, brows along theirs, lips between the
-    outer and inner lip lines."""
-    lm = placed(verts[list(LANDMARKS)], eyes, (size, size))[:, :2]
+def _painting(landmarks: np.ndarray, size: int) -> np.ndarray:
+    """(size, size, 3) linear albedo painted on the frontal face placed on a ``size`` grid, from its 68
+    landmarks (68, 2) ``(col, row)`` there (NaN: a landmark the source does not have): skin, the eyes (sclera,
+    iris and lashes) within the eye-lid landmarks, brows along theirs, lips between the outer and inner lip
+    lines."""
+    lm = np.asarray(landmarks, np.float64)
     iod = float(np.linalg.norm(lm[45] - lm[36]) / 1.6)
     img = np.empty((size, size, 3), np.float32)
     img[:] = SKIN
-    px = lambda pts: np.round(np.asarray(pts) * 16).astype(np.int32)  # 4 fractional bits
+
+    def px(pts: np.ndarray) -> np.ndarray:  # 4 fractional bits; the landmarks a source lacks left out
+        pts = np.asarray(pts)
+        return np.round(pts[np.all(np.isfinite(pts), axis=1)] * 16).astype(np.int32)
+
     kw = {"lineType": cv2.LINE_AA, "shift": 4}
     for a, b in ((36, 42), (42, 48)):
         eye = lm[a:b]
         cv2.fillPoly(img, [px(eye)], SCLERA, **kw)
-        centre = eye.mean(axis=0)
         clip = np.zeros((size, size), np.uint8)
         cv2.fillPoly(clip, [px(eye)], 1, **kw)
         iris = img.copy()
-        cv2.circle(iris, tuple(px(centre)), int(0.13 * iod * 16), IRIS, -1, **kw)
+        cv2.circle(iris, tuple(px(eye.mean(axis=0, keepdims=True))[0]), int(0.13 * iod * 16), IRIS, -1, **kw)
         img = np.where(clip[..., None] > 0, iris, img)
         cv2.polylines(img, [px(eye[:4])], False, BROWS, max(1, round(0.03 * iod)), **kw)  # the upper lid's lashes
     for a, b in ((17, 22), (22, 27)):
@@ -77,21 +82,33 @@ def _painting(basis: IctBasis, verts: np.ndarray, eyes: np.ndarray, size: int) -
 
 def render_turned(basis: IctBasis, w_identity: np.ndarray, view: tuple[float, float], light: np.ndarray,
                   model: ShapeModel, size: int = 320, pad: int = 80) -> TurnedRender:
-    """One identity (weights ``w_identity``) turned by ``view`` (yaw, pitch) degrees under ``light``
-    (3,), on a ``size`` grid framed like the model's, with ``pad`` pixels of background around it;
-    the visible face is the frontal ``model``'s (module docstring)."""
-    grid = (size, size)
+    """One ICT identity (weights ``w_identity``) turned by ``view`` (yaw, pitch) degrees under ``light``
+    (3,) (``render_turned_mesh``)."""
     verts, eyes = basis.face(w_identity)
+    return render_turned_mesh(verts, basis.triangles, eyes, verts[list(LANDMARKS)], view, light, model, size, pad)
+
+
+def render_turned_mesh(verts: np.ndarray, triangles: np.ndarray, eyes: np.ndarray, landmarks: np.ndarray,
+                       view: tuple[float, float], light: np.ndarray, model: ShapeModel, size: int = 320,
+                       pad: int = 80) -> TurnedRender:
+    """A face mesh (verts (V, 3), any unit, x right, y up, z toward the viewer; triangles (T, 3); its iris
+    centres ``eyes`` (2, 3), image-left first; its 68 iBUG landmarks (68, 3), NaN where the mesh has none)
+    turned by ``view`` (yaw, pitch) degrees under ``light`` (3,), on a ``size`` grid framed like the model's,
+    with ``pad`` pixels of background around it; the visible face is the frontal ``model``'s (module
+    docstring)."""
+    grid = (size, size)
     frontal = placed(verts, eyes, grid)
     turned = placed(verts, eyes, grid, view)
-    depth, at = rasterize(turned, basis.triangles, grid, attributes=frontal[:, :2])
+    depth, at = rasterize(turned, triangles, grid, attributes=frontal[:, :2])
     region = ndimage.binary_fill_holes(np.isfinite(depth))  # the eyes' and mouth's openings: filled smoothly
     depth = fill_holes(depth, region)
     at = np.stack([fill_holes(at[..., c], region) for c in range(2)], axis=-1)
     normals = normals_from_depth(depth)
     shadows = shadow_maps(depth, normals, light)
     shading = np.clip(np.nan_to_num(normals) @ np.asarray(light, np.float64), 0.0, None) * shadows.lit
-    paint = _painting(basis, verts, eyes, size)
+    lm = np.where(np.isfinite(landmarks), landmarks, 0.0)
+    lm_px = np.where(np.isfinite(landmarks[:, :2]), placed(lm, eyes, grid)[:, :2], np.nan)
+    paint = _painting(lm_px, size)
     albedo = cv2.remap(paint, np.nan_to_num(at[..., 0], nan=-1).astype(np.float32),
                        np.nan_to_num(at[..., 1], nan=-1).astype(np.float32), cv2.INTER_LINEAR,
                        borderMode=cv2.BORDER_CONSTANT, borderValue=SKIN)
@@ -100,7 +117,7 @@ def render_turned(basis: IctBasis, w_identity: np.ndarray, view: tuple[float, fl
     linear = linear.astype(np.float32)
     photo = np.full((size + 2 * pad, size + 2 * pad, 3), BACKGROUND, np.float32)
     photo[pad:pad + size, pad:pad + size] = linear
-    outline = face_outline(placed(verts[list(LANDMARKS)], eyes, grid)[:, :2])
+    outline = face_outline(lm_px, frontal[:, :2])
     face = visible_face(at, head, model, outline, size)
 
     def full(a: np.ndarray, fill) -> np.ndarray:
@@ -111,11 +128,18 @@ def render_turned(basis: IctBasis, w_identity: np.ndarray, view: tuple[float, fl
                         view=(float(view[0]), float(view[1])))
 
 
-def face_outline(landmarks: np.ndarray) -> np.ndarray:
-    """(27, 2) the face's own outline from its 68 landmarks ``(col, row)``: the jaw line (0-16), closed over
-    the forehead along the brows (26-17) raised by half the eyes' distance (the skin below the hairline)."""
-    iod = float(np.linalg.norm(landmarks[42:48].mean(axis=0) - landmarks[36:42].mean(axis=0)))
-    return np.vstack([landmarks[0:17], landmarks[26:16:-1] - [0.0, 0.5 * iod]])
+def face_outline(landmarks: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n, 2) the face's own outline from its 68 landmarks ``(col, row)`` (NaN: missing) on the frontal grid:
+    the jaw line (0-16), closed over the forehead along the brows (26-17) raised by half the eyes' distance
+    (the skin below the hairline). A source without the jaw line (the Surrey model's contour is not fixed
+    vertices): the outline of the mesh's ``points`` (P, 2) on the same grid from that forehead line down."""
+    lm = np.asarray(landmarks, np.float64)
+    iod = float(np.linalg.norm(lm[42:48].mean(axis=0) - lm[36:42].mean(axis=0)))
+    brows = lm[26:16:-1] - [0.0, 0.5 * iod]
+    if np.all(np.isfinite(lm[0:17])):
+        return np.vstack([lm[0:17], brows])
+    below = points[points[:, 1] >= np.nanmin(brows[:, 1])]
+    return cv2.convexHull(below.astype(np.float32))[:, 0].astype(np.float64)
 
 
 def visible_face(at: np.ndarray, head: np.ndarray, model: ShapeModel, outline: np.ndarray, size: int) -> np.ndarray:
@@ -143,6 +167,30 @@ def score_turned(normals: np.ndarray, truth: np.ndarray, face: np.ndarray) -> di
             "coverage": float(np.mean(covered[face])) if face.any() else 0.0}
 
 
+def surrey_faces(path: str, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """``n`` faces of an eos-format morphable model (the Surrey Face Model; evaluation only, needs eos-py):
+    each ``(verts (V, 3) mm, triangles, eyes (2, 3): the eye corners' midpoints, landmarks (68, 3): the
+    iBUG points its landmark file maps, NaN for the others)``. Coefficients N(0, 1), deterministic in ``seed``."""
+    import eos
+
+    from ..model.sources import read_landmark_mapping
+
+    shape = eos.morphablemodel.load_model(str(path)).get_shape_model()
+    tris = np.asarray(shape.get_triangle_list(), np.int64)
+    mapping = read_landmark_mapping(Path(path).with_name("ibug_to_sfm.txt"))
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        verts = np.asarray(shape.draw_sample(rng.standard_normal(shape.get_num_principal_components())
+                                             .astype(np.float32)), np.float64).reshape(-1, 3)
+        lm = np.full((68, 3), np.nan)
+        for k, v in mapping.items():
+            lm[k - 1] = verts[v]
+        eyes = np.stack([(lm[36] + lm[39]) / 2.0, (lm[42] + lm[45]) / 2.0])
+        out.append((verts, tris, eyes, lm))
+    return out
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only]``: the table of
     docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
@@ -158,17 +206,22 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=main.__doc__)
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--frontal-only", action="store_true", help="fit every face with the frontal model")
+    ap.add_argument("--surrey", metavar="PATH", help="faces of this eos model (sfm_shape_3448.bin), not ICT's")
     args = ap.parse_args(argv)
     if args.frontal_only:
         turned.views_near = lambda yaw, pitch: [(0.0, 0.0)]
     basis, model, light = shipped_basis(), default_model(), light_from_angles(45.0, 0.0)
-    rng = np.random.default_rng(1000)  # the model's identities are drawn with seed 0
-    ids = [rng.standard_normal(basis.n_identity) for _ in range(args.identities)]
+    if args.surrey:
+        faces = surrey_faces(args.surrey, args.identities, 1000)
+    else:
+        rng = np.random.default_rng(1000)  # the model's identities are drawn with seed 0
+        faces = [(*basis.face(rng.standard_normal(basis.n_identity)),) for _ in range(args.identities)]
+        faces = [(v, basis.triangles, e, v[list(LANDMARKS)]) for v, e in faces]
     print("| view | normals | coverage | read yaw | status |\n|---|---|---|---|---|")
     for view in ((0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)):
         rows = []
-        for w in ids:
-            r = render_turned(basis, w, view, light, model)
+        for verts, tris, eyes, landmarks in faces:
+            r = render_turned_mesh(verts, tris, eyes, landmarks, view, light, model)
             try:
                 result = shadowflow.fit(r.photo, light=light)
             except ValueError as exc:
