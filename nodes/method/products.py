@@ -10,6 +10,7 @@ from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
 from ..photo.align import face_box, mask_to_input, normals_to_input, reach_margin, scalar_to_input
 from ..photo.encoding import linear_to_srgb
+from ..photo.placement import outline_on_grid
 from .photo_relight import FaceLayer, compose
 from .relight import surface_mesh
 from .turned import face_model
@@ -89,7 +90,11 @@ def grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
     model = face_model(frame, model)
     d = frame.data
     al = d["alignment"]
-    seen = model.mask & np.asarray(d.get("grid_valid", model.mask), bool)
+    placement = d.get("placement")
+    if placement is not None:  # the face's outline, as its products on the photo (the fit may trust less of it)
+        seen = model.mask & outline_on_grid(placement, model, d["image"].shape[:2])
+    else:
+        seen = model.mask & np.asarray(d.get("grid_valid", model.mask), bool)
     nan = np.float32(np.nan)
     normals = al.vector_to_input(np.nan_to_num(d["normals"])).astype(np.float32)
     weights = np.clip(model.to_image(d["fit"].weights.astype(np.float32)), 0.0, 1.0)

@@ -42,8 +42,9 @@ class FacePlacement:
     and the face mesh), "mesh only" (the face mesh, in the photo taken as one face's crop), "given"
     (its eyes) or "centre asked"; eyes: (2, 2) photo pixels ``[[x, y], [x, y]]``,
     image-left first; box: (4,) ``x0, y0, x1, y1`` photo pixels; pose: the head's rotation (found
-    faces); outlines: the parts' outlines in photo pixels (``FoundFace.outlines``; found faces);
-    doubts: one phrase per problem the placement sees; stretch: the face's length against the model's;
+    faces); outlines: the parts' outlines in photo pixels (``FoundFace.outlines``; found faces; a turned
+    face's ``oval`` is its mesh's whole outline, ``FoundFace.silhouette``, and ``fit`` the oval its fit
+    trusts); doubts: one phrase per problem the placement sees; stretch: the face's length against the model's;
     presence: the face mesh's score; plausible: whether the landmarks have a face's proportions; face: the
     found face (its landmarks) it was placed by; view: the (yaw, pitch) of the model it is placed for (the
     model's heads turned so, ``model.default_model.turned_model``); refused: why it is not fitted at all
@@ -149,8 +150,11 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
 
     found = "detected" if face.detected else "mesh only"
     outlines = face.outlines()
-    if model.view != (0.0, 0.0):  # turned: the oval's far-cheek vertices lie behind the cheek, inside its outline
-        outlines["oval"] = [face.silhouette]
+    if model.view != (0.0, 0.0):
+        # turned: the oval's far-cheek vertices lie behind the cheek, inside the face's outline (its mesh's hull);
+        # the fit trusts the oval (the steep strip beyond it is fitted worse and holds background), the face's
+        # products cover the whole outline, the model's normals where the fit did not look
+        outlines["fit"], outlines["oval"] = outlines["oval"], [face.silhouette]
     o = outlines["oval"][0]
     box = np.clip(np.concatenate([o.min(axis=0), o.max(axis=0)]), 0.0, [w - 1, h - 1, w - 1, h - 1])
     return FacePlacement(al, found, face.eyes, box, pose, outlines, tuple(doubts), stretch, face.presence,
@@ -172,14 +176,19 @@ def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | Non
     return [place_found(model, f, shape, face_length) for f in find_faces(photo_rgb)]
 
 
+def outline_on_grid(placement: FacePlacement, model: ShapeModel, shape: tuple[int, int], name: str = "oval") -> np.ndarray:
+    """(Hm, Wm) bool: the model pixels inside a photo of ``shape`` (H, W) and inside the face's outline
+    ``name`` (``oval``: the face's own; ``fit``: what its fit trusts, when that is narrower) when the face
+    mesh drew one."""
+    seen = inside_input(placement.alignment, shape, model.grid)
+    outline = placement.grid_outline(name) or placement.grid_outline("oval")
+    if outline:
+        seen &= polygon_mask(outline[0], model.grid)
+    return seen
+
+
 def face_on_grid(image: np.ndarray, placement: FacePlacement, model: ShapeModel) -> tuple[np.ndarray, np.ndarray]:
     """A placed face as the fit sees it: (Hm, Wm) the photo ``image`` (H, W) resampled to the model grid,
-    and (Hm, Wm) bool the model pixels the photo shows, inside the photo and inside the face's own outline
-    when the face mesh drew one (beyond it, hair, background or a collar are not the face)."""
-    al = placement.alignment
-    grid_image = to_model_grid(image, al, model.grid)
-    seen = inside_input(al, image.shape, model.grid)
-    oval = placement.grid_outline("oval")
-    if oval:
-        seen &= polygon_mask(oval[0], model.grid)
-    return grid_image, seen
+    and (Hm, Wm) bool the model pixels the photo shows, inside the photo and inside the outline the fit
+    trusts when the face mesh drew one (beyond it, hair, background or a collar are not the face)."""
+    return to_model_grid(image, placement.alignment, model.grid), outline_on_grid(placement, model, image.shape, "fit")
