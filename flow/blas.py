@@ -1,12 +1,11 @@
 """BLAS (OpenBLAS, MKL) on one thread, set from the main thread only.
 
 ``threadpoolctl.threadpool_limits`` sets a process-wide limit and, on leaving, puts back the limit it found.
-Entered from a frame's thread it races the main thread's own: leaving, it can put back two threads in the
-middle of the main thread's one-thread work (a model built on a frame's thread while a test built the same
-model on the main thread: the two differed in one of 915,600 values, as models built under one and two BLAS
-threads do). And OpenBLAS 0.3.31 does not always take a limit set from another thread while the main thread
-holds one. So only the main thread sets it: a run, a fit or an evaluation holds it there around the frames'
-threads, which then work under it.
+Entered from a frame's thread it races the main thread's own: leaving first, it puts back two threads in
+the middle of the main thread's one-thread work; and OpenBLAS 0.3.31 ignores a limit set from another
+thread while the main thread holds one. So only the main thread sets it: a run, a fit or an evaluation holds
+it there around the frames' threads, which then work under it. (Models are built in a process of their own,
+``nodes.model.default_model``, so their bits do not depend on any of this.)
 """
 from __future__ import annotations
 

@@ -547,6 +547,9 @@ class StoredRun:
             self.journal_entry(frame, rec)
         self.save_summary()
         self.progress.update(frame.ok)
+        for part in frame.parts:  # a view's model built on its first face: said once, with the run's notes
+            for path in part.meta.get("models_built", ()):
+                self.note(f"note: built the model of heads turned this way, once; cached in {path}")
         for line in status_lines(rec):
             self.progress.write(line)
         frame.drop_data()  # the frame's arrays are on disk now: free them

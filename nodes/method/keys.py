@@ -71,6 +71,8 @@ META: dict[str, tuple[str, str]] = {
     "alignment": ("how the face was aligned (landmarks, eyes, centred crop)", "faces"),
     "model_view": ("[yaw, pitch] degrees of the turned model the face is fitted with (absent: frontal)",
                    "faces, view_choice"),
+    "models_built": ("[path] the turned models this face's views built (their first use), for the run to say",
+                     "faces"),
     "view_choice": ("{\"yaw,pitch\": final sigma} of each view a turned face was fitted with; the least won",
                     "view_choice"),
     "remap_scale": ("the brightness scale divided out", "remap"),

@@ -240,8 +240,11 @@ class FacesNode:
             raise FrameFailed(f"{frame.source}: {NO_FACE}")
         frame.parts = []
         for k, placement in enumerate(placements):
-            candidates = turned_placements(m, placement, image.shape, self.options.face_length)
+            built: list = []
+            candidates = turned_placements(m, placement, image.shape, self.options.face_length, built.append)
             face = self._face(frame, k, candidates[0])
+            if built:  # the run says so (``runner``): a view's model is built once, on its first face
+                face.meta["models_built"] = [str(path) for path in built]
             if len(candidates) > 1 and face.ok:
                 face.data["view_candidates"] = candidates
             frame.parts.append(face)

@@ -7,8 +7,6 @@ view and at the views either side (``default_model.views_near``), and the fit th
 face's fit asks ``face_model`` for its model: the frame's view is ``meta["model_view"]``."""
 from __future__ import annotations
 
-import sys
-
 from ...flow.frame import Frame, FrameFailed
 from ..model.default_model import turned_model, views_near
 from ..model.shape_model import ShapeModel
@@ -21,17 +19,13 @@ from ..photo.placement import FacePlacement, place_found
 FRONTAL_YAW = 7.5
 
 
-def building_note(path) -> None:
-    """What the terminal is told, once, when a turned model is built (about two seconds)."""
-    print(f"shadowflow: building the model of heads turned this way, once (cached in {path})", file=sys.stderr)
-
-
 def turned_placements(model: ShapeModel, placement: FacePlacement, shape: tuple[int, int],
-                      face_length: str | float, note=building_note) -> list[FacePlacement]:
+                      face_length: str | float, note=None) -> list[FacePlacement]:
     """The placements of a found face to fit (``placement`` itself first when it is frontal enough): one per
     view near its pose (``views_near``), each on the grid of ``model`` turned so. Just ``placement`` when it
     is refused, within ``FRONTAL_YAW`` of frontal at a frontal pitch, not placed by landmarks, or ``model``
-    has no turned views (a model file: fitted frontally, doubtful beyond its reach)."""
+    has no turned views (a model file: fitted frontally, doubtful beyond its reach). ``note`` is given the
+    cache file of each view's model this builds (once per view and process, about two seconds each)."""
     if placement.face is None or placement.pose is None or placement.refused:
         return [placement]
     yaw, pitch = placement.pose.view

@@ -90,12 +90,42 @@ def _cached(recipe: dict, name: str, note=None) -> ShapeModel:
                 pass
     if note is not None:
         note(path)
+    if _built_apart(recipe, path):
+        try:
+            return load_model(path)
+        except ValueError:
+            pass
     model = train_from_recipe(recipe)
     try:
         save_model(model, path)
     except OSError:
         pass  # a read-only cache only costs the rebuild next time
     return model
+
+
+def _built_apart(recipe: dict, path: Path) -> bool:
+    """Build the model of ``recipe`` into ``path`` in a Python process of its own, whose BLAS starts on one
+    thread, and say whether that worked (else the caller builds it here). A model's last bits depend on
+    BLAS's threads, and a process's limit is set and put back by whichever thread asks (threadpoolctl, and
+    OpenBLAS ignores a frame's thread's limit while the main thread holds one): a cached model built on a
+    run's frame thread, or a test's, differed from one built under one thread in 1 of 915,600 values, and so
+    did every fit with it. Apart, every cached model is the same wherever it was first asked for."""
+    import subprocess
+    import sys
+
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    code = f"import json, sys; from {__name__} import build_into; build_into(json.loads(sys.argv[1]), sys.argv[2])"
+    try:
+        proc = subprocess.run([sys.executable, "-c", code, json.dumps(recipe), str(path)], env=env,
+                              capture_output=True, timeout=900)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return proc.returncode == 0 and path.is_file()
+
+
+def build_into(recipe: dict, path: str | os.PathLike) -> None:
+    """Train the model of ``recipe`` and write it to ``path`` (``_built_apart``'s process)."""
+    save_model(train_from_recipe(recipe), path)
 
 
 # a turned head is fitted with the model of its heads turned to the nearest view (docs/accuracy.md, "Turned

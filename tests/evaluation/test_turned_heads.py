@@ -87,3 +87,21 @@ def test_turned_surrey_faces_held_out_from_the_model_source_are_fitted_too(sfm_p
         assert np.mean([error(f, (yaw, 0.0)) for f in faces]) <= frontal + 3.0
     with pytest.raises(ValueError, match="faces turned up to 35 deg"):
         shadowflow.fit(render_turned_mesh(*faces[0], (50.0, 0.0), LIGHT, default_model()).photo, light=LIGHT)
+
+
+def test_a_run_says_once_that_it_builds_a_views_model_and_is_quiet_when_asked(identities, tmp_path, monkeypatch, cli):
+    import cv2
+    from shadowflow.nodes.model import default_model as dm
+
+    basis, ids = identities
+    monkeypatch.setenv("SHADOWFLOW_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(dm, "_views", {})
+    for k in range(2):
+        render = render_turned(basis, ids[0], (20.0, 0.0), LIGHT, default_model())
+        cv2.imwrite(str(tmp_path / f"turned{k}.png"), render.photo[..., ::-1])
+    proc = cli(["run", str(tmp_path / "turned0.png"), str(tmp_path / "turned1.png"), "--out", str(tmp_path / "out"),
+                "--record", "none", "--light=" + ",".join(str(x) for x in LIGHT)])
+    notes = [line for line in proc.stderr.splitlines() if "built the model of heads turned" in line]
+    assert proc.returncode == 0 and len(notes) == len(list((tmp_path / "cache").glob("ict-yaw*.npz"))) >= 2
+    quiet = cli(["run", str(tmp_path / "turned0.png"), "--out", str(tmp_path / "quiet"), "--record", "none", "--quiet"])
+    assert quiet.stderr == ""
