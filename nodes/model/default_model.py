@@ -5,8 +5,10 @@ from light-stage scans of real people (MIT licence; its compact face-area basis 
 ``nodes/data/``). ``procedural`` is trained from the project's own anthropometric generator
 (``nodes/model/faces/facegen.py``). Each is built from its recipe on first use (a few seconds) and
 cached under ``$SHADOWFLOW_CACHE`` (default ``$XDG_CACHE_HOME/shadowflow`` or
-``~/.cache/shadowflow``), keyed by the recipe and, for ICT, the shipped basis' bytes. No
-download is involved, so both work offline on a fresh machine.
+``~/.cache/shadowflow``), keyed by the recipe and, for ICT, the shipped basis' bytes, in a process of
+its own whose BLAS runs on one thread (``_built_apart``: the same bits wherever it was first asked for). No
+download is involved, so both work offline on a fresh machine. The ICT model's turned views
+(``turned_model``) are built and cached the same way.
 """
 from __future__ import annotations
 
