@@ -3,7 +3,7 @@ as it is (``model.default_model.turned_model``), placed on that model's grid by 
 that view. The landmarks' yaw is good to a few degrees, and a model 10 degrees off the head's yaw costs the
 normals 5 degrees (docs/accuracy.md, "Turned heads"), so a face measured turned is fitted at its nearest
 view and at the views either side (``default_model.views_near``), and the fit that explains the photo best
-(the least robust scale of its residuals, ``final_sigma``) decides (``choose_view``). Every node of a
+(the least robust scale of its residuals, ``final_sigma``) decides (``ViewChoiceNode``). Every node of a
 face's fit asks ``face_model`` for its model: the frame's view is ``meta["model_view"]``."""
 from __future__ import annotations
 
@@ -23,17 +23,16 @@ def turned_placements(model: ShapeModel, placement: FacePlacement, shape: tuple[
                       face_length: str | float, note=None) -> list[FacePlacement]:
     """The placements of a found face to fit (``placement`` itself first when it is frontal enough): one per
     view near its pose (``views_near``), each on the grid of ``model`` turned so. Just ``placement`` when it
-    is refused, within ``FRONTAL_YAW`` of frontal at a frontal pitch, not placed by landmarks, or ``model``
+    is refused, read within ``FRONTAL_YAW`` of frontal in yaw (whatever its pitch), not placed by landmarks, or ``model``
     has no turned views (a model file: fitted frontally, doubtful beyond its reach). ``note`` is given the
     cache file of each view's model this builds (once per view and process, about two seconds each)."""
     if placement.face is None or placement.pose is None or placement.refused:
         return [placement]
     yaw, pitch = placement.pose.view
-    views = views_near(yaw, pitch)
     if abs(yaw) < FRONTAL_YAW:  # pitch alone is not turned: a misplaced face (nostrils for eyes) read pitched
         return [placement]  # was fitted "ok" by a pitched view where the frontal fit refused it
     out = []
-    for view in views:
+    for view in views_near(yaw, pitch):
         turned = model if view == (0.0, 0.0) else turned_model(model, view, note)
         if turned is None:
             return [placement]
