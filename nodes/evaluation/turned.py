@@ -12,7 +12,6 @@ of what the model calls the face: the pixels whose frontal point lies on the fro
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -21,6 +20,7 @@ from scipy import ndimage
 from ..geometry.integrate import fill_holes
 from ..geometry.normals import angle_deg, normals_from_depth
 from ..geometry.raster import polygon_mask, rasterize
+from ..geometry.reflectance import lambertian
 from ..method.shadow import shadow_maps
 from ..model.faces.ict import LANDMARKS, IctBasis, placed
 from ..model.shape_model import ShapeModel
@@ -105,7 +105,7 @@ def render_turned_mesh(verts: np.ndarray, triangles: np.ndarray, eyes: np.ndarra
     at = np.stack([fill_holes(at[..., c], region) for c in range(2)], axis=-1)
     normals = normals_from_depth(depth)
     shadows = shadow_maps(depth, normals, light)
-    shading = np.clip(np.nan_to_num(normals) @ np.asarray(light, np.float64), 0.0, None) * shadows.lit
+    shading = lambertian(np.nan_to_num(normals), light) * shadows.lit
     lm = np.where(np.isfinite(landmarks), landmarks, 0.0)
     lm_px = np.where(np.isfinite(landmarks[:, :2]), placed(lm, eyes, grid)[:, :2], np.nan)
     paint = _painting(lm_px, size)
@@ -167,30 +167,6 @@ def score_turned(normals: np.ndarray, truth: np.ndarray, face: np.ndarray) -> di
             "coverage": float(np.mean(covered[face])) if face.any() else 0.0}
 
 
-def surrey_faces(path: str, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """``n`` faces of an eos-format morphable model (the Surrey Face Model; evaluation only, needs eos-py):
-    each ``(verts (V, 3) mm, triangles, eyes (2, 3): the eye corners' midpoints, landmarks (68, 3): the
-    iBUG points its landmark file maps, NaN for the others)``. Coefficients N(0, 1), deterministic in ``seed``."""
-    import eos
-
-    from ..model.sources import read_landmark_mapping
-
-    shape = eos.morphablemodel.load_model(str(path)).get_shape_model()
-    tris = np.asarray(shape.get_triangle_list(), np.int64)
-    mapping = read_landmark_mapping(Path(path).with_name("ibug_to_sfm.txt"))
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        verts = np.asarray(shape.draw_sample(rng.standard_normal(shape.get_num_principal_components())
-                                             .astype(np.float32)), np.float64).reshape(-1, 3)
-        lm = np.full((68, 3), np.nan)
-        for k, v in mapping.items():
-            lm[k - 1] = verts[v]
-        eyes = np.stack([(lm[36] + lm[39]) / 2.0, (lm[42] + lm[45]) / 2.0])
-        out.append((verts, tris, eyes, lm))
-    return out
-
-
 def main(argv: list[str] | None = None) -> None:
     """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only]``: the table of
     docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
@@ -202,6 +178,7 @@ def main(argv: list[str] | None = None) -> None:
     from ..method import turned
     from ..model.default_model import default_model
     from ..model.faces.ict import shipped_basis
+    from ..model.sources import eos_samples
 
     ap = argparse.ArgumentParser(description=main.__doc__)
     ap.add_argument("--identities", type=int, default=3)
@@ -212,11 +189,13 @@ def main(argv: list[str] | None = None) -> None:
         turned.views_near = lambda yaw, pitch: [(0.0, 0.0)]
     basis, model, light = shipped_basis(), default_model(), light_from_angles(45.0, 0.0)
     if args.surrey:
-        faces = surrey_faces(args.surrey, args.identities, 1000)
+        faces = eos_samples(args.surrey, args.identities, 1000)
     else:
         rng = np.random.default_rng(1000)  # the model's identities are drawn with seed 0
-        faces = [(*basis.face(rng.standard_normal(basis.n_identity)),) for _ in range(args.identities)]
-        faces = [(v, basis.triangles, e, v[list(LANDMARKS)]) for v, e in faces]
+        faces = []
+        for _ in range(args.identities):
+            verts, eyes = basis.face(rng.standard_normal(basis.n_identity))
+            faces.append((verts, basis.triangles, eyes, verts[list(LANDMARKS)]))
     print("| view | normals | coverage | read yaw | status |\n|---|---|---|---|---|")
     for view in ((0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)):
         rows = []

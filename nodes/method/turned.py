@@ -55,7 +55,8 @@ class ViewChoiceNode:
     """Of a face's candidate placements (``data["view_candidates"]``, ``turned_placements``), keeps the one
     whose fit explains the photo best: each is remapped, started and fitted (``fit_nodes``, no observer: the
     fit that counts runs again in the chain, recorded) and the least ``final_sigma`` wins. The frame is
-    then the winner's face (``make_face``), with ``meta["view_choice"]``: each view tried and its sigma."""
+    then the winner's face as ``make_face`` made it, with ``meta["view_choice"]``: each view tried and its
+    sigma."""
 
     name = "view_choice"
     thread_safe = True
@@ -71,6 +72,7 @@ class ViewChoiceNode:
         best, best_sigma = None, float("inf")
         for placement in candidates:
             trial = self.make_face(frame, placement)
+            before = dict(trial.data), dict(trial.meta)  # the face before its fit (the nodes only add entries)
             try:
                 for node in self.fit_nodes:
                     trial = node(trial)
@@ -79,9 +81,13 @@ class ViewChoiceNode:
             sigma = float(trial.meta["final_sigma"])
             tried[f"{placement.view[0]:+.0f},{placement.view[1]:+.0f}"] = round(sigma, 6)
             if sigma < best_sigma:
-                best, best_sigma = placement, sigma
+                best, best_sigma = before, sigma
         if best is None:
             return frame
+        frame.data, meta = best
+        frame.meta.pop("model_view", None)
+        frame.meta.update(meta, view_choice=tried)
+        return frame
         chosen = self.make_face(frame, best)
         frame.data = chosen.data
         frame.meta.pop("model_view", None)

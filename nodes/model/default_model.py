@@ -157,8 +157,7 @@ def views_near(yaw: float, pitch: float) -> list[tuple[float, float]]:
     """The views a head measured at ``yaw``, ``pitch`` degrees may be fitted with: ``view_of`` it and its
     neighbours in yaw (the landmarks' yaw is good to a few degrees; the fit tells the rest apart)."""
     y, p = view_of(yaw, pitch)
-    return [(float(np.clip(y + k * VIEW_STEP, -MAX_VIEW_YAW, MAX_VIEW_YAW)) + 0.0, p) for k in (0, -1, 1)
-            if abs(y + k * VIEW_STEP) <= MAX_VIEW_YAW]
+    return [(y + k * VIEW_STEP + 0.0, p) for k in (0, -1, 1) if abs(y + k * VIEW_STEP) <= MAX_VIEW_YAW]
 
 
 def turned_model(model: ShapeModel, view: tuple[float, float], note=None) -> ShapeModel | None:

@@ -190,14 +190,12 @@ def train_shape_model(
         normals[i] = normals_from_depth(d)[region]
     if not np.all(np.isfinite(normals)):
         raise ValueError("training faces do not cover the model region")
-    model = train_from_normals(normals, region, n_modes, eyes, source, mouth)
-    model.view = (float(view[0]), float(view[1]))
-    return model
+    return train_from_normals(normals, region, n_modes, eyes, source, mouth, view)
 
 
 def train_from_normals(
     normals: np.ndarray, mask: np.ndarray, n_modes: int, eyes: np.ndarray | None, source: str,
-    mouth: np.ndarray | None = None,
+    mouth: np.ndarray | None = None, view: tuple[float, float] = (0.0, 0.0),
 ) -> ShapeModel:
     """Model from (M, N, 3) unit needle-maps over the N pixels of ``mask`` (H, W)."""
     m = normals.shape[0]
@@ -219,6 +217,7 @@ def train_from_normals(
         eigenvalues=(sing[:k] ** 2 / max(m - 1, 1)).astype(np.float32),
         source=source,
         mouth=mouth,
+        view=view,
     )
 
 

@@ -43,26 +43,39 @@ def eos_model(path: str | os.PathLike, n: int, seed: int = 0, grid: tuple[int, i
     (default: ``ibug_to_sfm.txt`` next to the model). Albedo is constant 1 (shape-only model).
     Needs the ``eos-py`` package (``pip install shadowflow[eos]``).
     """
+    depths = []
+    for verts, tris, eyes, _ in eos_samples(path, n, seed, landmarks):
+        depths.append(render_mesh(align_to_eyes(verts, eyes[0], eyes[1], grid), tris, grid))
+    depths_a = np.stack(depths)
+    return depths_a, np.where(np.isfinite(depths_a), 1.0, np.nan).astype(np.float32)
+
+
+def eos_samples(path: str | os.PathLike, n: int, seed: int = 0, landmarks: str | os.PathLike | None = None
+                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """``n`` faces drawn from an eos-format morphable model (coefficients N(0, 1) per mode of the rescaled
+    basis, deterministic in ``seed``): each ``(verts (V, 3), triangles (T, 3), eyes (2, 3): the eye-corner
+    vertices' mid-points, image-left first, landmarks (68, 3): the iBUG points the landmark file maps, NaN
+    for the others)``. ``landmarks``: the iBUG-to-model file (default ``ibug_to_sfm.txt`` next to the model).
+    Needs the ``eos-py`` package (``pip install shadowflow[eos]``)."""
     try:
         import eos
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise RuntimeError("reading eos models needs the eos-py package: pip install 'shadowflow[eos]'") from exc
     path = Path(path)
-    model = eos.morphablemodel.load_model(str(path))
-    shape = model.get_shape_model()
+    shape = eos.morphablemodel.load_model(str(path)).get_shape_model()
     tris = np.asarray(shape.get_triangle_list(), np.int64)
-    lm_file = Path(landmarks) if landmarks else path.with_name("ibug_to_sfm.txt")
-    mapping = read_landmark_mapping(lm_file)
+    mapping = read_landmark_mapping(Path(landmarks) if landmarks else path.with_name("ibug_to_sfm.txt"))
     k = shape.get_num_principal_components()
     rng = np.random.default_rng(seed)
-    depths = []
+    out = []
     for _ in range(n):
-        coeffs = rng.standard_normal(k).astype(np.float32)
-        verts = np.asarray(shape.draw_sample(coeffs), np.float64).reshape(-1, 3)
-        eyes = [0.5 * (verts[mapping[a]] + verts[mapping[b]]) for a, b in _EYE_CORNERS]
-        depths.append(render_mesh(align_to_eyes(verts, eyes[0], eyes[1], grid), tris, grid))
-    depths_a = np.stack(depths)
-    return depths_a, np.where(np.isfinite(depths_a), 1.0, np.nan).astype(np.float32)
+        verts = np.asarray(shape.draw_sample(rng.standard_normal(k).astype(np.float32)), np.float64).reshape(-1, 3)
+        lm = np.full((68, 3), np.nan)
+        for number, vertex in mapping.items():
+            lm[number - 1] = verts[vertex]
+        eyes = np.stack([0.5 * (verts[mapping[a]] + verts[mapping[b]]) for a, b in _EYE_CORNERS])
+        out.append((verts, tris, eyes, lm))
+    return out
 
 
 def read_landmark_mapping(path: str | os.PathLike) -> dict[int, int]:

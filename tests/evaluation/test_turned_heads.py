@@ -72,9 +72,10 @@ def test_the_frontal_model_alone_cannot_fit_a_turned_head(identities, monkeypatc
 def test_turned_surrey_faces_held_out_from_the_model_source_are_fitted_too(sfm_path):
     """Faces of another face model (the Surrey Face Model, evaluation only): 30 degrees within 3 of frontal
     (measured 10.5-10.8 against 9.1 over three faces), 50 refused."""
-    from shadowflow.nodes.evaluation.turned import render_turned_mesh, surrey_faces
+    from shadowflow.nodes.evaluation.turned import render_turned_mesh
+    from shadowflow.nodes.model.sources import eos_samples
 
-    faces = surrey_faces(str(sfm_path), 2, 1000)
+    faces = eos_samples(str(sfm_path), 2, 1000)
 
     def error(face, view):
         render = render_turned_mesh(*face, view, LIGHT, default_model())

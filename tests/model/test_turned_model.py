@@ -29,7 +29,7 @@ def test_a_turned_face_keeps_its_eye_midpoint_and_foreshortens_its_eye_distance(
         assert np.sign(mouth - 64.0) == np.sign(yaw)  # the mouth, in front of the neck, swings with the turn
     assert np.array_equal(placed(verts, eyes, grid, (0.0, 0.0)), placed(verts, eyes, grid))
     p = np.random.default_rng(0).random((5, 3))
-    assert turn_to_view(p, p[:2], (0.0, 0.0), 5.0) is not None and np.array_equal(turn_to_view(p, p[:2], (0.0, 0.0), 5.0), p)
+    assert turn_to_view(p, p[:2], (0.0, 0.0)) is not None and np.array_equal(turn_to_view(p, p[:2], (0.0, 0.0)), p)
 
 
 def test_the_mirror_map_of_a_turned_face_is_its_own_inverse_where_both_sides_are_seen():

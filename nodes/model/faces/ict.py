@@ -149,9 +149,7 @@ def placed(points: np.ndarray, eyes: np.ndarray, grid: tuple[int, int], view: tu
     p = align_to_eyes(np.asarray(points, np.float64), eyes[0], eyes[1], grid)
     if tuple(view) == (0.0, 0.0):
         return p
-    e = align_to_eyes(np.asarray(eyes, np.float64), eyes[0], eyes[1], grid)
-    px_per_cm = float(np.linalg.norm(e[1, :2] - e[0, :2]) / np.linalg.norm(eyes[1, :2] - eyes[0, :2]))
-    return turn_to_view(p, e, view, px_per_cm)
+    return turn_to_view(p, align_to_eyes(np.asarray(eyes, np.float64), eyes[0], eyes[1], grid), view)
 
 
 def mirror_pixels(basis: IctBasis, mask: np.ndarray, view: tuple[float, float]) -> np.ndarray:

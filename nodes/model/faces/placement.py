@@ -1,10 +1,10 @@
 """Placing a face mesh on the canonical grid: its eye centres on the grid's canonical eye pixels,
 then rendered as a height field. Shared by the mesh sources (eos models, mesh folders, ICT-FaceKit).
 
-A turned head (``turn_to_view``): the frontally placed face turned by a yaw and a pitch about its
-neck (``NECK_BEHIND_EYES`` behind its eyes), then moved in the image plane so its eye midpoint is back
-on the canonical one; its scale stays. What the camera sees of it is then rendered as the frontal face
-is (nearest surface wins: the far cheek behind the nose is hidden).
+A turned head (``turn_to_view``): the frontally placed face turned by a yaw and a pitch about its eye
+midpoint, which stays on the canonical one; its scale stays. (Turned about the neck and moved back, the
+image is the same: the axis only moves the heights by a constant.) What the camera sees of it is then
+rendered as the frontal face is (nearest surface wins: the far cheek behind the nose is hidden).
 """
 from __future__ import annotations
 
@@ -32,11 +32,6 @@ def align_to_eyes(vertices: np.ndarray, eye_left: np.ndarray, eye_right: np.ndar
     return np.column_stack([xy[:, 0], -xy[:, 1], vertices[:, 2] * sim.scale])
 
 
-# the axis a head turns about, behind the eyes: the neck (the ICT neutral head's eyes are 8.5 cm in front of its
-# origin, the back of its face area 3.2 cm behind it)
-NECK_BEHIND_EYES = 9.0  # cm
-
-
 def view_rotation(yaw_deg: float, pitch_deg: float) -> np.ndarray:
     """(3, 3) the rotation of a head turned ``yaw_deg`` (> 0 toward the image's right) and tilted
     ``pitch_deg`` (> 0 up), camera frame (x right, y up, z toward the viewer): ``Ry(yaw) Rx(-pitch)``,
@@ -47,21 +42,16 @@ def view_rotation(yaw_deg: float, pitch_deg: float) -> np.ndarray:
     return ry @ rx
 
 
-def turn_to_view(points_px: np.ndarray, eyes_px: np.ndarray, view: tuple[float, float], px_per_cm: float) -> np.ndarray:
+def turn_to_view(points_px: np.ndarray, eyes_px: np.ndarray, view: tuple[float, float]) -> np.ndarray:
     """(P, 3) points of a frontally placed face (column, row, height: pixels, ``align_to_eyes``) as the
-    camera sees the head turned by ``view`` = (yaw, pitch) degrees (``view_rotation``) about its neck,
-    ``NECK_BEHIND_EYES`` behind the eye midpoint, its eye midpoint then moved back onto where it was in the
-    image. eyes_px: (2, 3) the face's eye centres placed the same way; px_per_cm: the placement's scale."""
+    camera sees the head turned by ``view`` = (yaw, pitch) degrees (``view_rotation``) about its eye
+    midpoint. eyes_px: (2, 3) the face's eye centres placed the same way."""
     p = np.asarray(points_px, np.float64)
     if tuple(view) == (0.0, 0.0):
         return p
     mid = np.asarray(eyes_px, np.float64).mean(axis=0)
-    pivot = mid - [0.0, 0.0, NECK_BEHIND_EYES * px_per_cm]
     flip = np.array([1.0, -1.0, 1.0])  # rows down -> y up, and back
-    r = view_rotation(*view)
-    turned = ((p - pivot) * flip) @ r.T * flip + pivot
-    eyes_turned = ((mid - pivot) * flip) @ r.T * flip + pivot
-    return turned - [eyes_turned[0] - mid[0], eyes_turned[1] - mid[1], 0.0]
+    return ((p - mid) * flip) @ view_rotation(*view).T * flip + mid
 
 
 def render_mesh(vertices_px: np.ndarray, triangles: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
