@@ -93,14 +93,20 @@ def paste(scene: np.ndarray, crop: np.ndarray, where: Pasted, edge_px: float = 3
                          big.shape, where.tint)
         a = cv2.GaussianBlur(shifted.warp(big, scene.shape[:2]), (0, 0), max(1.0, 0.01 * w * where.scale))[..., None]
         scene = scene * (1 - a) + a * np.asarray(HAIR, np.float32)
-    alpha = np.zeros((h, w), np.float32)
-    margin = max(1, int(np.ceil(edge_px / max(where.scale, 1e-6))))
-    alpha[margin:h - margin, margin:w - margin] = 1.0
-    alpha = cv2.GaussianBlur(alpha, (0, 0), max(margin / 2.0, 0.5))
-    a = where.warp(alpha, scene.shape[:2])[..., None]
+    a = where.warp(crop_alpha(where, edge_px), scene.shape[:2])[..., None]
     grey = where.warp(np.asarray(crop, np.float32), scene.shape[:2])
     face = grey[..., None] * np.asarray(where.tint, np.float32)
     return np.clip(scene * (1 - a) + face * a, 0.0, 1.0).astype(np.float32)
+
+
+def crop_alpha(where: Pasted, edge_px: float = 3.0) -> np.ndarray:
+    """(h, w) float32 in [0, 1]: how much of each crop pixel ``paste`` puts over the scene: 1 inside, a
+    blend with the scene over its border's ``edge_px`` scene pixels."""
+    h, w = where.shape
+    alpha = np.zeros((h, w), np.float32)
+    margin = max(1, int(np.ceil(edge_px / max(where.scale, 1e-6))))
+    alpha[margin:h - margin, margin:w - margin] = 1.0
+    return cv2.GaussianBlur(alpha, (0, 0), max(margin / 2.0, 0.5))
 
 
 def encode(scene: np.ndarray, path, quality: int | None = 92) -> None:

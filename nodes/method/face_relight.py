@@ -18,6 +18,7 @@ from .eye_detail import CONTRAST as EYE_CONTRAST
 from .eye_detail import EyeDetail
 from .live_relight import live_relight_data
 from .photo_relight import (
+    AMBIENT_RIM,
     CLIPPED,
     LIT_SHADING,
     FaceLayer,
@@ -104,7 +105,7 @@ class FaceRelight:
         self.eyes = None if eyes is None else EyeDetail(photo, shading, face_lit, np.asarray(eyes) - [x0, y0],
                                                         eye_contrast)
         # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
-        self.ambient = photo_ambient(box_grey, coarse, shading, face)
+        self.ambient = photo_ambient(box_grey, coarse, shading, face, AMBIENT_RIM * iod_px, face_skin)
         self.lighting = with_ambient(shading, self.ambient)
         # how far I / lighting is trusted: the lighting with the room's light in it is never darker than the
         # ambient, so a photo with fill light keeps its own pixels further round the face; what is not skin

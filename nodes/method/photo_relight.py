@@ -35,6 +35,10 @@ MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from
 # (a dark room: a few per cent), else the default, a room's fill light (docs/tuning.md, "Relighting the photo")
 DEFAULT_AMBIENT = 0.15
 AMBIENT_RANGE = (0.0, 0.5)
+# ... measured on the face's core, this far inside its border (interocular distances), when at least this share
+# of the face shows it there (``photo_ambient``)
+AMBIENT_RIM = 0.15
+AMBIENT_MIN_SHARE = 0.003
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
 # wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
@@ -197,15 +201,35 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
-def photo_ambient(intensity: np.ndarray, coarse: np.ndarray, shading: np.ndarray, face: np.ndarray) -> float:
+def photo_ambient(intensity: np.ndarray, coarse: np.ndarray, shading: np.ndarray, face: np.ndarray,
+                  rim_px: float = 0.0, skin_only: np.ndarray | None = None) -> float:
     """The share of the light that reaches what the light itself does not: how bright the photo's
     attached shadow is against the face's albedo there, the lower quartile of ``I / coarse`` where the fitted
     shape faces away from the light (``n . s <= 0.02``), within ``AMBIENT_RANGE``; ``DEFAULT_AMBIENT``
-    when the photo shows too little of it (a face lit from the front). intensity, coarse (the fit's
-    albedo on the photo grid), shading (H, W); face (H, W) bool."""
-    away = face & (np.asarray(shading) <= 0.02) & np.isfinite(coarse) & (np.nan_to_num(coarse) > 1e-3)
-    if away.sum() < 50:
-        return DEFAULT_AMBIENT
+    when the photo shows too little of it (a face lit from the front).
+
+    Measured on the face's core when it shows enough (``AMBIENT_MIN_SHARE`` of the face): more than
+    ``rim_px`` inside the face's border, of which the ``skin_only`` (H, W) bool pixels when given. Its rim
+    is where a face turns from a side light first, and where its outline meets hair, ears or the
+    background, whose brightness says nothing of the room's light: a shadow seen only there is taken
+    as no brighter than the default. intensity, coarse (the fit's albedo on the photo grid), shading
+    (H, W); face (H, W) bool."""
+    usable = face & (np.asarray(shading) <= 0.02) & np.isfinite(coarse) & (np.nan_to_num(coarse) > 1e-3)
+    if skin_only is not None:
+        usable &= skin_only
+    core = usable
+    if rim_px > 0:  # the border of the box counts as face: a face cut by the photo's frame goes on beyond it
+        inside = np.pad(face, 1, mode="edge").astype(np.uint8)
+        core = usable & (cv2.distanceTransform(inside, cv2.DIST_L2, 5)[1:-1, 1:-1] > rim_px)
+    enough = max(50.0, AMBIENT_MIN_SHARE * float(face.sum()))
+    if core.sum() >= enough:
+        return _ambient(intensity, coarse, core)
+    if usable.sum() >= 50:  # the rim alone
+        return min(_ambient(intensity, coarse, usable), DEFAULT_AMBIENT)
+    return DEFAULT_AMBIENT
+
+
+def _ambient(intensity: np.ndarray, coarse: np.ndarray, away: np.ndarray) -> float:
     # the lower quartile: where the fitted shape turns from the light too soon the photo is still lit
     ratio = np.asarray(intensity)[away] / np.asarray(coarse)[away]
     return float(np.clip(np.percentile(ratio, 25), *AMBIENT_RANGE))

@@ -43,12 +43,15 @@ def _turned_light(az: int, roll_deg: float) -> np.ndarray:
 
 def _score(subject, tight, pasted, scene_relit, frontal_scene):
     """(PSNR of the scene's relit face, PSNR of the tight crop's relit face carried into the scene
-    as the input was), both against the frontal composite, gain-corrected, on the tight run's face."""
+    as the input was), both against the frontal composite, gain-corrected, on the tight run's face
+    where the scene is wholly the crop (its pasted border is blended with the scene behind it, which
+    the tight crop's relit face, carried alone, does not have)."""
+    from shadowflow.nodes.evaluation.composites import crop_alpha
     from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
-
     from shadowflow.nodes.photo.encoding import srgb_to_linear
 
-    region = pasted.warp((subject.stereo.valid & tight.mask).astype(np.float32), FRAME) > 0.99
+    face = (subject.stereo.valid & tight.mask & (crop_alpha(pasted) > 0.999)).astype(np.float32)
+    region = pasted.warp(face, FRAME) > 0.99
     relit = srgb_to_linear(np.nan_to_num(scene_relit)) @ LUMA  # the scene's relit photo is sRGB, as it came in
     carried = pasted.warp(np.nan_to_num(tight.relit), FRAME) * float(LUMA @ pasted.tint)
     front = frontal_scene @ LUMA
@@ -101,12 +104,13 @@ def test_every_composited_face_is_found_and_relit_as_its_tight_crop_is(subjects,
         rows.append((path.name, share, round(roll), scene - carried))
     deltas = np.array([r[3] for r in rows])
     print("\n".join(f"{name} {share:.2f} roll {roll:+d}: {d:+.2f} dB" for name, share, roll, d in rows))
-    # measured: mean +0.3 dB, each -3.9..+5.4 dB (the smallest faces score higher in the scene than their crop's
-    # relit face carried down to their size). JPEG, tint and scale alone move a face by 0.2 dB (the tight crop's
-    # own placement given); the rest is the fit's answer to where the face mesh places the face, a few per cent
-    # of its eyes' distance apart in a scene and in its crop: 3 % moves the relit face by +-0.7 dB on the crops,
-    # and a large face (B03 at 0.45-0.6 of the frame) fits 5 degrees apart
-    assert deltas.mean() > -0.5 and deltas.min() > -4.5, [(r[0], r[1], round(r[3], 2)) for r in rows]
+    # measured: mean -0.58 dB, each -1.99..+0.31 dB. Scored where the scene is wholly the crop; with the
+    # pasted border's blend in the score the smallest faces came out up to 5.4 dB "better" than their crop.
+    # Before the room's light was read on the face's core only, a large face lost 3.2-3.9 dB (B03 at 0.45
+    # and 0.6: its outline's rim, hair and background, lit the room up to half the lamp). What is left: the
+    # dark head drawn around each crop lies inside the face's outline, where the crop's tight run sees
+    # nothing (the same crops on a plain grey ground lose 0.2-1.6 dB; left out of the fit, 0.6-1.4)
+    assert deltas.mean() > -0.8 and deltas.min() > -2.5, [(r[0], r[1], round(r[3], 2)) for r in rows]
 
 
 @pytest.mark.slow

@@ -225,3 +225,29 @@ def test_a_face_relit_far_brighter_than_its_border_fades_into_the_photo_there():
     border = face & (inside <= 1)
     assert out[border].max() < 0.3  # its rim fades to the photo's level times the gain (1.6 at most)
     assert alpha[~face].max() == 0 and alpha[inside > 3].min() == 1.0
+
+
+def test_the_rooms_light_is_measured_on_the_faces_core_not_on_what_its_rim_shows():
+    """A sphere with 6 % ambient light, its outline drawn a little too wide (as a face mesh's oval is where
+    hair or the background lies over the face's border): lit from 53 deg, the ambient light is read from
+    the attached shadow inside the face, whatever the rim shows; lit from 25 deg, where only the rim turns
+    from the light, a pale wall there is not taken for a bright room (it was: half the lamp's light); lit
+    from the front, no shadow shows, and the default stands."""
+    from shadowflow.nodes.method.photo_relight import DEFAULT_AMBIENT, photo_ambient
+
+    n, face = _sphere()
+    albedo = np.full(face.shape, 0.6)
+    rim = face & (ndimage.distance_transform_edt(face) <= 6)  # 6 px of the 50 px radius
+    for s in (np.array([0.8, 0.0, 0.6]), np.array([0.42, 0.0, 0.906])):
+        shading = np.clip(n @ s, 0, None)
+        photo = albedo * (0.06 + 0.94 * shading)
+        for background in (0.5, 0.02):  # a pale wall, dark hair
+            ambient = photo_ambient(np.where(rim, background, photo), albedo, shading, face, rim_px=7.5)
+            if s[0] > 0.5:  # the core shows the attached shadow
+                assert ambient == pytest.approx(0.06, abs=0.005), (s, background)
+            else:  # only the rim does
+                assert ambient <= DEFAULT_AMBIENT, (s, background)
+    # the rim counted as the face: the pale wall was half the lamp's light
+    assert photo_ambient(np.where(rim, 0.5, photo), albedo, shading, face) > 0.4
+    front = np.clip(n[..., 2], 0, None)
+    assert photo_ambient(albedo * (0.06 + 0.94 * front), albedo, front, face, rim_px=7.5) == DEFAULT_AMBIENT
