@@ -87,6 +87,31 @@ def seam(relit: np.ndarray, photo: np.ndarray, region: np.ndarray, eyes: np.ndar
     return float(np.mean(diff) / max(np.mean(base), 1e-12)) if band.any() else float("nan")
 
 
+NOSE_BOX = (0.6, 0.1, 1.1)  # the nose's cast shadow: within 0.6 eye distances of the midline, 0.1-1.1 below the eyes
+
+
+def nose_shadow_level(relit: np.ndarray, photo: np.ndarray, region: np.ndarray, cast: np.ndarray,
+                      eyes: np.ndarray) -> float:
+    """Whether a side light's cast shadow beside the nose is gone from a relit face: the median of
+    ``g relit / photo`` over the ``cast`` (H, W) bool pixels of ``region`` within ``NOSE_BOX`` of the
+    eyes (``g`` the least-squares gain over ``region``); 1 is the real frontal ``photo``'s level, a
+    shadow kept as a band shows well under it. NaN when the box holds under 20 cast pixels.
+    relit, photo (H, W); eyes (2, 2) photo pixels."""
+    r = np.nan_to_num(np.asarray(relit, np.float64))
+    p = np.asarray(photo, np.float64)
+    g = float(np.sum(p[region] * r[region]) / max(np.sum(r[region] ** 2), 1e-12))
+    e = np.asarray(eyes, np.float64)
+    iod = max(float(np.linalg.norm(e[1] - e[0])), 1e-9)
+    along = (e[1] - e[0]) / iod
+    down = np.array([-along[1], along[0]])  # image y grows downward
+    yy, xx = np.mgrid[0:p.shape[0], 0:p.shape[1]]
+    dx, dy = xx - e.mean(axis=0)[0], yy - e.mean(axis=0)[1]
+    across, below = (dx * along[0] + dy * along[1]) / iod, (dx * down[0] + dy * down[1]) / iod
+    box = (np.abs(across) <= NOSE_BOX[0]) & (below >= NOSE_BOX[1]) & (below <= NOSE_BOX[2])
+    where = cast & region & box & (p > 1e-3)
+    return float(np.median(g * r[where] / p[where])) if where.sum() >= 20 else float("nan")
+
+
 def _mean_error(a: np.ndarray, b: np.ndarray, region: np.ndarray) -> float:
     return float(np.mean(angle_deg(a[region].astype(np.float64), b[region].astype(np.float64))))
 
@@ -124,16 +149,18 @@ def translate(image: np.ndarray, shift: tuple[float, float]) -> np.ndarray:
     return cv2.warpAffine(img, mat, img.shape[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
-def shadow_truth(subject: YaleSubject, photo: np.ndarray, light: np.ndarray, far_darker: float = 0.5) -> np.ndarray:
+def shadow_truth(subject: YaleSubject, photo: np.ndarray, light: np.ndarray, far_darker: float = 0.5,
+                 cast_only: bool = False) -> np.ndarray:
     """(H, W) bool: where the photo is in shadow, by photometric stereo: attached where the stereo
     normal faces away from the light (``n . s <= 0``); cast where it faces the light yet the photo
-    is far darker (under ``far_darker`` of it) than the stereo albedo x ``n . s`` predicts."""
+    is far darker (under ``far_darker`` of it) than the stereo albedo x ``n . s`` predicts (only those
+    with ``cast_only``)."""
     st = subject.stereo
     shading = np.nan_to_num(st.normals) @ np.asarray(light, np.float64)
     predicted = np.nan_to_num(st.albedo) * np.clip(shading, 0.0, None)
     attached = st.valid & (shading <= 0.0)
     cast = st.valid & (shading > 0.0) & (np.asarray(photo) < far_darker * predicted)
-    return attached | cast
+    return cast if cast_only else attached | cast
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -209,6 +236,9 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         row["psnr"], row["ssim"] = relight_scores(translate(out["relit"], shift), subject.frontal, region)
         row["psnr_unmoved"], _ = relight_scores(out["relit"], subject.frontal, region)
         row["seam"] = seam(translate(out["relit"], shift), subject.frontal, region, frame.data["placement"].eyes)
+        row["nose_shadow"] = nose_shadow_level(translate(out["relit"], shift), subject.frontal, region,
+                                               shadow_truth(subject, frame.data["image"], truth_light, cast_only=True),
+                                               frame.data["placement"].eyes)
         # exposure: the relit face's mean level against the real frontal photo's (no gain): the same
         # face relit from every input light should come out alike
         row["relit_level"] = float(np.mean(np.nan_to_num(out["relit"])[region]) / np.mean(subject.frontal[region]))
@@ -278,9 +308,17 @@ def evaluate_one_subject(shared: tuple, item: tuple) -> tuple[list[dict], dict]:
             frontal_self_relight(subject, model, options))
 
 
+def _finite_mean(values: list[float]) -> float:
+    """The mean of the finite ``values`` (a measure a photo does not have, e.g. no cast shadow, is NaN), NaN
+    when none is."""
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else float("nan")
+
+
 def summarise(rows: list[dict]) -> list[dict]:
     """Means over subjects per input light, and over (+-A, E) pairs."""
     keys = ["err", "err_clean", "err_floor", "err_mean_shape", "err_others_mean", "psnr", "psnr_unmoved", "seam",
+            "nose_shadow",
             "relit_level", "shadow_iou", "psnr_input", "ssim",
             "ssim_input", "light_err_deg", "iterations", "seconds"]
     groups: dict[str, list[dict]] = {}
@@ -290,14 +328,15 @@ def summarise(rows: list[dict]) -> list[dict]:
     out = []
     for name, rs in groups.items():
         out.append({"lights": name, "n": len(rs),
-                    **{k: float(np.mean([r[k] for r in rs])) for k in keys if all(k in r for r in rs)}})
+                    **{k: _finite_mean([r[k] for r in rs]) for k in keys if all(k in r for r in rs)}})
     return out
 
 
 # the table's columns: (row key, heading); errors in degrees, relighting in dB
 TABLE_COLUMNS = (("err", "normals"), ("err_clean", "clean render"), ("err_floor", "model floor"),
                  ("err_mean_shape", "mean shape"), ("err_others_mean", "others' mean"), ("psnr", "relit dB"),
-                 ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("relit_level", "relit level"),
+                 ("psnr_unmoved", "unmoved dB"), ("seam", "seam"), ("nose_shadow", "nose shadow"),
+                 ("relit_level", "relit level"),
                  ("shadow_iou", "shadow IoU"), ("psnr_input", "input dB"), ("ssim", "relit SSIM"),
                  ("ssim_input", "input SSIM"), ("light_err_deg", "auto light"), ("iterations", "iterations"))
 
