@@ -27,8 +27,10 @@ from .photo_relight import (
     grow,
     inner_alpha,
     lit_weight,
+    mirrored_detail,
     outside_gain,
     photo_albedo,
+    reflection_map,
     photo_ambient,
     shading_trust,
     skin,
@@ -43,6 +45,11 @@ FEATHER = 0.3  # the relit face's light fades into the photo over this many inte
 # the fit's albedo map is smoothed over this many model pixels before it fills the photo (``smooth_coarse``):
 # the staircase seams where its mirrored and measured parts meet go (figures: docs/accuracy.md)
 COARSE_SMOOTH = 1.5
+# a filled pixel takes the band of the measured albedo's detail seen across the face (``mirrored_detail``) between
+# these scales, in model pixels, at this strength (``MethodOptions.fill_detail``): the fit's map holds the coarse
+# one, and pores and noise are the other side's own (docs/relighting.md, "Relighting the photo")
+FILL_DETAIL_BAND = (0.6, 1.5)
+FILL_DETAIL = 1.0
 # everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
 # ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
 INNER_MARGIN = 4
@@ -58,13 +65,16 @@ class FaceRelight:
     heights in model pixels. light: (3,) unit, the photo's light, camera frame. iod_px: the face's
     interocular distance in photo pixels. outline: (n, 2) the face's own outline in photo pixels,
     or None. eyes: (2, 2) the eyes' centres in photo pixels where a face mesh found them, else None
-    (no eye detail: a render without eye texture has no eye to show).
+    (no eye detail: a render without eye texture has no eye to show). midline: (2, 2) two points of the
+    face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
+    for a turned face); fill_detail: that detail's strength (0: none).
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
                  normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, depth: np.ndarray, light: np.ndarray,
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
-                 eye_contrast: float = EYE_CONTRAST):
+                 eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
+                 fill_detail: float = FILL_DETAIL):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -112,13 +122,24 @@ class FaceRelight:
         # (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the fitted shading
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         self.not_skin = face_lit & ~face_skin if photo.shape[-1] == 3 else np.zeros_like(face_lit)
+        self.fill_detail = fill_detail if midline is not None else 0.0
+        self.mirror = None if self.fill_detail == 0 else reflection_map(shape, np.asarray(midline) - [x0, y0])
         self.albedo = self.albedo_for(self.trust_for())
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
 
     def albedo_for(self, trust: np.ndarray) -> np.ndarray:
-        """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere."""
+        """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere, with
+        the detail the face shows across its midline where it is the fit's (``mirrored_detail``)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
+        if self.mirror is not None:
+            px = max(self.al.scale, 1.0)
+            measured = np.atleast_3d(self.photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
+            weight = np.where(self.face, trust, np.float32(0.0))
+            detail, seen = mirrored_detail(measured, weight, self.mirror, FILL_DETAIL_BAND[0] * px,
+                                           FILL_DETAIL_BAND[1] * px)
+            fill = (np.float32(self.fill_detail) * (np.float32(1.0) - weight) * seen)[..., None]
+            a = (a * (np.float32(1.0) + fill * (detail - np.float32(1.0)))).astype(np.float32)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 
     def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:

@@ -22,7 +22,7 @@ from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_f
 from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
-from .face_relight import FaceRelight, albedo_on_grid
+from .face_relight import FILL_DETAIL, FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
 from .products import photo_channels
@@ -75,6 +75,9 @@ class MethodOptions:
     novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
     # the lit eye's detail put into eyes whose albedo was filled, at this contrast (``eye_detail``); 0: off
     eye_contrast: float = EYE_CONTRAST
+    # the detail the lit side of a frontal face shows, seen across its midline, put into the fill of its shadowed
+    # side at this strength (``face_relight.mirrored_detail``); 0: the fit's smooth map alone
+    fill_detail: float = FILL_DETAIL
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
     # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
@@ -105,6 +108,8 @@ class MethodOptions:
     def _check_ranges(self) -> None:
         if not 0.0 <= self.eye_contrast <= 1.0:
             raise ValueError(f"eye_contrast is between 0 (off) and 1, not {self.eye_contrast!r}")
+        if not 0.0 <= self.fill_detail <= 1.0:
+            raise ValueError(f"fill_detail is between 0 (off) and 1, not {self.fill_detail!r}")
         if not -90.0 <= self.novel_yaw_deg <= 90.0:
             raise ValueError(f"novel_yaw_deg turns the face by -90 to 90 degrees, not {self.novel_yaw_deg!r}")
         if self.novel_size is not None and not 32 <= self.novel_size <= 4096:
@@ -515,11 +520,17 @@ class PhotoRelightNode:
         eyes = None
         if d.get("eyes_found") in ("detected", "mesh only"):
             eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
+        # a frontal face's symmetry axis: the model's, across its eyes' midpoint (a turned face's mirror is a map
+        # on the model grid, which the fit's albedo uses; its photo gets no detail from across the face)
+        midline = None
+        if m.mirror is None:
+            centre = np.mean(m.eyes, axis=0)
+            midline = al.points_to_input(np.array([centre, centre + [0.0, np.linalg.norm(np.subtract(*m.eyes))]]))
         return FaceRelight(
             photo=photo_channels(frame), grey=d["image"], alignment=al,
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
             light=d["light"], iod_px=float(np.linalg.norm(np.subtract(*m.eyes))) * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
-            eyes=eyes, eye_contrast=self.options.eye_contrast)
+            eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail)
 
 
 class QualityNode:

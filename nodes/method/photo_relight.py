@@ -39,6 +39,8 @@ AMBIENT_RANGE = (0.0, 0.5)
 # of the face shows it there (``photo_ambient``)
 AMBIENT_RIM = 0.15
 AMBIENT_MIN_SHARE = 0.003
+# a filled pixel's detail seen across the face is kept within this range of its local level (``mirrored_detail``)
+DETAIL_RANGE = (0.5, 2.0)
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
 # wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
@@ -180,6 +182,40 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     filled = base[..., None] * gain
     out = w[..., None] * measured + (1.0 - w[..., None]) * filled
     return np.where(face[..., None], np.clip(out, 0.0, None), np.nan).astype(np.float32)
+
+
+def reflection_map(shape: tuple[int, int], midline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(map_x, map_y), each (H, W) float32: where each pixel of an (H, W) box falls when mirrored across the
+    line through the two points ``midline`` (2, 2) ``[x, y]`` of the box (a face's vertical symmetry axis),
+    for ``cv2.remap``."""
+    a = np.asarray(midline[0], np.float64)
+    d = np.asarray(midline[1], np.float64) - a
+    d /= max(float(np.linalg.norm(d)), 1e-9)
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float64)
+    px, py = xx - a[0], yy - a[1]
+    t = px * d[0] + py * d[1]
+    return (a[0] + 2.0 * t * d[0] - px).astype(np.float32), (a[1] + 2.0 * t * d[1] - py).astype(np.float32)
+
+
+def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.ndarray, np.ndarray],
+                    fine_px: float, coarse_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The measured albedo's detail seen across the face, for a fill that has none of its own.
+
+    measured (H, W, C) ``I / lighting``; weight (H, W) in [0, 1] how far it is trusted; mirror: the
+    ``reflection_map`` of the box. The detail is a band of the measured albedo, its average over
+    ``fine_px`` over its average over ``coarse_px`` (trusted pixels only; the coarse scale is what the
+    fit's map already holds, the fine one leaves out pores and noise, which a mirror would only add to the
+    other side's own), in [``DETAIL_RANGE``]; 1 where nothing is trusted. Returns (detail (H, W, C) of the
+    mirror pixel, its trust (H, W): the mirror pixel's weight, as a ramp from 0.5 to 1)."""
+    w = np.asarray(weight, np.float32)
+    coarse, _ = weighted_blur(measured, w, coarse_px)
+    fine = weighted_blur(measured, w, fine_px)[0] if fine_px > 0 else np.asarray(measured, np.float32)
+    band = np.where((w > 0.5)[..., None], fine / np.maximum(coarse, np.float32(1e-4)), np.float32(1.0))
+    band = np.clip(band, *DETAIL_RANGE).astype(np.float32)
+    seen = cv2.remap(band, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=1.0).reshape(band.shape)
+    trust = cv2.remap(w, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return seen, np.clip(2.0 * trust - 1.0, 0.0, 1.0).astype(np.float32)
 
 
 def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,

@@ -181,7 +181,8 @@ def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
 def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     """A face rendered 3x finer than the model grid, its shadowed side filled from the fit's albedo
     map, here replaced by a checkerboard of the model grid's pixels (the worst blocks it could hold):
-    the photo's albedo there carries no checkerboard."""
+    the photo's albedo there carries no checkerboard (the lit side's detail seen across the face, which the
+    fill also takes, is left out: it is the render's own)."""
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
     from shadowflow.nodes.evaluation.scenes import write_shadowed_face
@@ -189,7 +190,7 @@ def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     from shadowflow.nodes.method.nodes import MethodOptions, PhotoRelightNode, photo_nodes
     from shadowflow.nodes.model.default_model import default_model
 
-    model, options = default_model(), MethodOptions()
+    model, options = default_model(), MethodOptions(fill_detail=0.0)
     path = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(0), light_from_angles(60),
                                grid=(384, 384), source="ict")
     fit = Chain(photo_nodes(model, options, with_views=False))
@@ -251,3 +252,40 @@ def test_the_rooms_light_is_measured_on_the_faces_core_not_on_what_its_rim_shows
     assert photo_ambient(np.where(rim, 0.5, photo), albedo, shading, face) > 0.4
     front = np.clip(n[..., 2], 0, None)
     assert photo_ambient(albedo * (0.06 + 0.94 * front), albedo, front, face, rim_px=7.5) == DEFAULT_AMBIENT
+
+
+def test_a_filled_side_takes_the_detail_its_lit_side_shows_across_the_midline():
+    """A face-like albedo symmetric about a tilted midline (blotches, a brow, a nostril), seen only on one
+    side: the other side's detail is the lit side's band of it, seen across the line; where nothing is seen
+    across, none is made up."""
+    from shadowflow.nodes.method.photo_relight import mirrored_detail, reflection_map
+
+    h, w = 120, 140
+    line = np.array([[70.0, 10.0], [76.0, 110.0]])  # a face's axis, turned a little
+    mx, my = reflection_map((h, w), line)
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    # each pixel's mirror: their midpoint on the line, the step between them square to it; twice, back home
+    d = (line[1] - line[0]) / np.linalg.norm(line[1] - line[0])
+    mid_x, mid_y = (xx + mx) / 2 - line[0][0], (yy + my) / 2 - line[0][1]
+    np.testing.assert_allclose(mid_x * d[1] - mid_y * d[0], 0.0, atol=1e-3)
+    np.testing.assert_allclose((mx - xx) * d[0] + (my - yy) * d[1], 0.0, atol=1e-3)
+    back = cv2.remap(np.dstack([mx, my]), mx, my, cv2.INTER_LINEAR)
+    inside = (mx > 1) & (mx < w - 2) & (my > 1) & (my < h - 2)
+    np.testing.assert_allclose(back[inside], np.dstack([xx, yy])[inside], atol=0.05)
+    # a symmetric albedo: features at mirrored places
+    rng = np.random.default_rng(4)
+    albedo = np.full((h, w), 0.6, np.float32)
+    for _ in range(12):
+        x, y, r, a = rng.uniform(80, 125), rng.uniform(15, 105), int(rng.integers(2, 5)), float(rng.uniform(0.3, 0.9))
+        for cx, cy in ((x, y), (mx[int(y), int(x)], my[int(y), int(x)])):
+            cv2.circle(albedo, (int(round(cx)), int(round(cy))), r, a, -1)
+    albedo = cv2.GaussianBlur(albedo, (0, 0), 0.7)[..., None]
+    side = (xx - line[0][0]) * (line[1][1] - line[0][1]) - (yy - line[0][1]) * (line[1][0] - line[0][0])
+    lit = (side > 0).astype(np.float32)  # the right side is lit; the left is filled
+    detail, seen = mirrored_detail(albedo * lit[..., None], lit, (mx, my), 1.0, 4.0)
+    band = cv2.GaussianBlur(albedo, (0, 0), 1.0)[..., None] / cv2.GaussianBlur(albedo, (0, 0), 4.0)[..., None]
+    left = (side < -200) & inside & (xx > 12) & (yy > 12) & (yy < h - 12)
+    assert seen[left].min() > 0.99 and seen[side > 200].max() == 0.0
+    r = np.corrcoef(detail[..., 0][left], band[..., 0][left])[0, 1]
+    assert r > 0.9, r  # the filled side's own features, from across the face
+    assert np.abs(detail[..., 0][side > 200] - 1.0).max() == 0.0  # nothing made up where nothing is seen

@@ -16,6 +16,7 @@ from ....flow.recording import RecordOptions
 from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
 from ...method.eye_detail import CONTRAST as EYE_CONTRAST
+from ...method.face_relight import FILL_DETAIL
 from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
@@ -53,6 +54,7 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     _view_angle(args.view_angle)
     _view_size(args.view_size)
     _eye_contrast(args.eye_contrast)
+    _fill_detail(args.fill_detail)
     _max_pixels(args.max_megapixels)
     for light in args.relight or ():
         parse_light(light)
@@ -61,6 +63,12 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
 def _eye_contrast(c: float) -> float:
     if not (0.0 <= c <= 1.0):
         raise ValueError(f"--eye-contrast is between 0 (off) and 1, not {c:g}")
+    return c
+
+
+def _fill_detail(c: float) -> float:
+    if not (0.0 <= c <= 1.0):
+        raise ValueError(f"--fill-detail is between 0 (off) and 1, not {c:g}")
     return c
 
 
@@ -134,7 +142,8 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          face_length=face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                          novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
-                         eye_contrast=_eye_contrast(args.eye_contrast), max_pixels=_max_pixels(args.max_megapixels),
+                         eye_contrast=_eye_contrast(args.eye_contrast), fill_detail=_fill_detail(args.fill_detail),
+                         max_pixels=_max_pixels(args.max_megapixels),
                          encoding=args.encoding, arrays=args.arrays)
 
 
@@ -245,6 +254,10 @@ def add_parser(sub) -> None:
                    help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
                         f"lids) at this contrast (default {EYE_CONTRAST:g}; 0: off, the eye stays the smooth fill; "
                         "1: as the photo shows it)")
+    r.add_argument("--fill-detail", type=float, default=FILL_DETAIL, metavar="C",
+                   help="a frontal face's shadowed side, filled from the fit's smooth albedo, gets the detail its lit "
+                        f"side shows across the face (nostrils, lips, skin) at this strength (default {FILL_DETAIL:g}; "
+                        "0: off, the smooth fill)")
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
