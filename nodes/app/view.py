@@ -24,7 +24,7 @@ import numpy as np
 from ...flow.frame import Frame
 from ...flow.replay import printable
 from ..method.live_relight import CLIPPED_BIT, FACE, SKIN, LiveFace
-from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING
+from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb
 
@@ -46,9 +46,10 @@ def live_payload(live: LiveFace) -> dict:
             "albedo_scale": live.albedo_scale, "want": live.want, "ambient": live.ambient,
             "photo_light": [float(x) for x in live.photo_light], "grid": list(live.depth.shape),
             "rotation": Alignment(live.to_preview, "live").rotation.tolist(), "to_model": to_model.tolist(),
+            "sigma": live.sigma,
             "arrays": {"photo8": _packed(live.photo8), "albedo16": _packed(live.albedo16),
                        "normals16": _packed(live.normals16), "flags": _packed(live.flags),
-                       "alpha8": _packed(live.alpha8), "depth": _packed(live.depth)}}
+                       "alpha8": _packed(live.alpha8), "depth": _packed(live.depth), "fade8": _packed(live.fade8)}}
 
 
 def _photo_jpeg(frame: Frame) -> tuple[str, tuple[int, int]]:
@@ -106,7 +107,7 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"<td>{_deg(pose.get('yaw'))} / {_deg(pose.get('pitch'))} / {_deg(pose.get('roll'))}"
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
     constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "LIT_SHADING": LIT_SHADING,
-                 "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH}
+                 "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE)}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),
         name=html.escape(printable(os.path.basename(frame.source))),
@@ -219,7 +220,7 @@ _PAGE = """<!doctype html><html lang=en><head><meta charset=utf-8><title>{title}
   <div class=controls><div id=lighttext>light: as written</div>
     <button id=frontal>frontal</button><button id=own>the photo's light</button><button id=file>as written</button>
     <p class=meta>Live: each face drawn from its normals, albedo and height field with the new light's cast
-    shadows; the photo around a face is left as it is.</p></div>
+    shadows; its change of light runs on into the photo around it, as in the relit files.</p></div>
 </div>
 <table><tr><th>face<th>status<th>found<th>yaw / pitch / roll<th>light (fitted)<th>outputs</tr>
 {rows}</table>
@@ -317,23 +318,85 @@ function render(f, light) {
     const m = skinLit.length, have = m % 2 ? skinLit[(m - 1) / 2] : 0.5 * (skinLit[m / 2 - 1] + skinLit[m / 2]);
     if (have > 1e-6) gain = f.want / have;
   }
-  const img = new ImageData(f.w, f.h);
+  // the relit face (linear), and the photo (linear)
+  const relit = new Float32Array(N * C), photo = new Float32Array(N * C), w = new Float32Array(N);
   for (let i = 0; i < N; i++) {
-    const alpha = f.alpha8[i] / 255, bound = gain * lighting[i] / Math.max(old[i], K.CLIP_RATIO_FLOOR);
-    for (let c = 0; c < 3; c++) {
-      const ch = C === 1 ? 0 : c;
-      let v = gain * unexposed[C * i + ch];
-      if (f.flags[i] & (K.CLIPPED_BIT << ch)) v = Math.max(v, bound);
-      v = Math.min(Math.max(v, 0), 1);
-      let p = f.photo8[C * i + ch] / 255;
+    const bound = gain * lighting[i] / Math.max(old[i], K.CLIP_RATIO_FLOOR);
+    w[i] = f.flags[i] & K.FACE ? 1 : 0;
+    for (let c = 0; c < C; c++) {
+      let v = gain * unexposed[C * i + c];
+      if (f.flags[i] & (K.CLIPPED_BIT << c)) v = Math.max(v, bound);
+      relit[C * i + c] = Math.min(Math.max(v, 0), 1);
+      let p = f.photo8[C * i + c] / 255;
       if (f.encoding === 'srgb') p = srgbToLinear(p);
-      let out = alpha * v + (1 - alpha) * p;
-      if (f.encoding === 'srgb') out = linearToSrgb(out);
-      img.data[4 * i + c] = Math.floor(Math.min(Math.max(out, 0), 1) * 255 + 0.5);
+      photo[C * i + c] = p;
     }
+  }
+  // outside_gain: the face's change of light at its border, carried into the photo around it over the feather
+  const radius = blurRadius(f.sigma);
+  const weighted = (a) => { const out = new Float32Array(N * C);
+    for (let i = 0; i < N; i++) for (let c = 0; c < C; c++) out[C * i + c] = a[C * i + c] * w[i]; return out; };
+  if (!f.den) {  // what does not change with the light, once per face
+    f.den = gaussianBlur(weighted(photo), f.h, f.w, C, radius);
+    f.support = gaussianBlur(w, f.h, f.w, 1, radius);
+  }
+  const num = gaussianBlur(weighted(relit), f.h, f.w, C, radius), den = f.den, support = f.support;
+  const [lo, hi] = K.RATIO_OUTSIDE;
+  const ring = new ImageData(f.w, f.h), inside = new ImageData(f.w, f.h);
+  for (let i = 0; i < N; i++) {
+    const face = w[i] > 0, alpha = f.alpha8[i] / 255, fade = f.fade8[i] / 255;
+    const target = face ? inside : ring;
+    for (let c = 0; c < 3; c++) {
+      const ch = C === 1 ? 0 : c, j = C * i + ch;
+      const ratio = Math.min(Math.max(num[j] / Math.max(den[j], Math.max(1e-3 * support[i], 1e-12)), lo), hi);
+      let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * ratio : photo[j] * (1 + fade * (ratio - 1));
+      out = Math.min(Math.max(out, 0), 1);
+      if (f.encoding === 'srgb') out = linearToSrgb(out);
+      target.data[4 * i + c] = Math.floor(out * 255 + 0.5);
+    }
+    // each face's own pixels on top of every face's ring (the product: no feather touches another face)
+    target.data[4 * i + 3] = face || fade > 0 ? 255 : 0;
+  }
+  return [ring, inside];
+}
+
+// a face's preview as the page shows it (its photo, its ring, its own pixels), as a PNG data URL
+function shown(f, ring, face) {
+  const c = document.createElement('canvas'), g = c.getContext('2d'), img = new ImageData(f.w, f.h);
+  c.width = f.w; c.height = f.h;
+  for (let i = 0; i < f.w * f.h; i++) {
+    for (let k = 0; k < 3; k++) img.data[4 * i + k] = f.photo8[f.c * i + (f.c === 1 ? 0 : k)];
     img.data[4 * i + 3] = 255;
   }
-  return img;
+  g.putImageData(img, 0, 0);
+  g.drawImage(ring, 0, 0);
+  g.drawImage(face, 0, 0);
+  return c.toDataURL('image/png');
+}
+
+// live_relight.gaussian_blur: three passes of a box (blur_radius) along rows, then along columns, zero beyond the
+// edges, by running sums
+function blurRadius(sigma) { return Math.max(1, Math.round((Math.sqrt(4 * sigma * sigma + 1) - 1) / 2)); }
+
+function gaussianBlur(src, h, w, C, r) {
+  let v = Float64Array.from(src);
+  const n = 2 * r + 1;
+  const pass = (len, count, at) => {  // at(line, i, c) -> index into v
+    const out = new Float64Array(v.length);
+    for (let line = 0; line < count; line++) for (let c = 0; c < C; c++) {
+      let sum = 0;
+      for (let i = 0; i <= Math.min(r, len - 1); i++) sum += v[at(line, i, c)];
+      for (let i = 0; i < len; i++) {
+        out[at(line, i, c)] = sum / n;
+        if (i + r + 1 < len) sum += v[at(line, i + r + 1, c)];
+        if (i - r >= 0) sum -= v[at(line, i - r, c)];
+      }
+    }
+    v = out;
+  };
+  for (let k = 0; k < 3; k++) pass(w, h, (y, x, c) => C * (y * w + x) + c);
+  for (let k = 0; k < 3; k++) pass(h, w, (x, y, c) => C * (y * w + x) + c);
+  return v;
 }
 
 const compare = document.getElementById('compare'), layers = document.getElementById('layers');
@@ -348,15 +411,22 @@ async function prepare() {
     const A = f.arrays;
     Object.assign(f, { photo8: await unpack(A.photo8, Uint8Array), albedo16: await unpack(A.albedo16, Uint16Array),
       normals16: await unpack(A.normals16, Int16Array), flags: await unpack(A.flags, Uint8Array),
-      alpha8: await unpack(A.alpha8, Uint8Array), depth: await unpack(A.depth, Float32Array) });
-    const canvas = document.createElement('canvas');
-    canvas.width = f.w; canvas.height = f.h; canvas.className = 'layer'; canvas.dataset.face = f.k;
-    const [y0, y1, x0, x1] = f.box;
-    Object.assign(canvas.style, { left: 100 * x0 / W + '%', top: 100 * y0 / H + '%', width: 100 * (x1 - x0) / W + '%',
-      height: 100 * (y1 - y0) / H + '%', display: 'none' });
-    layers.appendChild(canvas);
-    faces.push([f, canvas]);
+      alpha8: await unpack(A.alpha8, Uint8Array), depth: await unpack(A.depth, Float32Array),
+      fade8: await unpack(A.fade8, Uint8Array) });
+    const make = (part) => {
+      const canvas = document.createElement('canvas');
+      canvas.width = f.w; canvas.height = f.h; canvas.className = 'layer'; canvas.dataset.face = f.k;
+      canvas.dataset.part = part;
+      const [y0, y1, x0, x1] = f.box;
+      Object.assign(canvas.style, { left: 100 * x0 / W + '%', top: 100 * y0 / H + '%',
+        width: 100 * (x1 - x0) / W + '%', height: 100 * (y1 - y0) / H + '%', display: 'none' });
+      return canvas;
+    };
+    faces.push([f, make('ring'), make('face')]);
   }
+  // every face's ring below every face's own pixels
+  for (const [, ring] of faces) layers.appendChild(ring);
+  for (const [, , face] of faces) layers.appendChild(face);
 }
 
 function draw() {
@@ -364,9 +434,12 @@ function draw() {
   const live = light !== null;
   after.src = live ? photoSrc : relitSrc;
   afterTag.textContent = live ? 'relit live' : 'relit (file)';
-  for (const [f, canvas] of faces) {
-    canvas.style.display = live ? 'block' : 'none';
-    if (live) canvas.getContext('2d').putImageData(render(f, light), 0, 0);
+  for (const [f, ring, face] of faces) {
+    ring.style.display = face.style.display = live ? 'block' : 'none';
+    if (!live) continue;
+    const [around, inside] = render(f, light);
+    ring.getContext('2d').putImageData(around, 0, 0);
+    face.getContext('2d').putImageData(inside, 0, 0);
   }
   const t = document.getElementById('lighttext');
   if (!live) { t.textContent = 'light: as written (relit.png)'; drawSphere([0, 0, 1], false); return; }
@@ -433,7 +506,7 @@ prepare().then(() => {
   if (/dump/.test(location.hash)) {
     const pre = document.createElement('pre');
     pre.id = 'dump';
-    pre.textContent = JSON.stringify(faces.map(([f, canvas]) => ({ k: f.k, png: canvas.toDataURL('image/png') })));
+    pre.textContent = JSON.stringify(faces.map(([f, ring, face]) => ({ k: f.k, png: shown(f, ring, face) })));
     document.body.appendChild(pre);
   }
 });

@@ -176,13 +176,22 @@ class FaceRelight:
         return out
 
     def live_data(self, encoding: str) -> dict:
-        """What the page needs to relight this face live (``live_relight_data``)."""
+        """What the page needs to relight this face live (``live_relight_data``), on the layer's box: the face
+        and the feather its change of light is carried over."""
         photo = self.photo
         return live_relight_data(
-            box=self.box, photo=photo, albedo=self.albedo, normals=self.normals, face=self.face, alpha=self.alpha,
-            skin=self.skin_only, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
-            photo_light=self.light, clipped=(np.atleast_3d(photo) >= CLIPPED) & self.face[..., None],
-            depth=self.depth, grid_mask=self.mask, to_box=self.al.matrix, encoding=encoding)
+            box=self.layer_box, photo=self.layer_photo, albedo=self._in_layer(np.nan_to_num(self.albedo)),
+            normals=self._in_layer(self.normals), face=self.layer_face, alpha=self.layer_alpha,
+            skin=self._in_layer(self.skin_only) > 0, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
+            photo_light=self.light, clipped=(np.atleast_3d(self.layer_photo) >= CLIPPED) & self.layer_face[..., None],
+            depth=self.depth, grid_mask=self.mask, to_box=self._layer_alignment().matrix, encoding=encoding,
+            feather_px=self.feather)
+
+    def _layer_alignment(self) -> Alignment:
+        """Model pixel -> the layer box's pixel."""
+        y0, _, x0, _ = self.box
+        ly0, _, lx0, _ = self.layer_box
+        return self.al.cropped(lx0 - x0, ly0 - y0)
 
 
 def albedo_on_grid(albedo: np.ndarray, box: tuple[int, int, int, int], alignment: Alignment,

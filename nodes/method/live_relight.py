@@ -4,12 +4,14 @@ step (``nodes/app/view.py``).
 
 The live face is the product's relighting (``PhotoRelightNode``) without what needs the whole
 photo or a second look at it: the albedo is the one ``albedo.png`` holds (the product trusts the
-photo's own pixels a little further where a light changes the shading little), and the photo
-around the face is left as it is (the product carries the face's change of light into hair and
-neck). Inside the face the two agree to a few grey levels (``docs/relighting.md``).
+photo's own pixels a little further where a light changes the shading little). As the product does,
+the face's change of light is carried over its border into the photo around it (``outside_gain``),
+with the blurs done as the page does them (``gaussian_blur``: three boxes). The two agree to a few
+grey levels (``docs/relighting.md``).
 
-Arrays are on the preview's pixel grid (h, w), a face's box of the photo scaled to at most
-``LIVE_SIDE`` pixels a side; ``C`` is 1 (grey) or 3 (RGB); light directions in the camera frame.
+Arrays are on the preview's pixel grid (h, w), a face's layer box of the photo (the face and its
+feather) scaled to at most ``LIVE_SIDE`` pixels a side; ``C`` is 1 (grey) or 3 (RGB); light
+directions in the camera frame.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import numpy as np
 
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
-from .photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, exposure_gain, with_ambient
+from .photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, exposure_gain, smoothstep, with_ambient
 from .shadow import cast_shadow
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
@@ -39,7 +41,9 @@ class LiveFace:
     the top of its range); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
     want: the exposure of the photo's lit skin (``exposure_target``) or None; ambient: the room's share
     of the light; photo_light (3,); depth (Hm, Wm) float32 the fit's height field, NaN off its mask;
-    to_preview (2, 3) model pixel -> preview pixel."""
+    to_preview (2, 3) model pixel -> preview pixel; fade8 (h, w) uint8, how far the face's change of
+    light reaches a pixel around it (``outside_gain``'s fade; 0 on the face and beyond the feather);
+    sigma: the preview pixels the change of light is averaged over at the face's border."""
 
     box: tuple[int, int, int, int]
     photo8: np.ndarray
@@ -54,6 +58,8 @@ class LiveFace:
     depth: np.ndarray
     to_preview: np.ndarray
     encoding: str
+    fade8: np.ndarray
+    sigma: float
 
     @property
     def size(self) -> tuple[int, int]:
@@ -63,10 +69,11 @@ class LiveFace:
 def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
                       face: np.ndarray, alpha: np.ndarray, skin: np.ndarray, want: float | None, ambient: float,
                       photo_light: np.ndarray, clipped: np.ndarray, depth: np.ndarray, grid_mask: np.ndarray,
-                      to_box: np.ndarray, encoding: str, side: int = LIVE_SIDE) -> LiveFace:
-    """A ``LiveFace`` from the relighting's arrays on the photo's box (h, w): photo, albedo (h, w, C)
+                      to_box: np.ndarray, encoding: str, feather_px: float, side: int = LIVE_SIDE) -> LiveFace:
+    """A ``LiveFace`` from the relighting's arrays on the photo's layer box (h, w): photo, albedo (h, w, C)
     linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
-    (2, 3) model pixel -> box pixel. Scaled (area-averaged) to at most ``side`` pixels a side."""
+    (2, 3) model pixel -> box pixel; feather_px: the photo pixels the face's change of light fades over
+    around it. Scaled (area-averaged) to at most ``side`` pixels a side."""
     h, w = face.shape
     k = min(1.0, side / max(h, w))
     size = (max(1, round(w * k)), max(1, round(h * k)))  # (width, height) as OpenCV takes it
@@ -88,6 +95,12 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     flags = f * FACE + ((area(skin) >= 0.5) & f) * SKIN
     for c, channel in enumerate(np.moveaxis(area(np.atleast_3d(clipped)).reshape(size[1], size[0], -1), -1, 0)):
         flags = flags + ((channel >= 0.5) & f) * (CLIPPED_BIT << c)
+    # around the face: how far its change of light reaches (``outside_gain``'s fade, where its blur has support)
+    feather = max(feather_px * k, 1.0)
+    sigma = max(feather / 2.0, 1.0)
+    distance = cv2.distanceTransform((~f).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    support = gaussian_blur(f.astype(np.float32), sigma)
+    fade = np.where(f | (support <= 1e-3), 0.0, 1.0 - smoothstep(distance, 0.0, feather))
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
     to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
     return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),
@@ -96,7 +109,29 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
                     alpha8=np.round(np.where(f, area(alpha), 0.0) * 255.0).astype(np.uint8),
                     want=want, ambient=float(ambient), photo_light=np.asarray(photo_light, np.float64),
                     depth=np.where(grid_mask, depth, np.nan).astype(np.float32), to_preview=to_preview,
-                    encoding=encoding)
+                    encoding=encoding, fade8=np.round(fade * 255.0).astype(np.uint8), sigma=float(sigma))
+
+
+def blur_radius(sigma: float) -> int:
+    """The radius of the box that, passed three times, blurs like a Gaussian of ``sigma`` pixels (three
+    boxes of width w have the variance 3 (w^2 - 1) / 12)."""
+    return max(1, int(round((np.sqrt(4.0 * sigma * sigma + 1.0) - 1.0) / 2.0)))
+
+
+def gaussian_blur(values: np.ndarray, sigma: float) -> np.ndarray:
+    """(h, w[, C]) float32 ``values`` blurred like a Gaussian of ``sigma`` pixels: three passes of a box
+    (``blur_radius``) along rows, then three along columns, zero beyond the edges. The page does the same
+    with running sums, a few milliseconds a redraw whatever ``sigma``."""
+    r = blur_radius(sigma)
+    v = np.asarray(values, np.float64)
+    for axis in (1, 0):
+        for _ in range(3):
+            pad = [(0, 0)] * v.ndim
+            pad[axis] = (r + 1, r)
+            c = np.cumsum(np.pad(v, pad), axis=axis)
+            n = v.shape[axis]
+            v = (np.take(c, np.arange(2 * r + 1, 2 * r + 1 + n), axis=axis) - np.take(c, np.arange(n), axis=axis)) / (2 * r + 1)
+    return v.astype(np.float32)
 
 
 def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
@@ -112,7 +147,8 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     """(h, w, C) float32 in [0, 1], in the photo's encoding: the preview with its face relit by
     ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (``S'`` the new shading, less the
     share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than the clipping proves,
-    faded into the photo by ``alpha``. cast: the light's cast shadow (``live_cast``), traced when None."""
+    faded by ``alpha`` into the photo times the face's change of light at its border, which the photo
+    around the face follows over the feather (``fade8``). cast: the light's cast shadow (``live_cast``), traced when None."""
     s = np.asarray(light, np.float64)
     s = s / np.linalg.norm(s)
     cast = live_cast(live, s) if cast is None else cast
@@ -130,6 +166,13 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
     bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
     face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
+    # the face's change of light at its border, carried into the photo there (``outside_gain``)
+    w = face.astype(np.float32)[..., None]
+    support = gaussian_blur(face.astype(np.float32), live.sigma)[..., None]
+    ratio = np.clip(gaussian_blur(face_image * w, live.sigma)
+                    / np.maximum(gaussian_blur(photo * w, live.sigma), np.maximum(1e-3 * support, 1e-12)), *RATIO_OUTSIDE)
+    fade = (live.fade8.astype(np.float32) / np.float32(255.0))[..., None]
     a = (live.alpha8.astype(np.float32) / np.float32(255.0))[..., None]
-    out = a * face_image + (1.0 - a) * photo
+    out = np.where(face[..., None], a * face_image + (1.0 - a) * photo * ratio, photo * (1.0 + fade * (ratio - 1.0)))
+    out = np.clip(out, 0.0, 1.0)
     return (linear_to_srgb(out) if live.encoding == "srgb" else out).astype(np.float32)

@@ -55,7 +55,8 @@ def test_the_live_relighting_is_the_products_inside_the_face(photo_name, request
     """For the astronaut (colour, lit nearly from the front) and a render lit from the side (grey,
     linear), relit from the front, 30 deg left and up, and 45 deg right, the live face
     (``render_live``, its arrays as the page receives them) differs from the product's relit photo
-    by under three grey levels on average inside the face."""
+    by under three grey levels on average inside the face, and around it, where the face's change of
+    light runs on into the photo over the feather."""
     import shadowflow
 
     options = MethodOptions(extra_lights=(LIGHTS["30,10"], LIGHTS["-45,0"]))
@@ -63,12 +64,19 @@ def test_the_live_relighting_is_the_products_inside_the_face(photo_name, request
     face = photo.parts[0]
     live = face.data["live"]
     inside = (live.alpha8 == 255) & ((live.flags & FACE) > 0)
-    assert inside.sum() > 5000
+    ring = live.fade8 > 0  # around the face, where its change of light runs on into the photo
+    assert inside.sum() > 5000 and ring.sum() > 2000
+    shown = np.atleast_3d(live.photo8).astype(np.float32) / 255
+    moved = 0.0
     for light, product in relit_photos(photo):
         mine = render_live(live, light)
         theirs = _product_in_preview(product, live.box, live.size)
-        levels = np.abs(mine - theirs).max(axis=-1)[inside] * 255
-        assert levels.mean() < MAX_MEAN_LEVELS, (light, levels.mean())
+        levels = np.abs(mine - theirs).max(axis=-1)
+        assert levels[inside].mean() * 255 < MAX_MEAN_LEVELS, (light, levels[inside].mean() * 255)
+        assert levels[ring].mean() * 255 < MAX_MEAN_LEVELS, (light, levels[ring].mean() * 255)
+        moved = max(moved, np.abs(mine - shown).max(axis=-1)[ring].mean() * 255)
+    # the ring is not the photo left as it was (which ended the relit face on a cut at its border)
+    assert moved > 2.0, moved
     # the lights differ: a live face that ignored the light would pass the above only by chance
     frontal, side = (render_live(live, LIGHTS[k]) for k in ("frontal", "-45,0"))
     assert np.abs(frontal - side).max(axis=-1)[inside].mean() * 255 > 10
@@ -78,7 +86,7 @@ def _page_faces(view: str) -> list[dict]:
     """The faces' data embedded in a view.html, with its alpha8 and flags decoded."""
     data = json.loads(re.search(r'<script id=data type=application/json>(.*?)</script>', view, re.S).group(1))
     for f in data["faces"]:
-        for name, dtype in (("alpha8", np.uint8), ("flags", np.uint8)):
+        for name, dtype in (("alpha8", np.uint8), ("flags", np.uint8), ("fade8", np.uint8)):
             raw = zlib.decompress(base64.b64decode(f["arrays"][name]))
             f[name] = np.frombuffer(raw, dtype).reshape(f["h"], f["w"])
     return data["faces"]
@@ -95,7 +103,7 @@ def _chromium(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
 @pytest.mark.slow
 def test_the_page_relights_each_face_as_the_product_does_in_chromium(astronaut_png, tmp_path):
     """The page opened in headless Chromium at three lights draws the face within three grey levels
-    (mean, inside the face) of the product's relit files for those lights; its slider shows the
+    (mean, inside the face and around it) of the product's relit files for those lights; its slider shows the
     photo at one end and the relit photo at the other."""
     out = tmp_path / "out"
     assert main(["run", str(astronaut_png), "--out", str(out), "--quiet", "--record", "none",
@@ -112,8 +120,9 @@ def test_the_page_relights_each_face_as_the_product_does_in_chromium(astronaut_p
         canvas = cv2.imdecode(np.frombuffer(base64.b64decode(drawn.split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)
         product = cv2.imread(str(out / "astronaut" / file), cv2.IMREAD_COLOR).astype(np.float32)
         theirs = _product_in_preview(product, face["box"], (face["h"], face["w"]))
-        levels = np.abs(canvas.astype(np.float32) - theirs).max(axis=-1)[inside]
-        assert levels.mean() < MAX_MEAN_LEVELS, (name, levels.mean())
+        levels = np.abs(canvas.astype(np.float32) - theirs).max(axis=-1)
+        assert levels[inside].mean() < MAX_MEAN_LEVELS, (name, levels[inside].mean())
+        assert levels[face["fade8"] > 0].mean() < MAX_MEAN_LEVELS, (name, levels[face["fade8"] > 0].mean())
     shots = {}
     for cut in (0, 100):
         shot = tmp_path / f"cut{cut}.png"
@@ -123,3 +132,22 @@ def test_the_page_relights_each_face_as_the_product_does_in_chromium(astronaut_p
     changed = np.abs(shots[0] - shots[100]).max(axis=-1) > 24
     assert changed[150:850, 40:960].mean() > 0.02  # the relit face against the photo's
     assert not changed[:80].any()  # the title above the picture stays
+
+
+def test_the_live_blur_is_a_gaussian_of_its_width():
+    """``gaussian_blur`` (three boxes, as the page's running sums): a point spreads with the asked sigma (to
+    half a pixel: the boxes are whole pixels wide), its weight kept; a constant stays constant away from
+    the edges, beyond which is zero."""
+    from shadowflow.nodes.method.live_relight import gaussian_blur
+
+    point = np.zeros((101, 101), np.float32)
+    point[50, 50] = 1.0
+    for sigma in (2.0, 6.0, 12.0):
+        out = gaussian_blur(point, sigma)
+        assert out.sum() == pytest.approx(1.0, abs=1e-5)
+        rows = np.arange(101) - 50
+        spread = np.sqrt(np.sum(out.sum(axis=1) * rows**2))
+        assert abs(spread - sigma) < 0.5, (sigma, spread)  # the box widths are whole pixels
+    flat = gaussian_blur(np.ones((60, 80, 3), np.float32), 4.0)
+    np.testing.assert_allclose(flat[20:40, 20:60], 1.0, atol=1e-6)
+    assert flat[0, 0, 0] < 0.5  # zero beyond the edges
