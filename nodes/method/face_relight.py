@@ -123,7 +123,13 @@ class FaceRelight:
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         self.not_skin = face_lit & ~face_skin if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.fill_detail = fill_detail if midline is not None else 0.0
-        self.mirror = None if self.fill_detail == 0 else reflection_map(shape, np.asarray(midline) - [x0, y0])
+        self.detail = None  # the detail seen across the face and its trust, once, from the light-independent trust
+        if self.fill_detail > 0:
+            px = max(al.scale, 1.0)
+            measured = np.atleast_3d(photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
+            self.detail = mirrored_detail(measured, np.where(face, self.trust_for(), np.float32(0.0)),
+                                          reflection_map(shape, np.asarray(midline) - [x0, y0]),
+                                          FILL_DETAIL_BAND[0] * px, FILL_DETAIL_BAND[1] * px)
         self.albedo = self.albedo_for(self.trust_for())
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
@@ -132,12 +138,9 @@ class FaceRelight:
         """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere, with
         the detail the face shows across its midline where it is the fit's (``mirrored_detail``)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
-        if self.mirror is not None:
-            px = max(self.al.scale, 1.0)
-            measured = np.atleast_3d(self.photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
+        if self.detail is not None:
+            detail, seen = self.detail
             weight = np.where(self.face, trust, np.float32(0.0))
-            detail, seen = mirrored_detail(measured, weight, self.mirror, FILL_DETAIL_BAND[0] * px,
-                                           FILL_DETAIL_BAND[1] * px)
             fill = (np.float32(self.fill_detail) * (np.float32(1.0) - weight) * seen)[..., None]
             a = (a * (np.float32(1.0) + fill * (detail - np.float32(1.0)))).astype(np.float32)
         return a if self.eyes is None else self.eyes.apply(a, trust)

@@ -95,12 +95,12 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     flags = f * FACE + ((area(skin) >= 0.5) & f) * SKIN
     for c, channel in enumerate(np.moveaxis(area(np.atleast_3d(clipped)).reshape(size[1], size[0], -1), -1, 0)):
         flags = flags + ((channel >= 0.5) & f) * (CLIPPED_BIT << c)
-    # around the face: how far its change of light reaches (``outside_gain``'s fade, where its blur has support)
+    # around the face: how far its change of light reaches (``outside_gain``'s fade; its blur, half the feather
+    # wide, reaches every pixel the fade does)
     feather = max(feather_px * k, 1.0)
     sigma = max(feather / 2.0, 1.0)
     distance = cv2.distanceTransform((~f).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    support = gaussian_blur(f.astype(np.float32), sigma)
-    fade = np.where(f | (support <= 1e-3), 0.0, 1.0 - smoothstep(distance, 0.0, feather))
+    fade = np.where(f, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
     to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
     return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),
@@ -125,12 +125,12 @@ def gaussian_blur(values: np.ndarray, sigma: float) -> np.ndarray:
     r = blur_radius(sigma)
     v = np.asarray(values, np.float64)
     for axis in (1, 0):
+        v = np.moveaxis(v, axis, 0)  # the running sums along the first axis
+        n = v.shape[0]
         for _ in range(3):
-            pad = [(0, 0)] * v.ndim
-            pad[axis] = (r + 1, r)
-            c = np.cumsum(np.pad(v, pad), axis=axis)
-            n = v.shape[axis]
-            v = (np.take(c, np.arange(2 * r + 1, 2 * r + 1 + n), axis=axis) - np.take(c, np.arange(n), axis=axis)) / (2 * r + 1)
+            c = np.cumsum(np.concatenate([np.zeros((r + 1,) + v.shape[1:]), v, np.zeros((r,) + v.shape[1:])]), axis=0)
+            v = (c[2 * r + 1:2 * r + 1 + n] - c[:n]) / (2 * r + 1)
+        v = np.moveaxis(v, 0, axis)
     return v.astype(np.float32)
 
 
