@@ -15,6 +15,7 @@ directions in the camera frame.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -115,7 +116,7 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
 def blur_radius(sigma: float) -> int:
     """The radius of the box that, passed three times, blurs like a Gaussian of ``sigma`` pixels (three
     boxes of width w have the variance 3 (w^2 - 1) / 12)."""
-    return max(1, int(round((np.sqrt(4.0 * sigma * sigma + 1.0) - 1.0) / 2.0)))
+    return max(1, round((math.sqrt(4.0 * sigma * sigma + 1.0) - 1.0) / 2.0))
 
 
 def gaussian_blur(values: np.ndarray, sigma: float) -> np.ndarray:

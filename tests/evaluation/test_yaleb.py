@@ -35,9 +35,9 @@ def test_yaleb_faces_are_found_under_side_light():
     the other lights put them (the database's crops keep them within a few pixels) and its
     placement's proportions a face's. Measured: each eye within 1-8 % of the eyes' distance of the
     subject's median, 11 % for subject 03's eye in deep shadow at -70."""
+    from shadowflow.nodes.model.default_model import default_model
     from shadowflow.nodes.photo.faces import find_faces, place_on_grid
     from shadowflow.nodes.photo.loader import read_photo
-    from shadowflow.nodes.model.default_model import default_model
 
     subjects = sorted(YALEB.glob("yaleB*"))
     if not subjects:
@@ -203,9 +203,8 @@ def test_yaleb_the_filled_side_shows_the_detail_of_the_lit_side(yaleb_subject):
     side's detail seen across the face brings back 1.4-1.75x the gradient energy the smooth fill had (of the
     real frontal photo's there: 0.20-0.30 -> 0.35-0.44), for 0.12 dB of the relit photo on average (-0.27 to
     +0.03: the mirrored detail is the other side's, not this side's own)."""
-    from scipy import ndimage
-
     import shadowflow
+    from scipy import ndimage
     from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
     from shadowflow.nodes.method.nodes import MethodOptions
 

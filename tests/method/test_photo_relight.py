@@ -278,7 +278,7 @@ def test_a_filled_side_takes_the_detail_its_lit_side_shows_across_the_midline():
     for _ in range(12):
         x, y, r, a = rng.uniform(80, 125), rng.uniform(15, 105), int(rng.integers(2, 5)), float(rng.uniform(0.3, 0.9))
         for cx, cy in ((x, y), (mx[int(y), int(x)], my[int(y), int(x)])):
-            cv2.circle(albedo, (int(round(cx)), int(round(cy))), r, a, -1)
+            cv2.circle(albedo, (int(np.rint(cx)), int(np.rint(cy))), r, a, -1)
     albedo = cv2.GaussianBlur(albedo, (0, 0), 0.7)[..., None]
     side = (xx - line[0][0]) * (line[1][1] - line[0][1]) - (yy - line[0][1]) * (line[1][0] - line[0][0])
     lit = (side > 0).astype(np.float32)  # the right side is lit; the left is filled
