@@ -43,6 +43,13 @@ from .yaleb import YaleSubject, build_ground_truth
 INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15), (-35, 15)]
 
 
+def least_squares_gain(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> float:
+    """``g = <photo, relit> / <relit, relit>`` over ``region`` (H, W) bool: the exposure that brings ``relit``
+    closest to ``photo`` (H, W) there, which every score here divides out."""
+    r, p = relit[region], photo[region]
+    return float(np.sum(p * r) / max(np.sum(r**2), 1e-12))
+
+
 def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
     """(PSNR dB, SSIM) of ``relit`` against ``photo`` over ``region`` after the least-squares
     gain ``g = <photo, relit> / <relit, relit>``; images (H, W) in [0, 1]."""
@@ -54,7 +61,7 @@ def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> 
 
     r = np.nan_to_num(np.asarray(relit, np.float64))
     p = np.asarray(photo, np.float64)
-    g = float(np.sum(p[region] * r[region]) / max(np.sum(r[region] ** 2), 1e-12))
+    g = least_squares_gain(r, p, region)
     mse = float(np.mean((p[region] - g * r[region]) ** 2))
     _, smap = structural_similarity(p, np.where(region, g * r, p), data_range=1.0, full=True, gaussian_weights=True,
                                     sigma=1.5, use_sample_covariance=False)
@@ -72,7 +79,7 @@ def seam(relit: np.ndarray, photo: np.ndarray, region: np.ndarray, eyes: np.ndar
     offset shows as a gradient the real photo does not have. relit, photo (H, W); eyes (2, 2)."""
     r = np.nan_to_num(np.asarray(relit, np.float64))
     p = np.asarray(photo, np.float64)
-    g = float(np.sum(p[region] * r[region]) / max(np.sum(r[region] ** 2), 1e-12))
+    g = least_squares_gain(r, p, region)
     gy_r, gx_r = np.gradient(g * r)
     gy_p, gx_p = np.gradient(p)
     e = np.asarray(eyes, np.float64)
@@ -99,7 +106,7 @@ def nose_shadow_level(relit: np.ndarray, photo: np.ndarray, region: np.ndarray, 
     relit, photo (H, W); eyes (2, 2) photo pixels."""
     r = np.nan_to_num(np.asarray(relit, np.float64))
     p = np.asarray(photo, np.float64)
-    g = float(np.sum(p[region] * r[region]) / max(np.sum(r[region] ** 2), 1e-12))
+    g = least_squares_gain(r, p, region)
     e = np.asarray(eyes, np.float64)
     iod = max(float(np.linalg.norm(e[1] - e[0])), 1e-9)
     along = (e[1] - e[0]) / iod
@@ -179,7 +186,7 @@ def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: Metho
     photo = frame.data["image"]
     region = out["mask"] & subject.stereo.valid
     relit = np.nan_to_num(out["relit"]).astype(np.float64)
-    gain = float(np.sum(photo[region] * relit[region]) / max(np.sum(relit[region] ** 2), 1e-12))
+    gain = least_squares_gain(relit, photo, region)
     inner = ndimage.binary_erosion(region, iterations=2)
 
     def energy(img: np.ndarray) -> float:
@@ -233,10 +240,11 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
         # the input and the frontal exposure were taken moments apart and moved by 0.5-3 px: score the
         # relit photo (on the input's grid) moved into the frontal photo's place (camera_shift)
         shift = camera_shift(subject, frame.data["image"], truth_light, frontal_shift)
-        row["psnr"], row["ssim"] = relight_scores(translate(out["relit"], shift), subject.frontal, region)
+        moved = translate(out["relit"], shift)
+        row["psnr"], row["ssim"] = relight_scores(moved, subject.frontal, region)
         row["psnr_unmoved"], _ = relight_scores(out["relit"], subject.frontal, region)
-        row["seam"] = seam(translate(out["relit"], shift), subject.frontal, region, frame.data["placement"].eyes)
-        row["nose_shadow"] = nose_shadow_level(translate(out["relit"], shift), subject.frontal, region,
+        row["seam"] = seam(moved, subject.frontal, region, frame.data["placement"].eyes)
+        row["nose_shadow"] = nose_shadow_level(moved, subject.frontal, region,
                                                shadow_truth(subject, frame.data["image"], truth_light, cast_only=True),
                                                frame.data["placement"].eyes)
         # exposure: the relit face's mean level against the real frontal photo's (no gain): the same

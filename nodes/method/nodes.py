@@ -522,14 +522,15 @@ class PhotoRelightNode:
             eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
         # a frontal face's symmetry axis: the model's, across its eyes' midpoint (a turned face's mirror is a map
         # on the model grid, which the fit's albedo uses; its photo gets no detail from across the face)
+        iod = float(np.linalg.norm(np.subtract(*m.eyes)))  # model pixels
         midline = None
         if m.mirror is None:
             centre = np.mean(m.eyes, axis=0)
-            midline = al.points_to_input(np.array([centre, centre + [0.0, np.linalg.norm(np.subtract(*m.eyes))]]))
+            midline = al.points_to_input(np.array([centre, centre + [0.0, iod]]))
         return FaceRelight(
             photo=photo_channels(frame), grey=d["image"], alignment=al,
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
-            light=d["light"], iod_px=float(np.linalg.norm(np.subtract(*m.eyes))) * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
+            light=d["light"], iod_px=iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
             eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail)
 
 

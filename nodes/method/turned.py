@@ -88,8 +88,3 @@ class ViewChoiceNode:
         frame.meta.pop("model_view", None)
         frame.meta.update(meta, view_choice=tried)
         return frame
-        chosen = self.make_face(frame, best)
-        frame.data = chosen.data
-        frame.meta.pop("model_view", None)
-        frame.meta.update(chosen.meta, view_choice=tried)
-        return frame

@@ -53,22 +53,17 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
     _view_size(args.view_size)
-    _eye_contrast(args.eye_contrast)
-    _fill_detail(args.fill_detail)
+    _strength("--eye-contrast", args.eye_contrast)
+    _strength("--fill-detail", args.fill_detail)
     _max_pixels(args.max_megapixels)
     for light in args.relight or ():
         parse_light(light)
 
 
-def _eye_contrast(c: float) -> float:
+def _strength(flag: str, c: float) -> float:
+    """A detail's strength given as ``flag`` (--eye-contrast, --fill-detail): 0 (off) to 1."""
     if not (0.0 <= c <= 1.0):
-        raise ValueError(f"--eye-contrast is between 0 (off) and 1, not {c:g}")
-    return c
-
-
-def _fill_detail(c: float) -> float:
-    if not (0.0 <= c <= 1.0):
-        raise ValueError(f"--fill-detail is between 0 (off) and 1, not {c:g}")
+        raise ValueError(f"{flag} is between 0 (off) and 1, not {c:g}")
     return c
 
 
@@ -142,7 +137,8 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          face_length=face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                          novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
-                         eye_contrast=_eye_contrast(args.eye_contrast), fill_detail=_fill_detail(args.fill_detail),
+                         eye_contrast=_strength("--eye-contrast", args.eye_contrast),
+                         fill_detail=_strength("--fill-detail", args.fill_detail),
                          max_pixels=_max_pixels(args.max_megapixels),
                          encoding=args.encoding, arrays=args.arrays)
 
