@@ -98,7 +98,7 @@ def test_fit_config_is_checked_where_it_is_built():
                        ({"n_modes": 0}, "n_modes"), ({"init": "zero"}, "init")]:
         with pytest.raises(ValueError, match=f"FitConfig.{field}"):
             FitConfig(**bad)
-    assert FitConfig.paper().stop_tolerance_deg == 0.01 and FitConfig().stop_tolerance_deg == 0.05
+    assert FitConfig.paper().stop_tolerance_deg == 0.01 and FitConfig().stop_tolerance_deg == 0.1
 
 
 def test_iteration_records_are_complete(procedural_model):
