@@ -22,6 +22,7 @@ from .photo_relight import (
     CLIPPED,
     LIT_SHADING,
     FaceLayer,
+    axis_distance,
     clipped_floor,
     exposure_target,
     grow,
@@ -36,6 +37,7 @@ from .photo_relight import (
     skin,
     skin_exposure,
     smooth_coarse,
+    smoothstep,
     with_ambient,
 )
 from .shadow import cast_shadow, photo_shadows
@@ -50,6 +52,8 @@ COARSE_SMOOTH = 1.5
 # one, and pores and noise are the other side's own (docs/relighting.md, "Relighting the photo")
 FILL_DETAIL_BAND = (0.6, 1.5)
 FILL_DETAIL = 1.0
+# ... fading in between these distances from the face's vertical axis, in interocular distances
+FILL_DETAIL_AXIS = (0.05, 0.2)
 # everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
 # ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
 INNER_MARGIN = 4
@@ -127,9 +131,14 @@ class FaceRelight:
         if self.fill_detail > 0:
             px = max(al.scale, 1.0)
             measured = np.atleast_3d(photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
-            self.detail = mirrored_detail(measured, np.where(face, self.trust_for(), np.float32(0.0)),
-                                          reflection_map(shape, np.asarray(midline) - [x0, y0]),
-                                          FILL_DETAIL_BAND[0] * px, FILL_DETAIL_BAND[1] * px)
+            axis = np.asarray(midline, np.float64) - [x0, y0]
+            detail, seen = mirrored_detail(measured, np.where(face, self.trust_for(), np.float32(0.0)),
+                                           reflection_map(shape, axis), FILL_DETAIL_BAND[0] * px,
+                                           FILL_DETAIL_BAND[1] * px)
+            # near the axis a pixel's mirror is its neighbour: the detail there meets its own reflection as a
+            # symmetric pattern (a glabella's lines lit from the side came back as a "Y" at +-70)
+            near = smoothstep(axis_distance(shape, axis) / np.float32(iod_px), *FILL_DETAIL_AXIS)
+            self.detail = (detail, (seen * near).astype(np.float32))
         self.albedo = self.albedo_for(self.trust_for())
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it

@@ -197,6 +197,16 @@ def reflection_map(shape: tuple[int, int], midline: np.ndarray) -> tuple[np.ndar
     return (a[0] + 2.0 * t * d[0] - px).astype(np.float32), (a[1] + 2.0 * t * d[1] - py).astype(np.float32)
 
 
+def axis_distance(shape: tuple[int, int], axis: np.ndarray) -> np.ndarray:
+    """(H, W) float32: each pixel's distance, in pixels, from the line through the two points ``axis``
+    (2, 2) ``[x, y]`` of an (H, W) box."""
+    a = np.asarray(axis[0], np.float64)
+    d = np.asarray(axis[1], np.float64) - a
+    d /= max(float(np.linalg.norm(d)), 1e-9)
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float64)
+    return np.abs((xx - a[0]) * d[1] - (yy - a[1]) * d[0]).astype(np.float32)
+
+
 def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.ndarray, np.ndarray],
                     fine_px: float, coarse_px: float) -> tuple[np.ndarray, np.ndarray]:
     """The measured albedo's detail seen across the face, for a fill that has none of its own.
