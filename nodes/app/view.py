@@ -25,6 +25,7 @@ from ...flow.frame import Frame
 from ...flow.replay import printable
 from ..method.live_relight import CLIPPED_BIT, FACE, SKIN, LiveFace
 from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE
+from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb
 
@@ -107,7 +108,8 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"<td>{_deg(pose.get('yaw'))} / {_deg(pose.get('pitch'))} / {_deg(pose.get('roll'))}"
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
     constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "LIT_SHADING": LIT_SHADING,
-                 "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE)}
+                 "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
+                 "CAST_REACH": SOFT_CAST_REACH}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),
         name=html.escape(printable(os.path.basename(frame.source))),
@@ -242,38 +244,42 @@ async function unpack(b64, Type) {
   return new Type(await new Response(stream).arrayBuffer());
 }
 
-// cast_shadow (nodes/method/shadow.py) on the model grid: a pixel is shadowed when its ray toward the light
-// passes under the (bilinear) height field by more than the bias
-function castShadow(z, H, W, s, bias = 0.05) {
-  const out = new Uint8Array(H * W);
+// cast_margin (nodes/method/shadow.py) on the model grid: how far each pixel's ray toward the light passes under
+// the (bilinear) height field, less the bias, within [-reach, reach] (> 0: in the cast shadow); NaN off the surface
+function castMargin(z, H, W, s, bias = 0.05, reach = K.CAST_REACH) {
+  const out = new Float32Array(H * W).fill(NaN);
   const horiz = Math.hypot(s[0], s[1]);
   let zmin = Infinity, zmax = -Infinity;
   for (const v of z) if (!Number.isNaN(v)) { zmin = Math.min(zmin, v); zmax = Math.max(zmax, v); }
-  if (horiz < 1e-6 || zmax === -Infinity) return out;
-  if (s[2] <= 0) { for (let i = 0; i < H * W; i++) out[i] = Number.isNaN(z[i]) ? 0 : 1; return out; }
-  const dc = s[0] / horiz, dr = -s[1] / horiz, rise = s[2] / horiz, low = zmin - 1e6;
+  if (zmax === -Infinity) return out;
+  const flat = horiz < 1e-6 ? -reach : (s[2] <= 0 ? reach : null);  // no cast shadow, or all of it
+  if (flat !== null) { for (let i = 0; i < H * W; i++) if (!Number.isNaN(z[i])) out[i] = flat; return out; }
+  const dc = s[0] / horiz, dr = -s[1] / horiz, rise = s[2] / horiz, low = zmin - 1e6, top = zmax - bias + reach;
   const at = (r, c) => { const v = z[r * W + c]; return Number.isNaN(v) ? low : v; };
   for (let row = 0; row < H; row++) for (let col = 0; col < W; col++) {
     const z0 = z[row * W + col];
     if (Number.isNaN(z0)) continue;
+    let best = -Infinity;
     for (let t = 1; ; t++) {
       const ray = z0 + t * rise;
-      if (ray >= zmax) break;
+      if (ray >= top) break;
       const r = row + t * dr, c = col + t * dc;
       if (r < 0 || r > H - 1 || c < 0 || c > W - 1) break;
       const r0 = Math.min(Math.floor(r), H - 2 < 0 ? 0 : H - 2), c0 = Math.min(Math.floor(c), W - 2 < 0 ? 0 : W - 2);
       const fr = r - r0, fc = c - c0, r1 = Math.min(r0 + 1, H - 1), c1 = Math.min(c0 + 1, W - 1);
       const zs = (1 - fr) * ((1 - fc) * at(r0, c0) + fc * at(r0, c1)) + fr * ((1 - fc) * at(r1, c0) + fc * at(r1, c1));
-      if (zs > ray + bias) { out[row * W + col] = 1; break; }
+      best = Math.max(best, zs - (ray + bias));
+      if (best > reach) break;
     }
+    out[row * W + col] = Math.min(Math.max(best, -reach), reach);
   }
   return out;
 }
 
-// the cast shadow brought to the preview as scalar_to_input does (renormalised bilinear, known where the mask
-// reaches FIELD_REACH): the share of each preview pixel in shadow
-function castOnPreview(f, cast) {
-  const [Hm, Wm] = f.grid, out = new Float32Array(f.h * f.w), M = f.to_model;
+// the margin brought to the preview as scalar_to_input does (renormalised bilinear, known where the mask reaches
+// FIELD_REACH) and made the share of each preview pixel in shadow there (soft_cast)
+function castOnPreview(f, margin) {
+  const [Hm, Wm] = f.grid, out = new Float32Array(f.h * f.w), M = f.to_model, reach = K.CAST_REACH;
   const sample = (arr, u, v) => {  // bilinear, zero outside
     const c0 = Math.floor(u), r0 = Math.floor(v), fc = u - c0, fr = v - r0;
     let s = 0;
@@ -283,11 +289,12 @@ function castOnPreview(f, cast) {
     return s;
   };
   const mask = new Float32Array(Hm * Wm), val = new Float32Array(Hm * Wm);
-  for (let i = 0; i < Hm * Wm; i++) { mask[i] = Number.isNaN(f.depth[i]) ? 0 : 1; val[i] = mask[i] * cast[i]; }
+  for (let i = 0; i < Hm * Wm; i++) { mask[i] = Number.isNaN(f.depth[i]) ? 0 : 1; val[i] = mask[i] ? margin[i] : 0; }
   for (let y = 0; y < f.h; y++) for (let x = 0; x < f.w; x++) {
     const u = M[0][0] * x + M[0][1] * y + M[0][2], v = M[1][0] * x + M[1][1] * y + M[1][2];
     const wts = sample(mask, u, v);
-    if (wts >= K.FIELD_REACH) out[y * f.w + x] = Math.min(Math.max(sample(val, u, v) / Math.max(wts, 1e-6), 0), 1);
+    if (wts >= K.FIELD_REACH)
+      out[y * f.w + x] = Math.min(Math.max(0.5 + 0.5 * (sample(val, u, v) / Math.max(wts, 1e-6)) / reach, 0), 1);
   }
   return out;
 }
@@ -298,7 +305,7 @@ function render(f, light) {
   const R = f.rotation;  // vector_to_model: camera y is up, rows go down
   const sx = s[0], sy = -s[1];
   const sm = [sx * R[0][0] + sy * R[1][0], -(sx * R[0][1] + sy * R[1][1]), s[2]];
-  const cast = castOnPreview(f, castShadow(f.depth, f.grid[0], f.grid[1], sm));
+  const cast = castOnPreview(f, castMargin(f.depth, f.grid[0], f.grid[1], sm));
   const N = f.h * f.w, C = f.c, scale = f.albedo_scale / 65535, a = f.ambient;
   const lighting = new Float32Array(N), unexposed = new Float32Array(N * C), skinLit = [];
   const pl = f.photo_light, old = new Float32Array(N);

@@ -40,7 +40,7 @@ from .photo_relight import (
     smoothstep,
     with_ambient,
 )
-from .shadow import cast_shadow, photo_shadows
+from .shadow import cast_margin, photo_shadows, soft_cast
 
 MATCH_SIGMA = 0.08  # the photo albedo's level is matched over this many interocular distances
 FEATHER = 0.3  # the relit face's light fades into the photo over this many interocular distances
@@ -162,11 +162,11 @@ class FaceRelight:
         """The face relit by ``light`` (3,), camera frame: its cast shadow traced on the fit's surface."""
         photo, face = self.photo, self.face
         s = np.asarray(light, np.float64) / np.linalg.norm(light)
-        cast = cast_shadow(self.depth, self.al.vector_to_model(s))
-        # how much of each photo pixel the cast shadow covers (interpolated from the model grid): its edge is a
-        # model pixel's soft ramp, not a staircase of them across the cheek
-        cast_in = np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), self.mask, self.al, self.shape)),
-                          0.0, 1.0)
+        # how much of each photo pixel the cast shadow covers: the ray's margin under the surface, interpolated
+        # from the model grid and thresholded on the photo's, so the edge runs smoothly between model pixels
+        # (the shadow's yes or no, interpolated, made a staircase of them across the cheek)
+        margin = cast_margin(self.depth, self.al.vector_to_model(s))
+        cast_in = soft_cast(scalar_to_input(margin, self.mask, self.al, self.shape))
         new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
         new_lighting = with_ambient(new_shading, self.ambient)
         # the albedo this light can trust: I / S also where S is small but S' is no larger

@@ -24,7 +24,7 @@ import numpy as np
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, exposure_gain, smoothstep, with_ambient
-from .shadow import cast_shadow
+from .shadow import cast_margin, soft_cast
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
 
@@ -139,9 +139,8 @@ def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
     """(h, w) float32 in [0, 1]: how much of each preview pixel is in ``light``'s cast shadow, traced on
     the fit's height field (its model grid, as the product does) and brought to the preview."""
     al = Alignment(live.to_preview, "live")
-    cast = cast_shadow(live.depth, al.vector_to_model(light))
-    mask = np.isfinite(live.depth)
-    return np.clip(np.nan_to_num(scalar_to_input(cast.astype(np.float32), mask, al, live.size)), 0.0, 1.0)
+    margin = cast_margin(live.depth, al.vector_to_model(light))
+    return soft_cast(scalar_to_input(margin, np.isfinite(live.depth), al, live.size))
 
 
 def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None) -> np.ndarray:

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from shadowflow.nodes.geometry.normals import normals_from_depth
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.shadow import cast_shadow, confirm_with_image, shadow_maps
+from shadowflow.nodes.method.shadow import cast_margin, cast_shadow, confirm_with_image, shadow_maps, soft_cast
 
 
 @pytest.mark.parametrize("elev_deg", [30.0, 45.0, 60.0])
@@ -59,3 +59,41 @@ def test_confirmation_removes_lit_pixels_and_grows_into_connected_dark_ones():
     expect = image <= 0.02
     expect[8, 8] = False
     assert np.array_equal(out.cast, expect)
+
+
+def _edge_columns(field: np.ndarray, k: int, rows: range) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) in the original pixels of the far edge of ``field`` >= 0.5 brought to a grid ``k`` x
+    finer by bilinear interpolation (as the relit photo brings the model grid's shadow to its pixels)."""
+    import cv2
+
+    up = cv2.resize(field.astype(np.float32), None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+    fine = range(k * rows.start, k * rows.stop)
+    cols = [(np.flatnonzero(up[r] >= 0.5).max() + 0.5) / k - 0.5 for r in fine]
+    return (np.array(fine) + 0.5) / k - 0.5, np.array(cols)
+
+
+def test_the_margin_of_a_cast_shadow_is_its_yes_or_no_and_gives_a_straight_edge_between_pixels():
+    """A ridge like a nose's along a tilted line, lit 45 degrees from the image's left, casts a shadow whose
+    far edge is a tilted straight line. The margin is > 0 exactly where ``cast_shadow`` says shadowed; brought
+    4x finer and thresholded (``soft_cast``) its edge follows the line within a fifth of a pixel, where the
+    yes-or-no shadow brought the same way is a staircase of whole pixels (measured: within 0.21 against 0.49,
+    0.11 against 0.25 px rms)."""
+    h, w = 40, 80
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    z = 10.0 * np.exp(-((xx - 20 - 0.3 * yy) / np.hypot(1.0, 0.3)) ** 2 / (2 * 3.0**2))
+    z[:, -2:] = np.nan  # off the surface: no margin
+    s = light_from_angles(45.0)
+    margin, cast = cast_margin(z, s), cast_shadow(z, s)
+    assert np.array_equal(margin > 0, cast) and cast.sum() > 300
+    assert np.isnan(margin[:, -2:]).all() and np.nanmax(np.abs(margin)) <= 0.5
+    assert np.array_equal(soft_cast(margin) > 0.5, cast) and soft_cast(margin)[:, -2:].max() == 0.0
+    for field, worst in ((soft_cast(margin), 0.25), (cast.astype(np.float32), None)):
+        ys, xs = _edge_columns(field, 4, range(5, h - 5))
+        off = np.abs(xs - np.polyval(np.polyfit(ys, xs, 1), ys))
+        if worst is None:
+            assert off.max() > 0.45  # the staircase the margin is there to avoid
+        else:
+            assert off.max() < worst, off.max()
+    # a light on the view axis casts nothing; from behind the face plane everything is in shadow
+    assert (cast_margin(z, np.array([0.0, 0.0, 1.0]))[:, :-2] == -0.5).all()
+    assert (cast_margin(z, light_from_angles(95.0))[:, :-2] == 0.5).all()
