@@ -200,9 +200,9 @@ def test_yaleb_a_fill_no_brighter_than_the_skin_relights_better_than_the_papers(
 @pytest.mark.slow
 def test_yaleb_the_filled_side_shows_the_detail_of_the_lit_side(yaleb_subject):
     """Subject 01 lit from +-50 and +-70: where the relit face is filled (the photo's shadowed side), the lit
-    side's detail seen across the face brings back 1.4-1.75x the gradient energy the smooth fill had (of the
-    real frontal photo's there: 0.20-0.30 -> 0.35-0.44), for 0.12 dB of the relit photo on average (-0.27 to
-    +0.03: the mirrored detail is the other side's, not this side's own)."""
+    side's detail seen across the face brings back 1.3-1.7x the gradient energy the smooth fill had (1.4-1.75x
+    before it faded beside the face's axis, where it met its own reflection), for 0.1 dB of the relit photo on
+    average (-0.25 to +0.04: the mirrored detail is the other side's, not this side's own)."""
     import shadowflow
     from scipy import ndimage
     from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
@@ -225,7 +225,7 @@ def test_yaleb_the_filled_side_shows_the_detail_of_the_lit_side(yaleb_subject):
             gain = float(np.sum(s.frontal[filled] * relit[filled]) / np.sum(relit[filled] ** 2))
             kept[detail] = energy(gain * relit, filled) / energy(s.frontal, filled)
             psnr[detail] = relight_scores(relit, s.frontal, face)[0]
-        assert kept[1.0] > 1.3 * kept[0.0], (az, kept)
+        assert kept[1.0] > 1.2 * kept[0.0], (az, kept)
         cost.append(psnr[0.0] - psnr[1.0])
     assert max(cost) < 0.35 and np.mean(cost) < 0.2, cost
 
