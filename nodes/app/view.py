@@ -23,7 +23,7 @@ import numpy as np
 
 from ...flow.frame import Frame
 from ...flow.replay import printable
-from ..method.live_relight import CLIPPED_BIT, FACE, SKIN, LiveFace
+from ..method.live_relight import CLIPPED_BIT, FACE, RIM, SKIN, LiveFace
 from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
@@ -107,7 +107,7 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"{html.escape(printable(str(rec.get('status', ''))))}<td>{html.escape(str(rec.get('found', '')))}"
                     f"<td>{_deg(pose.get('yaw'))} / {_deg(pose.get('pitch'))} / {_deg(pose.get('roll'))}"
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
-    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "LIT_SHADING": LIT_SHADING,
+    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING,
                  "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
                  "CAST_REACH": SOFT_CAST_REACH}
     page = _PAGE.format(
@@ -327,9 +327,11 @@ function render(f, light) {
   }
   // the relit face (linear), and the photo (linear)
   const relit = new Float32Array(N * C), photo = new Float32Array(N * C), w = new Float32Array(N);
+  const rim = new Float32Array(N);  // where the face's change of light is measured for the photo around it
   for (let i = 0; i < N; i++) {
     const bound = gain * lighting[i] / Math.max(old[i], K.CLIP_RATIO_FLOOR);
     w[i] = f.flags[i] & K.FACE ? 1 : 0;
+    rim[i] = f.flags[i] & K.RIM ? 1 : 0;
     for (let c = 0; c < C; c++) {
       let v = gain * unexposed[C * i + c];
       if (f.flags[i] & (K.CLIPPED_BIT << c)) v = Math.max(v, bound);
@@ -342,10 +344,10 @@ function render(f, light) {
   // outside_gain: the face's change of light at its border, carried into the photo around it over the feather
   const radius = blurRadius(f.sigma);
   const weighted = (a) => { const out = new Float32Array(N * C);
-    for (let i = 0; i < N; i++) for (let c = 0; c < C; c++) out[C * i + c] = a[C * i + c] * w[i]; return out; };
+    for (let i = 0; i < N; i++) for (let c = 0; c < C; c++) out[C * i + c] = a[C * i + c] * rim[i]; return out; };
   if (!f.den) {  // what does not change with the light, once per face
     f.den = gaussianBlur(weighted(photo), f.h, f.w, C, radius);
-    f.support = gaussianBlur(w, f.h, f.w, 1, radius);
+    f.support = gaussianBlur(rim, f.h, f.w, 1, radius);
   }
   const num = gaussianBlur(weighted(relit), f.h, f.w, C, radius), den = f.den, support = f.support;
   const [lo, hi] = K.RATIO_OUTSIDE;

@@ -23,13 +23,15 @@ import numpy as np
 
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
-from .photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, exposure_gain, smoothstep, with_ambient
+from .photo_relight import (CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, RIM_SHARE, exposure_gain, face_rim,
+                            smoothstep, with_ambient)
 from .shadow import cast_margin, soft_cast
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
 
 
-FACE, SKIN, CLIPPED_BIT = 1, 2, 4  # ``LiveFace.flags``: the face, its skin, its clipped channels (4 << c)
+# ``LiveFace.flags``: the face, its skin, its clipped channels (4 << c), its rim (``face_rim``)
+FACE, SKIN, CLIPPED_BIT, RIM = 1, 2, 4, 32
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,7 @@ class LiveFace:
     preview shows; photo8 (h, w, C) uint8, the photo in its own ``encoding`` ("srgb" or "linear");
     albedo16 (h, w, C) uint16, the linear albedo over ``albedo_scale``; normals16 (h, w, 3) int16,
     camera frame, x 32767; flags (h, w) uint8 (``FACE``, ``SKIN``, ``CLIPPED_BIT << c``: the photo at
-    the top of its range); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
+    the top of its range, ``RIM``: where the face's change of light is measured for the photo around it); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
     want: the exposure of the photo's lit skin (``exposure_target``) or None; ambient: the room's share
     of the light; photo_light (3,); depth (Hm, Wm) float32 the fit's height field, NaN off its mask;
     to_preview (2, 3) model pixel -> preview pixel; fade8 (h, w) uint8, how far the face's change of
@@ -100,6 +102,7 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     # wide, reaches every pixel the fade does)
     feather = max(feather_px * k, 1.0)
     sigma = max(feather / 2.0, 1.0)
+    flags = flags + face_rim(f, RIM_SHARE * feather) * RIM
     distance = cv2.distanceTransform((~f).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = np.where(f, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
@@ -167,8 +170,9 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
     face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
     # the face's change of light at its border, carried into the photo there (``outside_gain``)
-    w = face.astype(np.float32)[..., None]
-    support = gaussian_blur(face.astype(np.float32), live.sigma)[..., None]
+    rim = ((live.flags & RIM) > 0).astype(np.float32)
+    w = rim[..., None]
+    support = gaussian_blur(rim, live.sigma)[..., None]
     ratio = np.clip(gaussian_blur(face_image * w, live.sigma)
                     / np.maximum(gaussian_blur(photo * w, live.sigma), np.maximum(1e-3 * support, 1e-12)), *RATIO_OUTSIDE)
     fade = (live.fade8.astype(np.float32) / np.float32(255.0))[..., None]

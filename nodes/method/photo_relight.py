@@ -44,9 +44,13 @@ DETAIL_RANGE = (0.5, 2.0)
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
 # wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
-# outside the face the photo follows the face's change of light at most this far (a face's shadowed side
-# brightened 5x would otherwise light its dark background up as a halo)
-RATIO_OUTSIDE = (0.5, 1.6)
+# outside the face the photo follows the face's change of light within this range: up to 1.6x (a face's shadowed
+# side brightened 5x would otherwise light its dark background up as a halo), down to 0.15x (a face relit into
+# shadow darkens its ear, hair and neck with it: held at 0.5, its dark border met a brighter ring on the face's edge)
+RATIO_OUTSIDE = (0.15, 1.6)
+# the face's change of light at its border is measured on its rim, this share of the feather wide (``face_rim``):
+# averaged over the whole face, the interior's light came through, and a side light's dark rim met a brighter ring
+RIM_SHARE = 0.35
 
 
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -337,18 +341,25 @@ def inner_alpha(face: np.ndarray, feather_px: float) -> np.ndarray:
     return smoothstep(inside, 0.0, max(INNER_FEATHER * feather_px, 1.0))
 
 
+def face_rim(face: np.ndarray, width_px: float) -> np.ndarray:
+    """(H, W) bool: the pixels of ``face`` (H, W) bool within ``width_px`` of its border (at least one)."""
+    inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return face & (inside <= max(width_px, 1.0))
+
+
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
-    face's relighting ratio (relit / photo, averaged over the face's border, within
-    ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
+    face's relighting ratio (relit / photo, averaged over the face's rim, ``RIM_SHARE`` of the feather
+    wide, within ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
     into the hair and neck without a seam and the photo beyond is untouched; inside the face, the
     ratio itself (what ``inner_alpha`` blends toward at the border). photo, face_image (H, W, C);
     face (H, W) bool."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
-    w = face.astype(np.float32)[..., None]
-    support = blur(face.astype(np.float32), sigma)
+    rim = face_rim(face, RIM_SHARE * feather_px).astype(np.float32)
+    w = rim[..., None]
+    support = blur(rim, sigma)
     ratio = np.clip(blur(relit * w, sigma) / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None]),
                     *RATIO_OUTSIDE)
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
