@@ -8,7 +8,7 @@ One self-contained file: the photo and the faces' arrays are embedded (zlib, bas
 photo is linked beside it; plain JavaScript, no network. ``#light=x,y,z`` (camera frame) or
 ``#light=A,E`` (azimuth, elevation in degrees, Yale B's convention) opens it relit by that light;
 ``#cut=P`` puts the slider at P % (0: all relit); ``#dump`` adds each face's drawing as a PNG data
-URL to the page (``<pre id=dump>``), for tests.
+URL to the page (``<pre id=dump>``), and the share of its face its ring is opaque beneath, for tests.
 """
 from __future__ import annotations
 
@@ -354,17 +354,20 @@ function render(f, light) {
   const ring = new ImageData(f.w, f.h), inside = new ImageData(f.w, f.h);
   for (let i = 0; i < N; i++) {
     const face = w[i] > 0, alpha = f.alpha8[i] / 255, fade = f.fade8[i] / 255;
-    const target = face ? inside : ring;
     for (let c = 0; c < 3; c++) {
       const ch = C === 1 ? 0 : c, j = C * i + ch;
       const ratio = Math.min(Math.max(num[j] / Math.max(den[j], Math.max(1e-3 * support[i], 1e-12)), lo), hi);
       let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * ratio : photo[j] * (1 + fade * (ratio - 1));
       out = Math.min(Math.max(out, 0), 1);
       if (f.encoding === 'srgb') out = linearToSrgb(out);
-      target.data[4 * i + c] = Math.floor(out * 255 + 0.5);
+      ring.data[4 * i + c] = Math.floor(out * 255 + 0.5);
+      if (face) inside.data[4 * i + c] = ring.data[4 * i + c];
     }
-    // each face's own pixels on top of every face's ring (the product: no feather touches another face)
-    target.data[4 * i + 3] = face || fade > 0 ? 255 : 0;
+    // each face's own pixels on top of every face's ring (the product: no feather touches another face); the
+    // ring holds the face's pixels too, so where the browser scales the face's canvas and its edge turns half
+    // transparent the face shows beneath it, not the photo (a light seam along the border, one pixel wide)
+    ring.data[4 * i + 3] = face || fade > 0 ? 255 : 0;
+    inside.data[4 * i + 3] = face ? 255 : 0;
   }
   return [ring, inside];
 }
@@ -515,7 +518,14 @@ prepare().then(() => {
   if (/dump/.test(location.hash)) {
     const pre = document.createElement('pre');
     pre.id = 'dump';
-    pre.textContent = JSON.stringify(faces.map(([f, ring, face]) => ({ k: f.k, png: shown(f, ring, face) })));
+    // and the share of the face's own pixels its ring is opaque beneath (the browser's scaling of the face's
+    // canvas shows what is beneath its edge)
+    const beneath = (f, ring) => { const a = ring.getContext('2d').getImageData(0, 0, f.w, f.h).data;
+      let n = 0, under = 0;
+      for (let i = 0; i < f.w * f.h; i++) if (f.flags[i] & K.FACE) { n++; if (a[4 * i + 3] === 255) under++; }
+      return n ? under / n : 0; };
+    pre.textContent = JSON.stringify(faces.map(([f, ring, face]) => ({ k: f.k, png: shown(f, ring, face),
+                                                                       ring_under_face: beneath(f, ring) })));
     document.body.appendChild(pre);
   }
 });
