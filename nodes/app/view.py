@@ -48,7 +48,7 @@ def live_payload(live: LiveFace) -> dict:
             "photo_light": [float(x) for x in live.photo_light], "grid": list(live.depth.shape),
             "rotation": Alignment(live.to_preview, "live").rotation.tolist(), "to_model": to_model.tolist(),
             "sigma": live.sigma,
-            "arrays": {"photo8": _packed(live.photo8), "albedo16": _packed(live.albedo16),
+            "arrays": {"photo8": _packed(live.photo8), "albedo16": _packed(live.albedo16), "sheen16": _packed(live.sheen16),
                        "normals16": _packed(live.normals16), "flags": _packed(live.flags),
                        "alpha8": _packed(live.alpha8), "depth": _packed(live.depth), "fade8": _packed(live.fade8)}}
 
@@ -315,8 +315,13 @@ function render(f, light) {
     const shade = face ? (1 - cast[i]) * Math.max(nx * s[0] + ny * s[1] + nz * s[2], 0) : 0;
     lighting[i] = a + (1 - a) * shade;
     old[i] = a + (1 - a) * Math.max(nx * pl[0] + ny * pl[1] + nz * pl[2], 0);
+    // without_sheen: the photo's shine taken out as far as the new light darkens the skin
+    const drop = Math.min(Math.max(1 - lighting[i] / Math.max(old[i], 1e-3), 0), 1);
     let mean = 0;
-    for (let c = 0; c < C; c++) { const u = f.albedo16[C * i + c] * scale * lighting[i]; unexposed[C * i + c] = u; mean += u; }
+    for (let c = 0; c < C; c++) {
+      const albedo = Math.max(f.albedo16[C * i + c] * scale - f.sheen16[C * i + c] * scale * drop, 0);
+      const u = albedo * lighting[i]; unexposed[C * i + c] = u; mean += u;
+    }
     if ((f.flags[i] & K.SKIN) && shade >= K.LIT_SHADING) skinLit.push(mean / C);
   }
   let gain = 1;
@@ -422,6 +427,7 @@ async function prepare() {
   for (const f of DATA.faces) {
     const A = f.arrays;
     Object.assign(f, { photo8: await unpack(A.photo8, Uint8Array), albedo16: await unpack(A.albedo16, Uint16Array),
+      sheen16: await unpack(A.sheen16, Uint16Array),
       normals16: await unpack(A.normals16, Int16Array), flags: await unpack(A.flags, Uint8Array),
       alpha8: await unpack(A.alpha8, Uint8Array), depth: await unpack(A.depth, Float32Array),
       fade8: await unpack(A.fade8, Uint8Array) });

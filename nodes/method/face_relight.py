@@ -21,6 +21,7 @@ from .photo_relight import (
     AMBIENT_RIM,
     CLIPPED,
     LIT_SHADING,
+    SHEEN_SCALE,
     FaceLayer,
     axis_distance,
     clipped_floor,
@@ -34,11 +35,13 @@ from .photo_relight import (
     photo_ambient,
     reflection_map,
     shading_trust,
+    sheen,
     skin,
     skin_exposure,
     smooth_coarse,
     smoothstep,
     with_ambient,
+    without_sheen,
 )
 from .shadow import cast_margin, photo_shadows, soft_cast
 
@@ -140,6 +143,8 @@ class FaceRelight:
             near = smoothstep(axis_distance(shape, axis) / np.float32(iod_px), *FILL_DETAIL_AXIS)
             self.detail = (detail, (seen * near).astype(np.float32))
         self.albedo = self.albedo_for(self.trust_for())
+        # the photo's shine, which a new light takes out where it darkens the skin (``without_sheen``)
+        self.shine = sheen(self.albedo, self.skin_only, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
 
@@ -170,7 +175,8 @@ class FaceRelight:
         new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
         new_lighting = with_ambient(new_shading, self.ambient)
         # the albedo this light can trust: I / S also where S is small but S' is no larger
-        light_albedo = self.albedo_for(self.trust_for(new_lighting))
+        light_albedo = without_sheen(self.albedo_for(self.trust_for(new_lighting)), self.shine, self.lighting,
+                                     new_lighting)
         # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
         # a side light leaves the shadowed side dim, not black
         unexposed = light_albedo * new_lighting[..., None]
@@ -193,6 +199,7 @@ class FaceRelight:
         photo = self.photo
         return live_relight_data(
             box=self.layer_box, photo=self.layer_photo, albedo=self._in_layer(np.nan_to_num(self.albedo)),
+            shine=self._in_layer(self.shine),
             normals=self._in_layer(self.normals), face=self.layer_face, alpha=self.layer_alpha,
             skin=self._in_layer(self.skin_only) > 0, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
             photo_light=self.light, clipped=(np.atleast_3d(self.layer_photo) >= CLIPPED) & self.layer_face[..., None],

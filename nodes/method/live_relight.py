@@ -24,7 +24,7 @@ import numpy as np
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .photo_relight import (CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, RIM_SHARE, exposure_gain, face_rim,
-                            smoothstep, with_ambient)
+                            smoothstep, with_ambient, without_sheen)
 from .shadow import cast_margin, soft_cast
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
@@ -39,7 +39,8 @@ class LiveFace:
     """What relights one face for any light, as the page receives it (integers, so the page and
     ``render_live`` start from the same numbers). box: ``(y0, y1, x0, x1)`` the photo's pixels the
     preview shows; photo8 (h, w, C) uint8, the photo in its own ``encoding`` ("srgb" or "linear");
-    albedo16 (h, w, C) uint16, the linear albedo over ``albedo_scale``; normals16 (h, w, 3) int16,
+    albedo16 (h, w, C) uint16, the linear albedo over ``albedo_scale``; sheen16 (h, w, C) uint16, the photo's
+    shine in it (``photo_relight.sheen``), on the same scale; normals16 (h, w, 3) int16,
     camera frame, x 32767; flags (h, w) uint8 (``FACE``, ``SKIN``, ``CLIPPED_BIT << c``: the photo at
     the top of its range, ``RIM``: where the face's change of light is measured for the photo around it); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
     want: the exposure of the photo's lit skin (``exposure_target``) or None; ambient: the room's share
@@ -51,6 +52,7 @@ class LiveFace:
     box: tuple[int, int, int, int]
     photo8: np.ndarray
     albedo16: np.ndarray
+    sheen16: np.ndarray
     albedo_scale: float
     normals16: np.ndarray
     flags: np.ndarray
@@ -69,12 +71,13 @@ class LiveFace:
         return self.flags.shape
 
 
-def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
+def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo: np.ndarray, shine: np.ndarray,
+                      normals: np.ndarray,
                       face: np.ndarray, alpha: np.ndarray, skin: np.ndarray, want: float | None, ambient: float,
                       photo_light: np.ndarray, clipped: np.ndarray, depth: np.ndarray, grid_mask: np.ndarray,
                       to_box: np.ndarray, encoding: str, feather_px: float, side: int = LIVE_SIDE) -> LiveFace:
-    """A ``LiveFace`` from the relighting's arrays on the photo's layer box (h, w): photo, albedo (h, w, C)
-    linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
+    """A ``LiveFace`` from the relighting's arrays on the photo's layer box (h, w): photo, albedo and its
+    shine (h, w, C) linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
     (2, 3) model pixel -> box pixel; feather_px: the photo pixels the face's change of light fades over
     around it. Scaled (area-averaged) to at most ``side`` pixels a side."""
     h, w = face.shape
@@ -93,6 +96,7 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     n = np.where(f[..., None], n, 0.0)
     a = np.where(f[..., None], area(np.nan_to_num(np.atleast_3d(albedo))), 0.0)
     scale = float(max(a.max(), 1e-6))
+    shine16 = np.round(np.clip(np.where(f[..., None], area(np.atleast_3d(shine)), 0.0), 0.0, a) / scale * 65535.0)
     shown = area(np.atleast_3d(photo))
     shown = linear_to_srgb(shown) if encoding == "srgb" else np.clip(shown, 0.0, 1.0)
     flags = f * FACE + ((area(skin) >= 0.5) & f) * SKIN
@@ -108,7 +112,8 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
     to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
     return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),
-                    albedo16=np.round(a / scale * 65535.0).astype(np.uint16), albedo_scale=scale,
+                    albedo16=np.round(a / scale * 65535.0).astype(np.uint16), sheen16=shine16.astype(np.uint16),
+                    albedo_scale=scale,
                     normals16=np.round(n * 32767.0).astype(np.int16), flags=flags.astype(np.uint8),
                     alpha8=np.round(np.where(f, area(alpha), 0.0) * 255.0).astype(np.uint8),
                     want=want, ambient=float(ambient), photo_light=np.asarray(photo_light, np.float64),
@@ -148,7 +153,8 @@ def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
 
 def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None) -> np.ndarray:
     """(h, w, C) float32 in [0, 1], in the photo's encoding: the preview with its face relit by
-    ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (``S'`` the new shading, less the
+    ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (the albedo less the photo's shine where the light
+    darkens the skin, ``without_sheen``; ``S'`` the new shading, less the
     share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than the clipping proves,
     faded by ``alpha`` into the photo times the face's change of light at its border, which the photo
     around the face follows over the feather (``fade8``). cast: the light's cast shadow (``live_cast``), traced when None."""
@@ -157,16 +163,17 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     cast = live_cast(live, s) if cast is None else cast
     normals = live.normals16.astype(np.float32) / np.float32(32767.0)
     albedo = live.albedo16.astype(np.float32) * np.float32(live.albedo_scale / 65535.0)
+    shine = live.sheen16.astype(np.float32) * np.float32(live.albedo_scale / 65535.0)
     face, skin = (live.flags & FACE) > 0, (live.flags & SKIN) > 0
     clipped = np.stack([(live.flags & (CLIPPED_BIT << c)) > 0 for c in range(albedo.shape[-1])], axis=-1)
     photo = live.photo8.astype(np.float32) / np.float32(255.0)
     photo = srgb_to_linear(photo) if live.encoding == "srgb" else photo
     new = np.where(face, (1.0 - cast) * np.clip(normals @ s.astype(np.float32), 0.0, None), 0.0).astype(np.float32)
     lighting = with_ambient(new, live.ambient)
-    unexposed = albedo * lighting[..., None]
+    old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
+    unexposed = without_sheen(albedo, shine, old, lighting) * lighting[..., None]
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
-    old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
     bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
     face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
     # the face's change of light at its border, carried into the photo there (``outside_gain``)

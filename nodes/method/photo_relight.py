@@ -53,6 +53,12 @@ RATIO_OUTSIDE = (0.15, 1.6)
 RIM_SHARE = 0.35
 
 
+# shine: a skin pixel's measured albedo above this x its local skin level (averaged over ``SHEEN_SCALE``
+# interocular distances) is the photo's specular shine, not the skin's colour (``sheen``)
+SHEEN_MARGIN = 1.1
+SHEEN_SCALE = 0.15
+
+
 def smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """0 below ``lo``, 1 above ``hi``, a smooth (C1) ramp between."""
     t = np.clip((np.asarray(x, np.float32) - np.float32(lo)) / np.float32(hi - lo), 0.0, 1.0)
@@ -186,6 +192,30 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     filled = base[..., None] * gain
     out = w[..., None] * measured + (1.0 - w[..., None]) * filled
     return np.where(face[..., None], np.clip(out, 0.0, None), np.nan).astype(np.float32)
+
+
+def sheen(albedo: np.ndarray, skin: np.ndarray, trusted: np.ndarray, sigma_px: float,
+          margin: float = SHEEN_MARGIN) -> np.ndarray:
+    """(H, W, C) float32 >= 0: the photo's shine in its measured albedo: on ``skin`` (H, W) bool, how far the
+    albedo (H, W, C) rises above ``margin`` x its local level (the average over ``sigma_px`` of the ``trusted``
+    (H, W) bool skin around it); 0 elsewhere. A highlight on a cheek, read as albedo, stays where it is whatever
+    the new light, and glowed on a cheek relit into shadow (``without_sheen``)."""
+    a = np.nan_to_num(np.atleast_3d(np.asarray(albedo, np.float32)))
+    w = (skin & trusted).astype(np.float32)
+    level, _ = weighted_blur(a, w, sigma_px)
+    # again with the shine held down to the margin: a highlight would otherwise raise the level it is measured on
+    level, _ = weighted_blur(np.minimum(a, np.float32(margin) * level), w, sigma_px)
+    excess = np.clip(a - np.float32(margin) * level, 0.0, None)
+    return np.where(skin[..., None], excess, np.float32(0.0)).astype(np.float32)
+
+
+def without_sheen(albedo: np.ndarray, shine: np.ndarray, lighting: np.ndarray, new_lighting: np.ndarray) -> np.ndarray:
+    """(H, W, C) the albedo a new light sees: the photo's shine (``sheen``) taken out as far as the new light
+    darkens the pixel, ``1 - S'/S`` (the photo's own light keeps it all; a pixel going into shadow loses it, a
+    highlight being the light's own reflection). lighting, new_lighting (H, W) the photo's and the new light's."""
+    drop = np.clip(1.0 - np.asarray(new_lighting, np.float32) / np.maximum(np.asarray(lighting, np.float32),
+                                                                          np.float32(1e-3)), 0.0, 1.0)
+    return np.clip(np.asarray(albedo, np.float32) - shine * drop[..., None], 0.0, None).astype(np.float32)
 
 
 def reflection_map(shape: tuple[int, int], midline: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

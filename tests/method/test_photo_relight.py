@@ -315,3 +315,30 @@ def test_a_filled_side_takes_the_detail_its_lit_side_shows_across_the_midline():
     r = np.corrcoef(detail[..., 0][left], band[..., 0][left])[0, 1]
     assert r > 0.9, r  # the filled side's own features, from across the face
     assert np.abs(detail[..., 0][side > 200] - 1.0).max() == 0.0  # nothing made up where nothing is seen
+
+
+def test_the_photos_shine_leaves_the_skin_a_new_light_darkens_and_stays_under_its_own_light():
+    """Skin of albedo 0.6 with a highlight on one cheek (+0.3 at its peak, read as albedo) and a dark freckle. The
+    shine found is the highlight's rise over 1.1x the skin around it, nothing on plain skin or the freckle; the
+    photo's own light keeps every albedo bit for bit; a light that puts the cheek in shadow takes the shine out
+    there (the cheek came back with a pale blotch on the astronaut relit from the other side), and a light that
+    only halves it takes half."""
+    from shadowflow.nodes.method.photo_relight import sheen, without_sheen
+
+    yy, xx = np.mgrid[0:100, 0:100].astype(np.float32)
+    face = (xx - 50) ** 2 + (yy - 50) ** 2 < 45**2
+    spot = np.exp(-((xx - 30) ** 2 + (yy - 45) ** 2) / (2 * 4.0**2))
+    freckle = np.exp(-((xx - 65) ** 2 + (yy - 60) ** 2) / (2 * 2.0**2))
+    albedo = np.where(face, 0.6 + 0.3 * spot - 0.3 * freckle, np.nan).astype(np.float32)[..., None]
+    shine = sheen(albedo, face, face, sigma_px=15.0)
+    peak = (int(45), int(30))
+    assert 0.18 < shine[peak][0] < 0.3, shine[peak]
+    plain = face & (spot < 0.01)
+    assert shine[plain].max() == 0.0 and shine[(yy.astype(int) == 60) & (xx.astype(int) == 65)].max() == 0.0
+    lighting = np.full(face.shape, 0.8, np.float32)
+    np.testing.assert_array_equal(without_sheen(albedo, shine, lighting, lighting)[face], albedo[face])
+    dark = without_sheen(albedo, shine, lighting, np.full(face.shape, 0.0, np.float32))
+    assert dark[peak][0] < 1.15 * 0.6, dark[peak]  # down to within the margin of the skin's level (0.68, from 0.9)
+    np.testing.assert_array_equal(dark[plain], albedo[plain])
+    half = without_sheen(albedo, shine, lighting, 0.5 * lighting)
+    assert abs(half[peak][0] - (albedo[peak][0] - 0.5 * shine[peak][0])) < 1e-6
