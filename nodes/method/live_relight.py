@@ -23,8 +23,17 @@ import numpy as np
 
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
-from .photo_relight import (CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE, RIM_SHARE, exposure_gain, face_rim,
-                            smoothstep, with_ambient, without_sheen)
+from .photo_relight import (
+    CLIP_RATIO_FLOOR,
+    LIT_SHADING,
+    RATIO_OUTSIDE,
+    RIM_SHARE,
+    exposure_gain,
+    face_rim,
+    smoothstep,
+    with_ambient,
+    without_sheen,
+)
 from .shadow import cast_margin, soft_cast
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds

@@ -331,7 +331,7 @@ def test_the_photos_shine_leaves_the_skin_a_new_light_darkens_and_stays_under_it
     freckle = np.exp(-((xx - 65) ** 2 + (yy - 60) ** 2) / (2 * 2.0**2))
     albedo = np.where(face, 0.6 + 0.3 * spot - 0.3 * freckle, np.nan).astype(np.float32)[..., None]
     shine = sheen(albedo, face, face, sigma_px=15.0)
-    peak = (int(45), int(30))
+    peak = (45, 30)
     assert 0.18 < shine[peak][0] < 0.3, shine[peak]
     plain = face & (spot < 0.01)
     assert shine[plain].max() == 0.0 and shine[(yy.astype(int) == 60) & (xx.astype(int) == 65)].max() == 0.0
