@@ -51,8 +51,6 @@ RATIO_OUTSIDE = (0.15, 1.6)
 # the face's change of light at its border is measured on its rim, this share of the feather wide (``face_rim``):
 # averaged over the whole face, the interior's light came through, and a side light's dark rim met a brighter ring
 RIM_SHARE = 0.35
-
-
 # shine: a skin pixel's measured albedo above this x its local skin level (averaged over ``SHEEN_SCALE``
 # interocular distances) is the photo's specular shine, not the skin's colour (``sheen``)
 SHEEN_MARGIN = 1.1
