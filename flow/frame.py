@@ -1,8 +1,15 @@
 """The unit of work that travels between nodes."""
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Iterator
+
+# cancelling a frame waits for a step a node takes on one under ``Frame.while_running`` (and the reverse): once
+# ``cancel`` returns, no such step is under way or starts, so a node abandoned by a time limit says nothing more
+# of a frame the run has already closed (a late iteration of its fit reopened the frame in the recording)
+_CANCELLING = threading.Lock()
 
 
 class FrameFailed(Exception):
@@ -42,10 +49,22 @@ class Frame:
         self.failed_in = node
 
     def cancel(self) -> None:
-        """Mark the frame and its parts ``cancelled`` (a node working on any of them may stop early)."""
+        """Mark the frame and its parts ``cancelled`` (a node working on any of them may stop early); waits for
+        a step under ``while_running`` on any of them to end."""
+        with _CANCELLING:
+            self._mark_cancelled()
+
+    def _mark_cancelled(self) -> None:
         self.cancelled = True
         for part in self.parts:
-            part.cancel()
+            part._mark_cancelled()
+
+    @contextmanager
+    def while_running(self) -> Iterator[bool]:
+        """``with frame.while_running() as going:`` a step (e.g. reporting progress) that ``cancel`` cannot
+        interleave with: ``going`` is False if the frame was already cancelled. Keep the step short."""
+        with _CANCELLING:
+            yield not self.cancelled
 
     def drop_data(self) -> None:
         """Let go of the frame's arrays and its parts' (their files are written); meta and status stay."""

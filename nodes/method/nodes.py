@@ -356,10 +356,11 @@ class RobustFitNode:
 
     def __call__(self, frame: Frame) -> Frame:
         def hook(it: FitIteration) -> None:
-            if frame.cancelled:  # timed out or stopped: nobody waits for this fit any more
-                raise FrameFailed(f"{frame.source}: fit abandoned at iteration {it.iteration}")
-            if self.observer is not None:
-                self.observer.iteration(frame, it)
+            with frame.while_running() as going:  # not cancelled between the check and what is recorded
+                if not going:  # timed out or stopped: nobody waits for this fit any more
+                    raise FrameFailed(f"{frame.source}: fit abandoned at iteration {it.iteration}")
+                if self.observer is not None:
+                    self.observer.iteration(frame, it)
 
         model = face_model(frame, self.model)
         intensity = frame.data["remapped"][model.mask]
@@ -367,7 +368,9 @@ class RobustFitNode:
         result = fit(model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
                      unreliable=unreliable)
         if self.observer is not None:
-            self.observer.finish(frame)
+            with frame.while_running() as going:
+                if going:
+                    self.observer.finish(frame)
         frame.data["fit"] = result
         frame.meta.update(iterations=result.iterations, converged=result.converged, final_sigma=result.sigma)
         return frame

@@ -94,3 +94,33 @@ def test_in_flight_bounds_the_frames_between_source_and_caller():
     assert 4 <= len(got) < 10
     with pytest.raises(ValueError):
         Pipeline(stages, in_flight=0)
+
+
+def test_a_cancel_waits_for_a_running_step_and_no_step_starts_after_it():
+    """A node abandoned by a time limit keeps running on its own copy of the frame: a step it takes under
+    ``while_running`` (its fit reporting an iteration to the recording) cannot straddle the cancel, so nothing
+    it says arrives after the run has closed the frame (a late iteration reopened it in the recording)."""
+    frame = Frame(0, "photo", parts=[Frame(0, "face")])
+    part = frame.parts[0]
+    inside, release, seen = threading.Event(), threading.Event(), []
+
+    def step() -> None:
+        with part.while_running() as going:
+            seen.append(going)
+            inside.set()
+            release.wait(5)
+            seen.append("step done")
+
+    worker = threading.Thread(target=step)
+    worker.start()
+    assert inside.wait(5)
+    canceller = threading.Thread(target=lambda: (frame.cancel(), seen.append("cancelled")))
+    canceller.start()
+    canceller.join(0.2)
+    assert canceller.is_alive() and seen == [True]  # the cancel waits for the step under way
+    release.set()
+    worker.join(5)
+    canceller.join(5)
+    assert seen == [True, "step done", "cancelled"] and part.cancelled
+    with part.while_running() as going:
+        assert not going  # and a step after it is told the frame is gone
