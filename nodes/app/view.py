@@ -23,8 +23,8 @@ import numpy as np
 
 from ...flow.frame import Frame
 from ...flow.replay import printable
-from ..method.live_relight import CLIPPED_BIT, FACE, RIM, SKIN, LiveFace
-from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_OUTSIDE
+from ..method.live_relight import BEYOND, CLIPPED_BIT, FACE, RIM, SKIN, LiveFace
+from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_BEYOND, RATIO_OUTSIDE
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb
@@ -50,7 +50,8 @@ def live_payload(live: LiveFace) -> dict:
             "sigma": live.sigma,
             "arrays": {"photo8": _packed(live.photo8), "albedo16": _packed(live.albedo16), "sheen16": _packed(live.sheen16),
                        "normals16": _packed(live.normals16), "flags": _packed(live.flags),
-                       "alpha8": _packed(live.alpha8), "depth": _packed(live.depth), "fade8": _packed(live.fade8)}}
+                       "alpha8": _packed(live.alpha8), "depth": _packed(live.depth), "fade8": _packed(live.fade8),
+                       "reach8": _packed(live.reach8)}}
 
 
 def _photo_jpeg(frame: Frame) -> tuple[str, tuple[int, int]]:
@@ -109,6 +110,7 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
     constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING,
                  "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
+                 "BEYOND": BEYOND, "RATIO_BEYOND": RATIO_BEYOND,
                  "CAST_REACH": SOFT_CAST_REACH}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),
@@ -359,10 +361,14 @@ function render(f, light) {
   const ring = new ImageData(f.w, f.h), inside = new ImageData(f.w, f.h);
   for (let i = 0; i < N; i++) {
     const face = w[i] > 0, alpha = f.alpha8[i] / 255, fade = f.fade8[i] / 255;
+    const beyond = (f.flags[i] & K.BEYOND) > 0, high = hi + (K.RATIO_BEYOND - hi) * f.reach8[i] / 255;
     for (let c = 0; c < 3; c++) {
       const ch = C === 1 ? 0 : c, j = C * i + ch;
-      const ratio = Math.min(Math.max(num[j] / Math.max(den[j], Math.max(1e-3 * support[i], 1e-12)), lo), hi);
-      let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * ratio : photo[j] * (1 + fade * (ratio - 1));
+      // beyond_ratio: past RATIO_OUTSIDE (the face's own skin beyond the model) no brighter than the relit rim
+      let ratio = Math.min(Math.max(num[j] / Math.max(den[j], Math.max(1e-3 * support[i], 1e-12)), lo), high);
+      ratio = Math.min(ratio, Math.max(hi, num[j] / Math.max(support[i], 1e-12) / Math.max(photo[j], 1e-6)));
+      let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * ratio
+        : beyond ? photo[j] * ratio : photo[j] * (1 + fade * (ratio - 1));
       out = Math.min(Math.max(out, 0), 1);
       if (f.encoding === 'srgb') out = linearToSrgb(out);
       ring.data[4 * i + c] = Math.floor(out * 255 + 0.5);
@@ -371,7 +377,7 @@ function render(f, light) {
     // each face's own pixels on top of every face's ring (the product: no feather touches another face); the
     // ring holds the face's pixels too, so where the browser scales the face's canvas and its edge turns half
     // transparent the face shows beneath it, not the photo (a light seam along the border, one pixel wide)
-    ring.data[4 * i + 3] = face || fade > 0 ? 255 : 0;
+    ring.data[4 * i + 3] = face || beyond || fade > 0 ? 255 : 0;
     inside.data[4 * i + 3] = face ? 255 : 0;
   }
   return [ring, inside];
@@ -430,7 +436,7 @@ async function prepare() {
       sheen16: await unpack(A.sheen16, Uint16Array),
       normals16: await unpack(A.normals16, Int16Array), flags: await unpack(A.flags, Uint8Array),
       alpha8: await unpack(A.alpha8, Uint8Array), depth: await unpack(A.depth, Float32Array),
-      fade8: await unpack(A.fade8, Uint8Array) });
+      fade8: await unpack(A.fade8, Uint8Array), reach8: await unpack(A.reach8, Uint8Array) });
     const make = (part) => {
       const canvas = document.createElement('canvas');
       canvas.width = f.w; canvas.height = f.h; canvas.className = 'layer'; canvas.dataset.face = f.k;

@@ -89,8 +89,11 @@ class FaceRelight:
         self.layer_box = (ly0, ly1, lx0, lx1)
         self.layer_photo = photo[ly0:ly1, lx0:lx1]
         layer_face = mask_to_input(mask, alignment.cropped(lx0, ly0), (ly1 - ly0, lx1 - lx0))
+        self.layer_beyond = None  # the face's own skin the model does not reach (jaw, cheeks): relit as its rim
         if outline is not None:  # the face's own outline, at the photo's resolution
-            layer_face &= polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
+            own = polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
+            self.layer_beyond = own & ~layer_face
+            layer_face &= own
         self.layer_face = layer_face
         # ``box``: the face's own box in it, where the albedo, shadows and relit face are computed
         rows, cols = np.nonzero(layer_face.any(axis=1))[0], np.nonzero(layer_face.any(axis=0))[0]
@@ -185,7 +188,8 @@ class FaceRelight:
         # into the layer's box: the relit face's light carried over its border into the photo around it
         relit = self._in_layer(np.clip(face_image, 0.0, 1.0))
         return FaceLayer(self.layer_box, self.layer_face, relit,
-                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather), self.layer_alpha)
+                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather, self.layer_beyond),
+                         self.layer_alpha)
 
     def _in_layer(self, values: np.ndarray) -> np.ndarray:
         """(h, w[, C]) values on the face's box -> the layer's box, 0 around."""
@@ -204,7 +208,7 @@ class FaceRelight:
             skin=self._in_layer(self.skin_only) > 0, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
             photo_light=self.light, clipped=(np.atleast_3d(self.layer_photo) >= CLIPPED) & self.layer_face[..., None],
             depth=self.depth, grid_mask=self.mask, to_box=self._layer_alignment().matrix, encoding=encoding,
-            feather_px=self.feather)
+            feather_px=self.feather, beyond=self.layer_beyond)
 
     def _layer_alignment(self) -> Alignment:
         """Model pixel -> the layer box's pixel."""

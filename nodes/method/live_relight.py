@@ -28,6 +28,8 @@ from .photo_relight import (
     LIT_SHADING,
     RATIO_OUTSIDE,
     RIM_SHARE,
+    beyond_ratio,
+    beyond_reach,
     exposure_gain,
     face_rim,
     smoothstep,
@@ -39,8 +41,9 @@ from .shadow import cast_margin, soft_cast
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds
 
 
-# ``LiveFace.flags``: the face, its skin, its clipped channels (4 << c), its rim (``face_rim``)
-FACE, SKIN, CLIPPED_BIT, RIM = 1, 2, 4, 32
+# ``LiveFace.flags``: the face, its skin, its clipped channels (4 << c), its rim (``face_rim``), the face's own skin
+# beyond the model (``outside_gain``'s ``beyond``)
+FACE, SKIN, CLIPPED_BIT, RIM, BEYOND = 1, 2, 4, 32, 64
 
 
 @dataclass(frozen=True)
@@ -51,11 +54,13 @@ class LiveFace:
     albedo16 (h, w, C) uint16, the linear albedo over ``albedo_scale``; sheen16 (h, w, C) uint16, the photo's
     shine in it (``photo_relight.sheen``), on the same scale; normals16 (h, w, 3) int16,
     camera frame, x 32767; flags (h, w) uint8 (``FACE``, ``SKIN``, ``CLIPPED_BIT << c``: the photo at
-    the top of its range, ``RIM``: where the face's change of light is measured for the photo around it); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
+    the top of its range, ``RIM``: where the face's change of light is measured for the photo around it, ``BEYOND``:
+    the face's own skin past the model, which takes that change in full); alpha8 (h, w) uint8, how much of the relit face shows (``inner_alpha``);
     want: the exposure of the photo's lit skin (``exposure_target``) or None; ambient: the room's share
     of the light; photo_light (3,); depth (Hm, Wm) float32 the fit's height field, NaN off its mask;
     to_preview (2, 3) model pixel -> preview pixel; fade8 (h, w) uint8, how far the face's change of
     light reaches a pixel around it (``outside_gain``'s fade; 0 on the face and beyond the feather);
+    reach8 (h, w) uint8, how far that change may pass ``RATIO_OUTSIDE`` (``beyond_reach``; 0 without ``BEYOND``);
     sigma: the preview pixels the change of light is averaged over at the face's border."""
 
     box: tuple[int, int, int, int]
@@ -73,6 +78,7 @@ class LiveFace:
     to_preview: np.ndarray
     encoding: str
     fade8: np.ndarray
+    reach8: np.ndarray
     sigma: float
 
     @property
@@ -84,11 +90,13 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
                       normals: np.ndarray,
                       face: np.ndarray, alpha: np.ndarray, skin: np.ndarray, want: float | None, ambient: float,
                       photo_light: np.ndarray, clipped: np.ndarray, depth: np.ndarray, grid_mask: np.ndarray,
-                      to_box: np.ndarray, encoding: str, feather_px: float, side: int = LIVE_SIDE) -> LiveFace:
+                      to_box: np.ndarray, encoding: str, feather_px: float, beyond: np.ndarray | None = None,
+                      side: int = LIVE_SIDE) -> LiveFace:
     """A ``LiveFace`` from the relighting's arrays on the photo's layer box (h, w): photo, albedo and its
     shine (h, w, C) linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
     (2, 3) model pixel -> box pixel; feather_px: the photo pixels the face's change of light fades over
-    around it. Scaled (area-averaged) to at most ``side`` pixels a side."""
+    around it; beyond (h, w) bool or None, the face's own skin past ``face``. Scaled (area-averaged) to at most
+    ``side`` pixels a side."""
     h, w = face.shape
     k = min(1.0, side / max(h, w))
     size = (max(1, round(w * k)), max(1, round(h * k)))  # (width, height) as OpenCV takes it
@@ -116,8 +124,12 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     feather = max(feather_px * k, 1.0)
     sigma = max(feather / 2.0, 1.0)
     flags = flags + face_rim(f, RIM_SHARE * feather) * RIM
+    b = np.zeros_like(f) if beyond is None else (area(beyond) >= 0.5) & ~f
+    reach = beyond_reach(b, feather)
+    reach = np.zeros(f.shape, np.float32) if reach is None else reach
+    flags = flags + b * BEYOND
     distance = cv2.distanceTransform((~f).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    fade = np.where(f, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
+    fade = np.where(f | b, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
     to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
     return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),
@@ -127,7 +139,8 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
                     alpha8=np.round(np.where(f, area(alpha), 0.0) * 255.0).astype(np.uint8),
                     want=want, ambient=float(ambient), photo_light=np.asarray(photo_light, np.float64),
                     depth=np.where(grid_mask, depth, np.nan).astype(np.float32), to_preview=to_preview,
-                    encoding=encoding, fade8=np.round(fade * 255.0).astype(np.uint8), sigma=float(sigma))
+                    encoding=encoding, fade8=np.round(fade * 255.0).astype(np.uint8),
+                    reach8=np.round(reach * 255.0).astype(np.uint8), sigma=float(sigma))
 
 
 def blur_radius(sigma: float) -> int:
@@ -189,10 +202,14 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     rim = ((live.flags & RIM) > 0).astype(np.float32)
     w = rim[..., None]
     support = gaussian_blur(rim, live.sigma)[..., None]
-    ratio = np.clip(gaussian_blur(face_image * w, live.sigma)
-                    / np.maximum(gaussian_blur(photo * w, live.sigma), np.maximum(1e-3 * support, 1e-12)), *RATIO_OUTSIDE)
+    num = gaussian_blur(face_image * w, live.sigma)
+    ratio = num / np.maximum(gaussian_blur(photo * w, live.sigma), np.maximum(1e-3 * support, 1e-12))
+    reach = (live.reach8.astype(np.float32) / np.float32(255.0))[..., None]
+    ratio = beyond_ratio(ratio, photo, num / np.maximum(support, 1e-12), reach)
     fade = (live.fade8.astype(np.float32) / np.float32(255.0))[..., None]
     a = (live.alpha8.astype(np.float32) / np.float32(255.0))[..., None]
-    out = np.where(face[..., None], a * face_image + (1.0 - a) * photo * ratio, photo * (1.0 + fade * (ratio - 1.0)))
+    beyond = ((live.flags & BEYOND) > 0)[..., None]
+    out = np.where(face[..., None], a * face_image + (1.0 - a) * photo * ratio,
+                   np.where(beyond, photo * ratio, photo * (1.0 + fade * (ratio - 1.0))))
     out = np.clip(out, 0.0, 1.0)
     return (linear_to_srgb(out) if live.encoding == "srgb" else out).astype(np.float32)

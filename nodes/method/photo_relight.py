@@ -48,6 +48,12 @@ INNER_FEATHER = 0.12
 # side brightened 5x would otherwise light its dark background up as a halo), down to 0.15x (a face relit into
 # shadow darkens its ear, hair and neck with it: held at 0.5, its dark border met a brighter ring on the face's edge)
 RATIO_OUTSIDE = (0.15, 1.6)
+# ... but on the face's own skin beyond the model (inside the face mesh's outline, past the model's mask: the jaw
+# and cheeks of a face the model does not reach) up to this: it is the face, lit as its rim is, and a jaw in
+# shadow held at 1.6x stayed a dark wedge beside a face relit 5x brighter (Yale B at +-70)
+RATIO_BEYOND = 8.0
+# ... that reach fading back to ``RATIO_OUTSIDE`` over this share of the feather either side of that skin's border
+BEYOND_EDGE = 0.25
 # the face's change of light at its border is measured on its rim, this share of the feather wide (``face_rim``):
 # averaged over the whole face, the interior's light came through, and a side light's dark rim met a brighter ring
 RIM_SHARE = 0.35
@@ -375,24 +381,55 @@ def face_rim(face: np.ndarray, width_px: float) -> np.ndarray:
     return face & (inside <= max(width_px, 1.0))
 
 
-def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float) -> np.ndarray:
+def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | None:
+    """(H, W) float32 in [0, 1]: how far the face's change of light may exceed ``RATIO_OUTSIDE`` (up to
+    ``RATIO_BEYOND``): 1 on ``beyond`` (H, W) bool, the face's own skin past the model's face, falling
+    to 0 within ``BEYOND_EDGE`` of the feather ``feather_px`` of it; None when there is none."""
+    if beyond is None or not beyond.any():
+        return None
+    edge = max(BEYOND_EDGE * feather_px, 1.0)
+    distance = cv2.distanceTransform((~beyond).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return (1.0 - smoothstep(distance, 0.0, edge)).astype(np.float32)
+
+
+def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """The face's change of light ``ratio`` (H, W, C) held within ``RATIO_OUTSIDE``, or up to ``RATIO_BEYOND``
+    as far as ``reach`` (H, W, 1) allows; past ``RATIO_OUTSIDE`` no brighter than the relit rim's ``level`` (H, W, C)
+    beside it (the ratio is the rim's average: a jaw brighter in the photo than its rim would overshoot it).
+    Where the ratio is within ``RATIO_OUTSIDE`` it is kept as it is."""
+    lo, hi = RATIO_OUTSIDE
+    r = np.clip(ratio, lo, hi + (RATIO_BEYOND - hi) * reach)
+    return np.minimum(r, np.maximum(np.float32(hi), level / np.maximum(photo, np.float32(1e-6)))).astype(np.float32)
+
+
+def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float,
+                 beyond: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
     face's relighting ratio (relit / photo, averaged over the face's rim, ``RIM_SHARE`` of the feather
     wide, within ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
     into the hair and neck without a seam and the photo beyond is untouched; inside the face, the
     ratio itself (what ``inner_alpha`` blends toward at the border). photo, face_image (H, W, C);
-    face (H, W) bool."""
+    face (H, W) bool; beyond (H, W) bool or None: the face's own skin past ``face`` (its outline beyond the
+    model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``)."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
     rim = face_rim(face, RIM_SHARE * feather_px).astype(np.float32)
     w = rim[..., None]
     support = blur(rim, sigma)
-    ratio = np.clip(blur(relit * w, sigma) / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None]),
-                    *RATIO_OUTSIDE)
+    num = blur(relit * w, sigma)
+    ratio = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
+    reach = beyond_reach(beyond, feather_px)
+    if reach is None:
+        ratio = np.clip(ratio, *RATIO_OUTSIDE)
+    else:
+        ratio = beyond_ratio(ratio, img, num / np.maximum(support, 1e-12)[..., None], reach[..., None])
+    # the fade runs from the model's face, past the face's own skin too: started at that skin's edge, the change
+    # of light reached further into the background, a glow beside a lit cheek
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
-    return np.where(face[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
+    whole = face if reach is None else face | beyond  # where the ratio itself applies
+    return np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
                     ).astype(np.float32)
 
 

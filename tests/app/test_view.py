@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from shadowflow.nodes.app.cli import main
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.live_relight import FACE, render_live
+from shadowflow.nodes.method.live_relight import BEYOND, FACE, render_live
 from shadowflow.nodes.method.nodes import MethodOptions
 from shadowflow.nodes.method.products import relit_photos
 
@@ -65,6 +65,7 @@ def test_the_live_relighting_is_the_products_inside_the_face(photo_name, request
     live = face.data["live"]
     inside = (live.alpha8 == 255) & ((live.flags & FACE) > 0)
     ring = live.fade8 > 0  # around the face, where its change of light runs on into the photo
+    beyond = (live.flags & BEYOND) > 0  # the face's own skin past the model: its change of light in full
     assert inside.sum() > 5000 and ring.sum() > 2000
     shown = np.atleast_3d(live.photo8).astype(np.float32) / 255
     moved = 0.0
@@ -74,6 +75,8 @@ def test_the_live_relighting_is_the_products_inside_the_face(photo_name, request
         levels = np.abs(mine - theirs).max(axis=-1)
         assert levels[inside].mean() * 255 < MAX_MEAN_LEVELS, (light, levels[inside].mean() * 255)
         assert levels[ring].mean() * 255 < MAX_MEAN_LEVELS, (light, levels[ring].mean() * 255)
+        if beyond.any():
+            assert levels[beyond].mean() * 255 < MAX_MEAN_LEVELS, (light, levels[beyond].mean() * 255)
         moved = max(moved, np.abs(mine - shown).max(axis=-1)[ring].mean() * 255)
     # the ring is not the photo left as it was (which ended the relit face on a cut at its border)
     assert moved > 2.0, moved
@@ -127,6 +130,8 @@ def test_the_page_relights_each_face_as_the_product_does_in_chromium(astronaut_p
         levels = np.abs(canvas.astype(np.float32) - theirs).max(axis=-1)
         assert levels[inside].mean() < MAX_MEAN_LEVELS, (name, levels[inside].mean())
         assert levels[face["fade8"] > 0].mean() < MAX_MEAN_LEVELS, (name, levels[face["fade8"] > 0].mean())
+        beyond = (face["flags"] & BEYOND) > 0  # the astronaut's jaw past the model: 238 preview pixels
+        assert beyond.sum() > 100 and levels[beyond].mean() < MAX_MEAN_LEVELS, (name, levels[beyond].mean())
     shots = {}
     for cut in (0, 100):
         shot = tmp_path / f"cut{cut}.png"

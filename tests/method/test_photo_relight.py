@@ -228,6 +228,43 @@ def test_a_face_relit_far_brighter_than_its_border_fades_into_the_photo_there():
     assert alpha[~face].max() == 0 and alpha[inside > 3].min() == 1.0
 
 
+def test_the_faces_own_skin_beyond_the_model_takes_the_faces_change_of_light():
+    """A face relit 5x brighter than the photo (its shadowed side lit) whose own outline (a face mesh's oval)
+    reaches 8 px past the model's mask, as Yale B's jaws do: that skin is relit as the face's rim beside it,
+    not left a dark wedge at 1.6x (the photo around the outline keeps that bound); a part of it brighter in
+    the photo than the rim is held at the rim's relit level; beyond the feather the photo is untouched. Without
+    the outline the gain is what it was."""
+    from shadowflow.nodes.method.photo_relight import (
+        RATIO_OUTSIDE,
+        FaceLayer,
+        compose,
+        inner_alpha,
+        outside_gain,
+    )
+
+    yy, xx = np.mgrid[0:120, 0:120]
+    r2 = (xx - 60) ** 2 + (yy - 60) ** 2
+    face, own = r2 < 30**2, r2 < 38**2
+    beyond = own & ~face
+    photo = np.full((120, 120, 1), 0.08, np.float32)
+    photo[beyond & (xx > 90), 0] = 0.2  # a brighter patch of that skin: 5x would overshoot the rim
+    relit = np.where(face[..., None], np.float32(0.4), np.float32(0.0))
+    feather = 20.0
+    gain = outside_gain(photo, relit, face, feather, beyond)
+    out = compose(photo, [FaceLayer((0, 120, 0, 120), face, relit, gain, inner_alpha(face, feather))])[..., 0]
+    rest = beyond & (xx <= 90)
+    assert abs(np.median(out[rest]) - 0.4) < 0.04, np.median(out[rest])  # held at 1.6x: 0.13
+    assert out[beyond & (xx > 92)].max() <= 0.4 + 1e-4  # no brighter than the relit rim
+    outside = cv2.distanceTransform((~own).astype(np.uint8), cv2.DIST_L2, 5)
+    past = outside > 0.25 * feather + 1  # past the outline and the reach beyond it: the gain as without the outline
+    np.testing.assert_allclose(gain[past], outside_gain(photo, relit, face, feather)[past], rtol=1e-6)
+    assert gain[past].max() <= RATIO_OUTSIDE[1] + 1e-6
+    np.testing.assert_array_equal(out[outside > feather + 0.5], photo[outside > feather + 0.5, 0])
+    np.testing.assert_allclose(outside_gain(photo, relit, face, feather, None),
+                               outside_gain(photo, relit, face, feather, np.zeros_like(face)), rtol=1e-6)
+    assert outside_gain(photo, relit, face, feather, None)[beyond].max() <= RATIO_OUTSIDE[1] + 1e-6
+
+
 def test_a_face_relit_into_shadow_darkens_the_photo_around_its_dark_side_as_its_rim_is():
     """A face relit from its right: the left of it falls into shadow, darkest at its rim (a tenth of the photo),
     while its interior keeps most of its light. The photo around the face follows its *rim's* change of light:
