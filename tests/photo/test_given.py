@@ -61,3 +61,19 @@ def test_a_face_on_the_grid_shows_only_what_the_photo_holds_inside_its_outline()
     assert seen[20, 30]
     _, no_outline = face_on_grid(image, FacePlacement(al, "given", EYES, np.zeros(4)), model)
     assert no_outline[:, 10:].all() and not no_outline[:, :10].any()
+
+
+def test_a_small_faces_doubt_never_reads_as_enough():
+    """Eyes just short of what the fit wants are said to be short of it: rounded both ways, 15.6 px against
+    16.0 read "16 px apart; the fit wants 16" (seen on a composite group photo)."""
+    import re
+
+    from shadowflow.nodes.photo.placement import MIN_FIT_IOD_SHARE, small_face
+
+    model = SimpleNamespace(eyes=np.array([[40.0, 50.0], [80.0, 50.0]]))  # 40 px apart on the grid
+    least = MIN_FIT_IOD_SHARE * 40.0
+    for iod in (least - 0.4, least - 0.01, least * 0.5):
+        (doubt,) = small_face(iod, model)
+        apart, wants = (int(n) for n in re.search(r"eyes (\d+) px apart; the fit wants at least (\d+)", doubt).groups())
+        assert apart < wants, doubt
+    assert small_face(least, model) == []
