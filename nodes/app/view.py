@@ -24,7 +24,7 @@ import numpy as np
 from ...flow.frame import Frame
 from ...flow.replay import printable
 from ..method.live_relight import BEYOND, CLIPPED_BIT, FACE, RIM, SKIN, LiveFace
-from ..method.photo_relight import CLIP_RATIO_FLOOR, LIT_SHADING, RATIO_BEYOND, RATIO_OUTSIDE
+from ..method.photo_relight import CLIP_RATIO_FLOOR, DETAIL_SHARE, LIT_SHADING, RATIO_BEYOND, RATIO_OUTSIDE
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb
@@ -110,7 +110,7 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
     constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING,
                  "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
-                 "BEYOND": BEYOND, "RATIO_BEYOND": RATIO_BEYOND,
+                 "BEYOND": BEYOND, "RATIO_BEYOND": RATIO_BEYOND, "DETAIL_SHARE": DETAIL_SHARE,
                  "CAST_REACH": SOFT_CAST_REACH}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),
@@ -356,6 +356,8 @@ function render(f, light) {
     f.den = gaussianBlur(weighted(photo), f.h, f.w, C, radius);
     f.support = gaussianBlur(rim, f.h, f.w, 1, radius);
   }
+  if (f.smooth === undefined) f.smooth = f.reach8.some((v) => v > 0)  // quieted: the photo's smooth part, once
+    ? gaussianBlur(photo, f.h, f.w, C, blurRadius(f.sigma * K.DETAIL_SHARE)) : null;
   const num = gaussianBlur(weighted(relit), f.h, f.w, C, radius), den = f.den, support = f.support;
   const [lo, hi] = K.RATIO_OUTSIDE;
   const ring = new ImageData(f.w, f.h), inside = new ImageData(f.w, f.h);
@@ -367,8 +369,12 @@ function render(f, light) {
       // beyond_ratio: past RATIO_OUTSIDE (the face's own skin beyond the model) no brighter than the relit rim
       let ratio = Math.min(Math.max(num[j] / Math.max(den[j], Math.max(1e-3 * support[i], 1e-12)), lo), high);
       ratio = Math.min(ratio, Math.max(hi, num[j] / Math.max(support[i], 1e-12) / Math.max(photo[j], 1e-6)));
-      let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * ratio
-        : beyond ? photo[j] * ratio : photo[j] * (1 + fade * (ratio - 1));
+      let gain = face || beyond ? ratio : 1 + fade * (ratio - 1);
+      if (f.smooth && gain > hi) {  // quieted: past RATIO_OUTSIDE the detail is lifted by its top only
+        const sm = f.smooth[j];
+        gain = Math.max(gain * sm + hi * (photo[j] - sm), 0) / Math.max(photo[j], 1e-4);
+      }
+      let out = face ? alpha * relit[j] + (1 - alpha) * photo[j] * gain : photo[j] * gain;
       out = Math.min(Math.max(out, 0), 1);
       if (f.encoding === 'srgb') out = linearToSrgb(out);
       ring.data[4 * i + c] = Math.floor(out * 255 + 0.5);

@@ -28,10 +28,12 @@ from .photo_relight import (
     LIT_SHADING,
     RATIO_OUTSIDE,
     RIM_SHARE,
+    DETAIL_SHARE,
     beyond_ratio,
     beyond_reach,
     exposure_gain,
     face_rim,
+    quieted,
     smoothstep,
     with_ambient,
     without_sheen,
@@ -209,7 +211,9 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     fade = (live.fade8.astype(np.float32) / np.float32(255.0))[..., None]
     a = (live.alpha8.astype(np.float32) / np.float32(255.0))[..., None]
     beyond = ((live.flags & BEYOND) > 0)[..., None]
-    out = np.where(face[..., None], a * face_image + (1.0 - a) * photo * ratio,
-                   np.where(beyond, photo * ratio, photo * (1.0 + fade * (ratio - 1.0))))
+    gain = np.where(face[..., None] | beyond, ratio, 1.0 + fade * (ratio - 1.0)).astype(np.float32)
+    if live.reach8.any():  # past RATIO_OUTSIDE the photo's detail is lifted less than its smooth part
+        gain = quieted(gain, photo, gaussian_blur(photo, live.sigma * DETAIL_SHARE))
+    out = np.where(face[..., None], a * face_image + (1.0 - a) * photo * gain, photo * gain)
     out = np.clip(out, 0.0, 1.0)
     return (linear_to_srgb(out) if live.encoding == "srgb" else out).astype(np.float32)

@@ -54,6 +54,10 @@ RATIO_OUTSIDE = (0.15, 1.6)
 RATIO_BEYOND = 8.0
 # ... that reach fading back to ``RATIO_OUTSIDE`` over this share of the feather either side of that skin's border
 BEYOND_EDGE = 0.25
+# a gain past ``RATIO_OUTSIDE`` lifts the photo's detail (finer than this share of the change of light's blur) by
+# ``RATIO_OUTSIDE`` only, the rest of it its smooth part (``quieted``): a shadowed jaw's noise brightened 5-8x
+# came back as grain
+DETAIL_SHARE = 1.0 / 6.0
 # the face's change of light at its border is measured on its rim, this share of the feather wide (``face_rim``):
 # averaged over the whole face, the interior's light came through, and a side light's dark rim met a brighter ring
 RIM_SHARE = 0.35
@@ -402,6 +406,16 @@ def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach:
     return np.minimum(r, np.maximum(np.float32(hi), level / np.maximum(photo, np.float32(1e-6)))).astype(np.float32)
 
 
+def quieted(gain: np.ndarray, photo: np.ndarray, smooth: np.ndarray) -> np.ndarray:
+    """(H, W, C) float32: ``gain`` (H, W, C) on ``photo`` (H, W, C) with what it has past ``RATIO_OUTSIDE`` applied
+    to the photo's ``smooth`` part only (its detail, ``photo - smooth``, lifted ``RATIO_OUTSIDE``'s top at most),
+    as a gain on the photo; elsewhere ``gain`` itself."""
+    hi = np.float32(RATIO_OUTSIDE[1])
+    detail = np.minimum(gain, hi)
+    out = gain * smooth + detail * (photo - smooth)
+    return np.where(gain > hi, np.maximum(out, 0.0) / np.maximum(photo, np.float32(1e-4)), gain).astype(np.float32)
+
+
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float,
                  beyond: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
@@ -429,8 +443,10 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     whole = face if reach is None else face | beyond  # where the ratio itself applies
-    return np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
-                    ).astype(np.float32)
+    gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0)))
+    if reach is None:
+        return gain.astype(np.float32)
+    return quieted(gain.astype(np.float32), img, blur(img, sigma * DETAIL_SHARE))
 
 
 def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
