@@ -388,28 +388,35 @@ def face_rim(face: np.ndarray, width_px: float) -> np.ndarray:
 def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | None:
     """(H, W) float32 in [0, 1]: how far the face's change of light may exceed ``RATIO_OUTSIDE`` (up to
     ``RATIO_BEYOND``): 1 on ``beyond`` (H, W) bool, the face's own skin past the model's face, falling
-    to 0 within ``BEYOND_EDGE`` of the feather ``feather_px`` of it; None when there is none."""
+    to 0 within ``BEYOND_EDGE`` of the feather ``feather_px`` of it; None when there is none. Measured in
+    that skin's box only (a 4-megapixel photo's layer is 2 megapixels)."""
     if beyond is None or not beyond.any():
         return None
     edge = max(BEYOND_EDGE * feather_px, 1.0)
-    distance = cv2.distanceTransform((~beyond).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return (1.0 - smoothstep(distance, 0.0, edge)).astype(np.float32)
+    rows, cols = np.nonzero(beyond.any(axis=1))[0], np.nonzero(beyond.any(axis=0))[0]
+    pad = int(np.ceil(edge)) + 1
+    y0, y1 = max(0, rows[0] - pad), min(beyond.shape[0], rows[-1] + 1 + pad)
+    x0, x1 = max(0, cols[0] - pad), min(beyond.shape[1], cols[-1] + 1 + pad)
+    distance = cv2.distanceTransform((~beyond[y0:y1, x0:x1]).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    reach = np.zeros(beyond.shape, np.float32)
+    reach[y0:y1, x0:x1] = 1.0 - smoothstep(distance, 0.0, edge)
+    return reach
 
 
 def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """The face's change of light ``ratio`` (H, W, C) held within ``RATIO_OUTSIDE``, or up to ``RATIO_BEYOND``
-    as far as ``reach`` (H, W, 1) allows; past ``RATIO_OUTSIDE`` no brighter than the relit rim's ``level`` (H, W, C)
+    """The face's change of light ``ratio`` (..., C) held within ``RATIO_OUTSIDE``, or up to ``RATIO_BEYOND``
+    as far as ``reach`` (..., 1) allows; past ``RATIO_OUTSIDE`` no brighter than the relit rim's ``level`` (..., C)
     beside it (the ratio is the rim's average: a jaw brighter in the photo than its rim would overshoot it).
-    Where the ratio is within ``RATIO_OUTSIDE`` it is kept as it is."""
+    Where the ratio is within ``RATIO_OUTSIDE`` it is kept as it is. Any leading shape: images or pixel lists."""
     lo, hi = RATIO_OUTSIDE
     r = np.clip(ratio, lo, hi + (RATIO_BEYOND - hi) * reach)
     return np.minimum(r, np.maximum(np.float32(hi), level / np.maximum(photo, np.float32(1e-6)))).astype(np.float32)
 
 
 def quieted(gain: np.ndarray, photo: np.ndarray, smooth: np.ndarray) -> np.ndarray:
-    """(H, W, C) float32: ``gain`` (H, W, C) on ``photo`` (H, W, C) with what it has past ``RATIO_OUTSIDE`` applied
+    """(..., C) float32: ``gain`` (..., C) on ``photo`` (..., C) with what it has past ``RATIO_OUTSIDE`` applied
     to the photo's ``smooth`` part only (its detail, ``photo - smooth``, lifted ``RATIO_OUTSIDE``'s top at most),
-    as a gain on the photo; elsewhere ``gain`` itself."""
+    as a gain on the photo; elsewhere ``gain`` itself. Any leading shape: images or pixel lists."""
     hi = np.float32(RATIO_OUTSIDE[1])
     detail = np.minimum(gain, hi)
     out = gain * smooth + detail * (photo - smooth)
@@ -432,21 +439,29 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     w = rim[..., None]
     support = blur(rim, sigma)
     num = blur(relit * w, sigma)
-    ratio = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
+    raw = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
+    ratio = np.clip(raw, *RATIO_OUTSIDE)
     reach = beyond_reach(beyond, feather_px)
-    if reach is None:
-        ratio = np.clip(ratio, *RATIO_OUTSIDE)
-    else:
-        ratio = beyond_ratio(ratio, img, num / np.maximum(support, 1e-12)[..., None], reach[..., None])
+    if reach is not None:  # the face's own skin and the reach beyond it, pixel by pixel (a thin ring)
+        at = np.nonzero(reach > 0)
+        ratio[at] = beyond_ratio(raw[at], img[at], num[at] / np.maximum(support[at], 1e-12)[:, None],
+                                 reach[at][:, None])
     # the fade runs from the model's face, past the face's own skin too: started at that skin's edge, the change
     # of light reached further into the background, a glow beside a lit cheek
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     whole = face if reach is None else face | beyond  # where the ratio itself applies
-    gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0)))
-    if reach is None:
-        return gain.astype(np.float32)
-    return quieted(gain.astype(np.float32), img, blur(img, sigma * DETAIL_SHARE))
+    gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
+                    ).astype(np.float32)
+    over = np.nonzero(np.any(gain > RATIO_OUTSIDE[1], axis=-1)) if reach is not None else None
+    if over is not None and over[0].size:  # past RATIO_OUTSIDE: the photo's smooth part, in those pixels' box
+        fine = sigma * DETAIL_SHARE
+        pad = int(np.ceil(3.0 * fine)) + 1
+        y0, x0 = max(0, over[0].min() - pad), max(0, over[1].min() - pad)
+        y1, x1 = min(img.shape[0], over[0].max() + 1 + pad), min(img.shape[1], over[1].max() + 1 + pad)
+        smooth = blur(img[y0:y1, x0:x1], fine)
+        gain[over] = quieted(gain[over], img[over], smooth[over[0] - y0, over[1] - x0])
+    return gain
 
 
 def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:
