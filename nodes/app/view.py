@@ -34,9 +34,10 @@ BEFORE_SIDE = 1600  # pixels, the embedded photo's longer side at most
 
 
 def _packed(a: np.ndarray) -> str:
-    """An array's bytes (little-endian, C order), zlib-compressed, base64."""
+    """An array's bytes (little-endian, C order), zlib-compressed at level 1, base64: a 1 MP photo's face packs in
+    15 ms at level 1 against 24 ms at 6, 2 % larger (753 against 739 kB)."""
     a = np.ascontiguousarray(a)
-    return base64.b64encode(zlib.compress(a.astype(a.dtype.newbyteorder("<")).tobytes(), 6)).decode("ascii")
+    return base64.b64encode(zlib.compress(a.astype(a.dtype.newbyteorder("<")).tobytes(), 1)).decode("ascii")
 
 
 def live_payload(live: LiveFace) -> dict:
