@@ -139,6 +139,13 @@ def complete(folder: Path, extra_lights: Iterable = ()) -> bool:
     return all((folder / name).is_file() for name in names)
 
 
+def say(line: str) -> None:
+    """``line`` on stderr in one write: ``print`` writes the text and its newline apart, and a writer on another
+    thread between the two runs two lines into one."""
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+
+
 class Progress:
     """One status line on a terminal (tqdm): done / total, frames per second, ETA, failures."""
 
@@ -156,9 +163,9 @@ class Progress:
         self.bar.update(1)
 
     def write(self, line: str) -> None:
-        """A line on stderr above the status line (which is redrawn below it)."""
+        """A line on stderr above the status line (which is redrawn below it), in one write (``say``)."""
         if self.bar.disable:
-            print(line, file=sys.stderr)
+            say(line)
         else:
             self.bar.write(line, file=sys.stderr)
 
@@ -268,7 +275,7 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
 def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
                 run: RunOptions, total: int | None, client=None) -> RunResult:
     """The run, once ``out`` is locked: on this machine's threads, or on ``client``'s Dask cluster."""
-    note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+    note = (lambda msg: None) if run.quiet else say
     config = run_config(model, options)
     config_id = config_hash(config)
     previous = RunManifest.load(out) if run.resume else None
@@ -300,7 +307,7 @@ class StoredRun:
                  total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore):
         self.paths, self.out, self.model, self.options, self.run = paths, out, model, options, run
         self.total, self.client, self.manifest, self.resumed, self.store = total, client, manifest, resumed, store
-        self.note = (lambda msg: None) if run.quiet else (lambda msg: print(msg, file=sys.stderr))
+        self.note = (lambda msg: None) if run.quiet else say
         self.config_id = manifest.config_id
         self.storage: str | None = None  # the first storage failure, which stops the run
         self.summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once

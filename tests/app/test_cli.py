@@ -339,3 +339,37 @@ def test_the_command_lines_choices_are_the_options_own():
                 assert default is None or default == getattr(MethodOptions(), name), (command, name)
         assert set(SOLVERS) <= set(actions["fit"].choices)
     assert set(CHOICES) - {"encoding", "arrays"} <= set(a.dest for a in sub.choices["eval"]._actions)
+
+
+def test_a_line_on_stderr_is_one_write_so_threads_never_run_two_into_one(monkeypatch):
+    """The run's status and notes go to stderr a whole line at a time: ``print`` writes a line's text and its
+    newline apart, and a second thread writing between them runs two lines into one (a hostile stream's
+    stderr once held 31 error lines for 32 failed inputs)."""
+    import sys
+    import threading
+
+    from shadowflow.nodes.app.runner import Progress, say
+
+    class Writes:
+        def __init__(self):
+            self.calls, self.lock = [], threading.Lock()
+
+        def write(self, text):
+            with self.lock:
+                self.calls.append(text)
+
+        def flush(self):
+            pass
+
+        def isatty(self):
+            return False
+
+    stderr = Writes()
+    monkeypatch.setattr(sys, "stderr", stderr)
+    threads = [threading.Thread(target=lambda k=k: [say(f"error: {k}-{i}") for i in range(200)]) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    Progress(None, enabled=False).write("doubtful: a.png: small")
+    assert len(stderr.calls) == 801 and all(c.endswith("\n") and c.count("\n") == 1 for c in stderr.calls)

@@ -190,7 +190,7 @@ def test_a_stream_of_hostile_inputs_fails_each_alone_and_keeps_good_faces_exact(
             continue
         assert expect in status and name in status and "\n" not in status, (name, status)
         assert any(name in e and expect in e for e in errors), name  # and it was said on stderr
-    assert len(errors) == len(hostile)
+    assert len(errors) == len(hostile), proc.stderr  # one line each (failed once in CI: 31, unexplained)
 
     # every output stays inside --out, one folder per input, none overwriting another
     stems = [r["stem"] for r in summary if r["status"] == "ok"]
