@@ -25,10 +25,9 @@ from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .photo_relight import (
     CLIP_RATIO_FLOOR,
-    LIT_SHADING,
-    RATIO_OUTSIDE,
-    RIM_SHARE,
     DETAIL_SHARE,
+    LIT_SHADING,
+    RIM_SHARE,
     beyond_ratio,
     beyond_reach,
     exposure_gain,

@@ -300,8 +300,8 @@ def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
     from shadowflow.nodes.app.cli import build_parser, method_options
     from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
     from shadowflow.nodes.method.robust_fit import FitConfig
-    from shadowflow.nodes.model.sources import procedural
     from shadowflow.nodes.model.shape_model import train_shape_model
+    from shadowflow.nodes.model.sources import procedural
 
     paper = MethodOptions.paper()
     assert (paper.fit, paper.remap, paper.albedo_fill) == (FitConfig.paper(), "peak", "mirror")
