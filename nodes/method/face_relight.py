@@ -10,6 +10,8 @@ which arrays go where.
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from ..geometry.raster import polygon_mask
@@ -74,14 +76,15 @@ class FaceRelight:
     or None. eyes: (2, 2) the eyes' centres in photo pixels where a face mesh found them, else None
     (no eye detail: a render without eye texture has no eye to show). midline: (2, 2) two points of the
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
-    for a turned face); fill_detail: that detail's strength (0: none).
+    for a turned face); fill_detail: that detail's strength (0: none). segment: (h, w, C) linear photo -> (h, w) how
+    sure a segmentation is that each pixel is the person (``mediapipe.person_share``), or None (the whole feather).
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
                  normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, depth: np.ndarray, light: np.ndarray,
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
-                 fill_detail: float = FILL_DETAIL):
+                 fill_detail: float = FILL_DETAIL, segment: Callable[[np.ndarray], np.ndarray] | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -95,6 +98,8 @@ class FaceRelight:
             self.layer_beyond = own & ~layer_face
             layer_face &= own
         self.layer_face = layer_face
+        # where the person is around the face (hair, neck), not the background: the change of light reaches that far
+        self.layer_person = None if segment is None else segment(self.layer_photo)
         # ``box``: the face's own box in it, where the albedo, shadows and relit face are computed
         rows, cols = np.nonzero(layer_face.any(axis=1))[0], np.nonzero(layer_face.any(axis=0))[0]
         if not rows.size:
@@ -188,7 +193,8 @@ class FaceRelight:
         # into the layer's box: the relit face's light carried over its border into the photo around it
         relit = self._in_layer(np.clip(face_image, 0.0, 1.0))
         return FaceLayer(self.layer_box, self.layer_face, relit,
-                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather, self.layer_beyond),
+                         outside_gain(self.layer_photo, relit, self.layer_face, self.feather, self.layer_beyond,
+                                      self.layer_person),
                          self.layer_alpha)
 
     def _in_layer(self, values: np.ndarray) -> np.ndarray:
@@ -208,7 +214,7 @@ class FaceRelight:
             skin=self._in_layer(self.skin_only) > 0, want=exposure_target(photo, self.lit_skin), ambient=self.ambient,
             photo_light=self.light, clipped=(np.atleast_3d(self.layer_photo) >= CLIPPED) & self.layer_face[..., None],
             depth=self.depth, grid_mask=self.mask, to_box=self._layer_alignment().matrix, encoding=encoding,
-            feather_px=self.feather, beyond=self.layer_beyond)
+            feather_px=self.feather, beyond=self.layer_beyond, person=self.layer_person)
 
     def _layer_alignment(self) -> Alignment:
         """Model pixel -> the layer box's pixel."""

@@ -92,11 +92,13 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
                       face: np.ndarray, alpha: np.ndarray, skin: np.ndarray, want: float | None, ambient: float,
                       photo_light: np.ndarray, clipped: np.ndarray, depth: np.ndarray, grid_mask: np.ndarray,
                       to_box: np.ndarray, encoding: str, feather_px: float, beyond: np.ndarray | None = None,
+                      person: np.ndarray | None = None,
                       side: int = LIVE_SIDE) -> LiveFace:
     """A ``LiveFace`` from the relighting's arrays on the photo's layer box (h, w): photo, albedo and its
     shine (h, w, C) linear, normals (h, w, 3), face, skin (h, w) bool, alpha (h, w), clipped (h, w, C) bool; to_box
     (2, 3) model pixel -> box pixel; feather_px: the photo pixels the face's change of light fades over
-    around it; beyond (h, w) bool or None, the face's own skin past ``face``. Scaled (area-averaged) to at most
+    around it; beyond (h, w) bool or None, the face's own skin past ``face``; person (h, w) float or None, how
+    sure a segmentation is that a pixel is the person (``outside_gain``). Scaled (area-averaged) to at most
     ``side`` pixels a side."""
     h, w = face.shape
     k = min(1.0, side / max(h, w))
@@ -131,6 +133,8 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     flags = flags + b * BEYOND
     distance = cv2.distanceTransform((~f).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = np.where(f | b, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
+    if person is not None:  # the change of light reaches the person around the face only (``outside_gain``)
+        fade = fade * area(person)
     # pixel centres: preview (x + 0.5) = k (box x + 0.5)
     to_preview = np.array([[kx, 0.0, 0.5 * kx - 0.5], [0.0, ky, 0.5 * ky - 0.5]]) @ np.vstack([to_box, [0, 0, 1.0]])
     return LiveFace(box=tuple(int(v) for v in box), photo8=(shown * 255.0 + 0.5).astype(np.uint8),

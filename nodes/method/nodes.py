@@ -6,7 +6,7 @@ photo, ``on_model_grid`` makes the frame of an image already on the model grid.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from ..photo.align import IDENTITY, Alignment, to_model_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.given import given_eyes, known_light
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
+from ..photo.mediapipe import person_share
 from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
@@ -534,7 +535,15 @@ class PhotoRelightNode:
             photo=photo_channels(frame), grey=d["image"], alignment=al,
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
             light=d["light"], iod_px=iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
-            eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail)
+            eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
+            segment=person_segmenter(frame.meta.get("encoding", "linear")))
+
+
+def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:
+    """(h, w, C) linear photo -> (h, w) how sure MediaPipe's selfie segmentation is that each pixel is the person
+    (``mediapipe.person_share``), the photo shown to it as its file holds it (sRGB-encoded for an sRGB photo)."""
+    to_display = linear_to_srgb if encoding == "srgb" else None
+    return lambda linear: person_share(linear, to_display)
 
 
 class QualityNode:

@@ -424,14 +424,16 @@ def quieted(gain: np.ndarray, photo: np.ndarray, smooth: np.ndarray) -> np.ndarr
 
 
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float,
-                 beyond: np.ndarray | None = None) -> np.ndarray:
+                 beyond: np.ndarray | None = None, person: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
     face's relighting ratio (relit / photo, averaged over the face's rim, ``RIM_SHARE`` of the feather
     wide, within ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
     into the hair and neck without a seam and the photo beyond is untouched; inside the face, the
     ratio itself (what ``inner_alpha`` blends toward at the border). photo, face_image (H, W, C);
     face (H, W) bool; beyond (H, W) bool or None: the face's own skin past ``face`` (its outline beyond the
-    model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``)."""
+    model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``); person (H, W) float in [0, 1]
+    or None: how sure a segmentation is that each pixel is the person, not the background: the change of light
+    around the face reaches only as far (hair and neck follow the face, the wall behind it keeps its light)."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
     sigma = max(feather_px / 2.0, 1.0)
@@ -450,6 +452,8 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     # of light reached further into the background, a glow beside a lit cheek
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
+    if person is not None:  # a wall lit up or darkened around a relit face is a halo
+        fade = fade * np.asarray(person, np.float32)[..., None]
     whole = face if reach is None else face | beyond  # where the ratio itself applies
     gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
                     ).astype(np.float32)

@@ -1,7 +1,7 @@
-"""MediaPipe's face detector (BlazeFace, short range) and 468-point face mesh, run by LiteRT (Google's
-TensorFlow Lite runtime) where it is installed, else by OpenCV's dnn (``runtime``).
+"""MediaPipe's face detector (BlazeFace, short range), 468-point face mesh and selfie segmentation, run by
+LiteRT (Google's TensorFlow Lite runtime) where it is installed, else by OpenCV's dnn (``runtime``).
 
-The two ``.tflite`` files in ``data/`` are MediaPipe's (Apache-2.0, ``data/NOTICE``); the code that
+The three ``.tflite`` files in ``data/`` are MediaPipe's (Apache-2.0, ``data/NOTICE``); the code that
 feeds them and reads their outputs is ours:
 
 - ``detect_faces``: the detector sees a 128 x 128 RGB image in [-1, 1]; it finds faces whose box is
@@ -13,6 +13,8 @@ feeds them and reads their outputs is ours:
 - ``face_mesh``: the mesh model sees a 192 x 192 RGB crop in [0, 1], square, 1.5 x the face, turned
   so the eyes are level; it gives 468 points (x, y in crop pixels, z a relative depth on the same
   scale, smaller = nearer the camera) and a face-presence logit.
+- ``person_share``: the segmentation model sees a 256 x 256 RGB image in [0, 1] and gives, for each
+  pixel, how sure it is that a person (face, hair, neck, clothes) is there, not the background.
 
 Everything here is in photo pixels: x = column, y = row (down).
 """
@@ -22,6 +24,7 @@ import os
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import cv2
 import numpy as np
@@ -32,6 +35,8 @@ from .native_messages import decoder_messages_dropped
 DATA = Path(__file__).resolve().parent / "data"
 DETECTOR_FILE = DATA / "face_detection_short_range.tflite"
 MESH_FILE = DATA / "face_landmark.tflite"
+SEGMENTER_FILE = DATA / "selfie_segmentation.tflite"
+SEGMENTER_SIDE = 256  # the segmentation model's input, square
 
 DETECTOR_SIZE = 128
 MESH_SIZE = 192
@@ -137,6 +142,24 @@ class NetPool:
 
 DETECTOR = NetPool(DETECTOR_FILE)
 MESH = NetPool(MESH_FILE)
+SEGMENTER = NetPool(SEGMENTER_FILE)
+
+
+def person_share(rgb: np.ndarray, to_display: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """(H, W) float32 in [0, 1]: how sure MediaPipe's selfie segmentation is that each pixel of ``rgb``
+    ((H, W, 3) or (H, W, 1) float in [0, 1]) is a person, not the background; the image seen at 256 x 256 (a
+    few milliseconds), the answer brought back to its size. ``to_display``: applied to the 256 x 256 image
+    first, to show the net the photo as a camera saved it (``linear_to_srgb`` for a linear colour photo)."""
+    h, w = rgb.shape[:2]
+    small = cv2.resize(np.asarray(rgb, np.float32), (SEGMENTER_SIDE, SEGMENTER_SIDE), interpolation=cv2.INTER_AREA)
+    small = small.reshape(SEGMENTER_SIDE, SEGMENTER_SIDE, -1)
+    if small.shape[-1] != 3:
+        small = np.repeat(small[..., :1], 3, axis=-1)
+    if to_display is not None:
+        small = to_display(small)
+    (share,) = SEGMENTER.forward(np.clip(small, 0.0, 1.0).astype(np.float32)[None], ["activation_10"])
+    share = np.asarray(share, np.float32).reshape(SEGMENTER_SIDE, SEGMENTER_SIDE)
+    return np.clip(cv2.resize(share, (w, h), interpolation=cv2.INTER_LINEAR), 0.0, 1.0)
 
 
 def _anchors() -> np.ndarray:

@@ -300,6 +300,30 @@ def test_a_face_relit_into_shadow_darkens_the_photo_around_its_dark_side_as_its_
     np.testing.assert_array_equal(out[outside > feather + 0.5], 0.5)
 
 
+def test_the_photo_around_a_face_follows_its_light_on_the_person_only_not_on_the_wall():
+    """A face relit 1.5x brighter, hair above it and a wall beside it (a segmentation's person share: 1 on the
+    hair, 0 on the wall): within the feather the hair takes the face's change of light as before, the wall keeps
+    its own (a glow on it beside a lit cheek, a dark halo beside a shadowed one). Without a person share, both
+    follow the face."""
+    from shadowflow.nodes.method.photo_relight import FaceLayer, compose, inner_alpha, outside_gain
+
+    yy, xx = np.mgrid[0:120, 0:120]
+    face = (xx - 60) ** 2 + (yy - 60) ** 2 < 30**2
+    photo = np.full((120, 120, 1), 0.3, np.float32)
+    relit = np.where(face[..., None], np.float32(0.45), np.float32(0.0))
+    person = np.where(yy < 60, np.float32(1.0), np.float32(0.0))  # the hair above, the wall below
+    feather = 20.0
+    outside = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, 5)
+    near = (outside > 0) & (outside < 6)
+    hair, wall = near & (yy < 50), near & (yy > 70)
+    for share, wall_moves in ((person, False), (None, True)):
+        gain = outside_gain(photo, relit, face, feather, person=share)
+        out = compose(photo, [FaceLayer((0, 120, 0, 120), face, relit, gain, inner_alpha(face, feather))])[..., 0]
+        assert out[hair].mean() > 0.3 * 1.3, out[hair].mean()  # the hair brightens with the face
+        assert (np.abs(out[wall] - 0.3).max() > 0.05) == wall_moves, np.abs(out[wall] - 0.3).max()
+        np.testing.assert_array_equal(out[outside > feather + 0.5], photo[outside > feather + 0.5, 0])
+
+
 def test_the_rooms_light_is_measured_on_the_faces_core_not_on_what_its_rim_shows():
     """A sphere with 6 % ambient light, its outline drawn a little too wide (as a face mesh's oval is where
     hair or the background lies over the face's border): lit from 53 deg, the ambient light is read from
