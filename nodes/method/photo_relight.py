@@ -385,11 +385,11 @@ def face_rim(face: np.ndarray, width_px: float) -> np.ndarray:
     return face & (inside <= max(width_px, 1.0))
 
 
-def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | None:
-    """(H, W) float32 in [0, 1]: how far the face's change of light may exceed ``RATIO_OUTSIDE`` (up to
-    ``RATIO_BEYOND``): 1 on ``beyond`` (H, W) bool, the face's own skin past the model's face, falling
-    to 0 within ``BEYOND_EDGE`` of the feather ``feather_px`` of it; None when there is none. Measured in
-    that skin's box only (a 4-megapixel photo's layer is 2 megapixels)."""
+def beyond_reach_box(beyond: np.ndarray | None, feather_px: float) -> tuple[np.ndarray, int, int] | None:
+    """How far the face's change of light may exceed ``RATIO_OUTSIDE`` (up to ``RATIO_BEYOND``), in the box of
+    ``beyond`` (H, W) bool, the face's own skin past the model's face, grown by the reach: ``(reach (h, w) float32
+    in [0, 1], y0, x0)``, 1 on that skin and falling to 0 within ``BEYOND_EDGE`` of the feather ``feather_px`` of
+    it; None when there is none. A 4-megapixel photo's layer is 2 megapixels; this box, a ring's, is less."""
     if beyond is None or not beyond.any():
         return None
     edge = max(BEYOND_EDGE * feather_px, 1.0)
@@ -398,8 +398,17 @@ def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | N
     y0, y1 = max(0, rows[0] - pad), min(beyond.shape[0], rows[-1] + 1 + pad)
     x0, x1 = max(0, cols[0] - pad), min(beyond.shape[1], cols[-1] + 1 + pad)
     distance = cv2.distanceTransform((~beyond[y0:y1, x0:x1]).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return (1.0 - smoothstep(distance, 0.0, edge)).astype(np.float32), int(y0), int(x0)
+
+
+def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | None:
+    """(H, W) float32 in [0, 1]: ``beyond_reach_box`` on the whole of ``beyond``'s grid (0 outside its box)."""
+    box = beyond_reach_box(beyond, feather_px)
+    if box is None:
+        return None
+    crop, y0, x0 = box
     reach = np.zeros(beyond.shape, np.float32)
-    reach[y0:y1, x0:x1] = 1.0 - smoothstep(distance, 0.0, edge)
+    reach[y0:y0 + crop.shape[0], x0:x0 + crop.shape[1]] = crop
     return reach
 
 
@@ -441,24 +450,31 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     w = rim[..., None]
     support = blur(rim, sigma)
     num = blur(relit * w, sigma)
-    raw = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
-    ratio = np.clip(raw, *RATIO_OUTSIDE)
-    reach = beyond_reach(beyond, feather_px)
-    if reach is not None:  # the face's own skin and the reach beyond it, pixel by pixel (a thin ring)
-        at = np.nonzero(reach > 0)
-        ratio[at] = beyond_ratio(raw[at], img[at], num[at] / np.maximum(support[at], 1e-12)[:, None],
-                                 reach[at][:, None])
+    ratio = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
+    box = beyond_reach_box(beyond, feather_px)
+    if box is not None:  # the face's own skin and the reach beyond it, pixel by pixel (a thin ring)
+        reach, y0, x0 = box
+        ry, rx = np.nonzero(reach > 0)
+        at = (ry + y0, rx + x0)
+        beyond_at = beyond_ratio(ratio[at], img[at], num[at] / np.maximum(support[at], 1e-12)[:, None],
+                                 reach[ry, rx][:, None])
+    np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
+    if box is not None:
+        ratio[at] = beyond_at
     # the fade runs from the model's face, past the face's own skin too: started at that skin's edge, the change
     # of light reached further into the background, a glow beside a lit cheek
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     if person is not None:  # a wall lit up or darkened around a relit face is a halo
-        fade = fade * np.asarray(person, np.float32)[..., None]
-    whole = face if reach is None else face | beyond  # where the ratio itself applies
+        fade *= np.asarray(person, np.float32)[..., None]
+    whole = face if box is None else face | beyond  # where the ratio itself applies
     gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
                     ).astype(np.float32)
-    over = np.nonzero(np.any(gain > RATIO_OUTSIDE[1], axis=-1)) if reach is not None else None
-    if over is not None and over[0].size:  # past RATIO_OUTSIDE: the photo's smooth part, in those pixels' box
+    if box is None:
+        return gain
+    hot = np.any(gain[at] > RATIO_OUTSIDE[1], axis=-1)  # past RATIO_OUTSIDE only where the reach lets it
+    over = (at[0][hot], at[1][hot])
+    if over[0].size:  # past RATIO_OUTSIDE: the photo's smooth part, in those pixels' box
         fine = sigma * DETAIL_SHARE
         pad = int(np.ceil(3.0 * fine)) + 1
         y0, x0 = max(0, over[0].min() - pad), max(0, over[1].min() - pad)

@@ -158,8 +158,8 @@ def person_share(rgb: np.ndarray, to_display: Callable[[np.ndarray], np.ndarray]
     if to_display is not None:
         small = to_display(small)
     (share,) = SEGMENTER.forward(np.clip(small, 0.0, 1.0).astype(np.float32)[None], ["activation_10"])
-    share = np.asarray(share, np.float32).reshape(SEGMENTER_SIDE, SEGMENTER_SIDE)
-    return np.clip(cv2.resize(share, (w, h), interpolation=cv2.INTER_LINEAR), 0.0, 1.0)
+    share = np.clip(np.asarray(share, np.float32).reshape(SEGMENTER_SIDE, SEGMENTER_SIDE), 0.0, 1.0)
+    return cv2.resize(share, (w, h), interpolation=cv2.INTER_LINEAR)  # (bilinear: stays within [0, 1])
 
 
 def _anchors() -> np.ndarray:
