@@ -385,6 +385,12 @@ def face_rim(face: np.ndarray, width_px: float) -> np.ndarray:
     return face & (inside <= max(width_px, 1.0))
 
 
+def _padded_box(rows: np.ndarray, cols: np.ndarray, pad: int, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """``(y0, y1, x0, x1)``: the box of pixels ``rows``, ``cols`` (non-empty) grown by ``pad``, within ``shape``."""
+    return (max(0, int(rows.min()) - pad), min(shape[0], int(rows.max()) + 1 + pad),
+            max(0, int(cols.min()) - pad), min(shape[1], int(cols.max()) + 1 + pad))
+
+
 def beyond_reach_box(beyond: np.ndarray | None, feather_px: float) -> tuple[np.ndarray, int, int] | None:
     """How far the face's change of light may exceed ``RATIO_OUTSIDE`` (up to ``RATIO_BEYOND``), in the box of
     ``beyond`` (H, W) bool, the face's own skin past the model's face, grown by the reach: ``(reach (h, w) float32
@@ -393,12 +399,10 @@ def beyond_reach_box(beyond: np.ndarray | None, feather_px: float) -> tuple[np.n
     if beyond is None or not beyond.any():
         return None
     edge = max(BEYOND_EDGE * feather_px, 1.0)
-    rows, cols = np.nonzero(beyond.any(axis=1))[0], np.nonzero(beyond.any(axis=0))[0]
-    pad = int(np.ceil(edge)) + 1
-    y0, y1 = max(0, rows[0] - pad), min(beyond.shape[0], rows[-1] + 1 + pad)
-    x0, x1 = max(0, cols[0] - pad), min(beyond.shape[1], cols[-1] + 1 + pad)
+    y0, y1, x0, x1 = _padded_box(np.nonzero(beyond.any(axis=1))[0], np.nonzero(beyond.any(axis=0))[0],
+                                 int(np.ceil(edge)) + 1, beyond.shape)
     distance = cv2.distanceTransform((~beyond[y0:y1, x0:x1]).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return (1.0 - smoothstep(distance, 0.0, edge)).astype(np.float32), int(y0), int(x0)
+    return (1.0 - smoothstep(distance, 0.0, edge)).astype(np.float32), y0, x0
 
 
 def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | None:
@@ -461,8 +465,8 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
     if box is not None:
         ratio[at] = beyond_at
-    # the fade runs from the model's face, past the face's own skin too: started at that skin's edge, the change
-    # of light reached further into the background, a glow beside a lit cheek
+    # the fade is measured from the model's face even where the face's own skin lies beyond it: measured from that
+    # skin's edge, the change of light reached further into the background, a glow beside a lit cheek
     distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     if person is not None:  # a wall lit up or darkened around a relit face is a halo
@@ -476,9 +480,7 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     over = (at[0][hot], at[1][hot])
     if over[0].size:  # past RATIO_OUTSIDE: the photo's smooth part, in those pixels' box
         fine = sigma * DETAIL_SHARE
-        pad = int(np.ceil(3.0 * fine)) + 1
-        y0, x0 = max(0, over[0].min() - pad), max(0, over[1].min() - pad)
-        y1, x1 = min(img.shape[0], over[0].max() + 1 + pad), min(img.shape[1], over[1].max() + 1 + pad)
+        y0, y1, x0, x1 = _padded_box(*over, int(np.ceil(3.0 * fine)) + 1, img.shape)
         smooth = blur(img[y0:y1, x0:x1], fine)
         gain[over] = quieted(gain[over], img[over], smooth[over[0] - y0, over[1] - x0])
     return gain
