@@ -58,7 +58,7 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
         frames += 1
         if _written(out, r):
             n_ok += 1
-            if str(r.get("status", "")).startswith("doubtful"):
+            if _frame_status(r) == "doubtful":  # as its row says: any face doubtful, not the largest only
                 doubtful += 1
                 odd.add(_file_name(r.get("source")))
         else:
@@ -112,12 +112,17 @@ def _written(out: Path, record: dict) -> bool:
     return isinstance(stem, str) and bool(stem) and (out / stem / "relit.png").is_file()
 
 
+def _frame_status(r: dict) -> str:
+    """"ok" when every face of a frame's record is ok (a record without faces: its own status), else "doubtful"."""
+    return "ok" if all(str(f.get("status", "ok")) == "ok" for f in r.get("faces") or [r]) else "doubtful"
+
+
 def _row(out: Path, r: dict, thumb: np.ndarray | None = None) -> str:
     """A frame's row of the contact sheet; ``thumb``: its input's thumbnail when its card made it."""
     stem = r["stem"]
     q = r.get("quality") or {}
     flags = q.get("flags") or []
-    status = "ok" if all(str(f.get("status", "ok")) == "ok" for f in r.get("faces") or [r]) else "doubtful"
+    status = _frame_status(r)
     light = r.get("light")
     facts = [f"<b>{html.escape(stem)}</b>", f"<span class={status}>{status}</span>",
              f"quality {_num(q.get('score'))}", f"{_num(r.get('iterations'))} iterations"

@@ -93,3 +93,22 @@ def test_the_run_makes_its_cards_pictures_as_the_report_would_read_them_back(tmp
     read_back = re.findall(r'alt="(relit|photo|input)" src="data:image/jpeg;base64,([^"]+)"',
                            (out / "report.html").read_text())
     assert [name for name, _ in made] == ["relit", "photo", "input"] and made == read_back
+
+
+def test_the_reports_count_of_doubtful_photos_agrees_with_their_rows(tmp_path):
+    """A photo whose largest face is ok but another face doubtful (a small face in a group photo) is counted
+    doubtful in the report's first line, as its row says, not ok (a group photo read "0 doubtful" above a row
+    marked doubtful)."""
+    from shadowflow.nodes.app.report import write_report
+
+    records = []
+    for stem, faces in (("group", [{"status": "ok"}, {"status": "doubtful: the face is small"}]),
+                        ("portrait", [{"status": "ok"}])):
+        (tmp_path / stem).mkdir()
+        img = np.full((40, 40, 3), 128, np.uint8)
+        cv2.imwrite(str(tmp_path / stem / "relit.png"), img)
+        cv2.imwrite(str(tmp_path / f"{stem}.png"), img)
+        records.append({"stem": stem, "source": str(tmp_path / f"{stem}.png"), "status": "ok", "faces": faces})
+    page = write_report(tmp_path, records).read_text()
+    assert "2 frames: 1 ok, 1 doubtful" in page
+    assert page.count("<span class=doubtful>doubtful</span>") == 1
