@@ -21,7 +21,7 @@ from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..inputs import FolderWatch, expand_inputs
-from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream
+from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream, say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
     CONE_TRUST_HELP,
@@ -192,7 +192,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not inputs and not args.watch:
         print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
         return 2
-    note = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    note = (lambda msg: None) if args.quiet else say
     run = run_options(args)
     model = model_arg(args.model)
     stream, total, watch = _input_stream(args, inputs, note)
