@@ -28,6 +28,8 @@ DATA: dict[str, tuple[str, str]] = {
                         "to be chosen (taken off by view_choice)", "faces"),
     "grid_image": ("(Hm, Wm) the input resampled to the model grid", "faces, or on_model_grid"),
     "grid_valid": ("(Hm, Wm) bool, model pixels inside the photo and the face's outline (absent: all)", "faces"),
+    "grid_covered": ("(Hm, Wm) bool, the ``grid_valid`` pixels hair or a dark head covers, which the fit, the "
+                     "brightness scale and the albedo do not read (absent: none)", "faces"),
     "grid_light": ("(3,) the light in the model's camera frame", "faces, or on_model_grid"),
     "saturated": ("(N,) bool, face pixels clipped by over-exposure", "remap"),
     "remapped": ("(Hm, Wm) brightness on the Lambertian scale", "remap"),

@@ -88,6 +88,18 @@ def explained_variance(intensity: np.ndarray, shading: np.ndarray, use: np.ndarr
     return float(1.0 - np.sum(w * (I - rho * S) ** 2) / spread)
 
 
+def unread_weights(intensity: np.ndarray, model_normals: np.ndarray, light: np.ndarray, threshold: float) -> np.ndarray:
+    """(N,) the robust weight each pixel would have had in the fit had it read it: Huber's, at ``threshold``
+    (radians), of the angle between its fitted normal's cone and the cone its brightness puts it on. For the
+    pixels the fit left out (hair, ``photo.cover``), which its quality must still count: with weight 0 a face
+    placed upside down, brows and hair over its chin left out, read as a face its fit explains.
+    intensity (N,) remapped brightness; model_normals (N, 3); light (3,) unit, both model frame."""
+    on_cone = np.arccos(np.clip(np.asarray(intensity, np.float64), 0.0, 1.0))
+    fitted = np.arccos(np.clip(np.asarray(model_normals, np.float64) @ np.asarray(light, np.float64), -1.0, 1.0))
+    distance = np.abs(on_cone - fitted)
+    return np.where(distance <= threshold, 1.0, threshold / np.maximum(distance, 1e-12))
+
+
 def assess(eyes: str, explained: float, downweighted: float, clipped: float, inside: float,
            doubts: tuple[str, ...] = (), plausible: bool = True) -> Quality:
     """The score and flags of one frame from its signals (module docstring); ``doubts``: what the

@@ -189,6 +189,14 @@ def outline_on_grid(placement: FacePlacement, model: ShapeModel, shape: tuple[in
     return seen
 
 
+def features_on_grid(placement: FacePlacement, grid: tuple[int, int]) -> np.ndarray | None:
+    """(Hm, Wm) bool: the face's eyes, brows and lips on the model grid, from its landmarks (None without)."""
+    parts = [o for name in ("eyes", "brows", "lips") for o in placement.grid_outline(name)]
+    if not parts:
+        return None
+    return np.logical_or.reduce([polygon_mask(o, grid) for o in parts])
+
+
 def face_on_grid(image: np.ndarray, placement: FacePlacement, model: ShapeModel) -> tuple[np.ndarray, np.ndarray]:
     """A placed face as the fit sees it: (Hm, Wm) the photo ``image`` (H, W) resampled to the model grid,
     and (Hm, Wm) bool the model pixels the photo shows, inside the photo and inside the outline the fit

@@ -282,13 +282,17 @@ def test_golden_recording_is_reproduced_whatever_the_thread_count(tmp_path):
 
 def test_an_older_releases_dense_recording_still_reads_and_diffs_equal():
     """``golden-64-dense.mcap``: the golden run as an earlier release recorded it, every array dense
-    (before masked messages) and its albedo filled as the paper fills it. It reads, and equals
-    today's golden on every channel but the four the albedo's fill ceiling changed."""
+    (before masked messages) and its albedo filled as the paper fills it. It reads, and equals today's
+    golden on every channel of its second face but the four the albedo changed (its fill ceiling, then
+    its measurement only where the photo shows the face). Its first face's fit moved since: the render's
+    black beyond the face, inside the model's edge, is left out as what covers the face (``cover.py``)."""
     old, new = read_mcap(GOLDEN.with_name("golden-64-dense.mcap")), read_mcap(GOLDEN)
     diffs = diff_recordings(old, new, atol=1e-6, rtol=1e-5)
-    assert {d.channel for d in diffs} == {"albedo/albedo", "integrate/mesh/colours", "relight/relit",
-                                          "relight/novel_view"}, diffs
-    assert all(d.iteration is None for d in diffs)  # no fit iteration differs
+    second = [d for d in diffs if d.frame == 1]
+    assert {d.channel for d in second} == {"albedo/albedo", "integrate/mesh/colours", "relight/relit",
+                                           "relight/novel_view"}, second
+    assert all(d.iteration is None for d in second)  # no fit iteration differs
+    assert {d.channel for d in diffs if d.frame == 0 and d.iteration is not None} >= {"robust_fit/normals"}
     assert len(old.finished_frames()) == 2
 
 

@@ -46,8 +46,9 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     scene = render_scene(depth[0], 1.0, s, model.mask)
     grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), method_nodes(model, options))
     _check(grid_added)
-    # the render's way in gives the method every entry the photo's does, bar the photo's bounds and placement
-    assert set(frame.data) - set(grid_frame.data) == {"grid_valid", "eyes_found", "placement"}
+    # the render's way in gives the method every entry the photo's does, bar the photo's bounds, what covers the
+    # face in it and its placement
+    assert set(frame.data) - set(grid_frame.data) == {"grid_valid", "grid_covered", "eyes_found", "placement"}
 
 
 def _frame_keys_in_code(path):

@@ -9,7 +9,7 @@ import pytest
 from conftest import SHARED
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.quality import explained_variance
+from shadowflow.nodes.method.quality import explained_variance, unread_weights
 from shadowflow.nodes.method.robust_fit.robust import huber_weights
 
 FRAME = (240, 320)  # a photo's height and width
@@ -212,3 +212,14 @@ def test_yaleb_photos_are_not_flagged(tmp_path):
                     "--record", "none"], capture_output=True, timeout=900)
     summary = json.loads((out / "summary.json").read_text())
     assert [r["status"] for r in summary] == ["ok"] * len(photos), [r["status"] for r in summary if r["status"] != "ok"]
+
+
+def test_pixels_the_fit_left_out_are_weighed_as_the_fit_would_have():
+    """``unread_weights``: Huber's weight of the angle between a fitted normal's cone and its brightness's."""
+    light = np.array([0.0, 0.0, 1.0])
+    tilt = np.radians([0.0, 10.0, 40.0])  # fitted normals tilted from the light: n . s = cos(tilt)
+    normals = np.column_stack([np.sin(tilt), np.zeros(3), np.cos(tilt)])
+    intensity = np.cos(np.radians([5.0, 10.0, 0.0]))  # on cones 5, 10 and 0 degrees from the light
+    w = unread_weights(intensity, normals, light, threshold=np.radians(8.0))
+    # 5 degrees off: within the threshold; on its own cone: 1; 40 degrees off: 8 / 40
+    np.testing.assert_allclose(w, [1.0, 1.0, 0.2], atol=1e-9)
