@@ -115,9 +115,11 @@ def lit_weight(photo: np.ndarray, lit: np.ndarray, face: np.ndarray, feather_px:
     img = np.atleast_3d(photo)
     clipped = np.any(img >= CLIPPED, axis=-1)
     hard = face & lit
-    soft = blur(hard.astype(np.float32), feather_px)
-    # feather inward only, from the shadows and the face's edge; clipped pixels (specks of shine, mostly)
-    # are cut out without a feather of their own (their own feather changed nothing measurable)
+    # feather inward only, from the shadows: not from the face's edge, where the relit face fades into the photo
+    # anyway (``inner_alpha``), and where a fill half-trusted drew a line of skin over the hair beside the face;
+    # clipped pixels (specks of shine, mostly) are cut out without a feather of their own (their own feather
+    # changed nothing measurable)
+    soft = blur((hard | ~face).astype(np.float32), feather_px)
     soft = np.where(hard & ~clipped, soft, 0.0)
     return np.clip(2.0 * soft - 0.5, 0.0, 1.0)
 
