@@ -24,7 +24,14 @@ import numpy as np
 from ...flow.frame import Frame
 from ...flow.replay import printable
 from ..method.live_relight import BEYOND, CLIPPED_BIT, FACE, RIM, SKIN, LiveFace
-from ..method.photo_relight import CLIP_RATIO_FLOOR, DETAIL_SHARE, LIT_SHADING, RATIO_BEYOND, RATIO_OUTSIDE
+from ..method.photo_relight import (
+    CLIP_RATIO_FLOOR,
+    DETAIL_SHARE,
+    LIT_SHADING,
+    RATIO_BEYOND,
+    RATIO_OUTSIDE,
+    SHINE_LOBE,
+)
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb
@@ -109,7 +116,7 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"{html.escape(printable(str(rec.get('status', ''))))}<td>{html.escape(str(rec.get('found', '')))}"
                     f"<td>{_deg(pose.get('yaw'))} / {_deg(pose.get('pitch'))} / {_deg(pose.get('roll'))}"
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
-    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING,
+    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING, "SHINE_LOBE": SHINE_LOBE,
                  "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
                  "BEYOND": BEYOND, "RATIO_BEYOND": RATIO_BEYOND, "DETAIL_SHARE": DETAIL_SHARE,
                  "CAST_REACH": SOFT_CAST_REACH}
@@ -312,14 +319,19 @@ function render(f, light) {
   const N = f.h * f.w, C = f.c, scale = f.albedo_scale / 65535, a = f.ambient;
   const lighting = new Float32Array(N), unexposed = new Float32Array(N * C), skinLit = [];
   const pl = f.photo_light, old = new Float32Array(N);
+  // shine_lobe: the halfway vectors of the photo's light and the new one with the view (+z)
+  const half = l => { const v = [l[0], l[1], l[2] + 1], m = Math.max(Math.hypot(...v), 1e-9); return v.map(x => x / m); };
+  const h = half(pl), h2 = half(s);
   for (let i = 0; i < N; i++) {
     const nx = f.normals16[3 * i] / 32767, ny = f.normals16[3 * i + 1] / 32767, nz = f.normals16[3 * i + 2] / 32767;
     const face = f.flags[i] & K.FACE;
     const shade = face ? (1 - cast[i]) * Math.max(nx * s[0] + ny * s[1] + nz * s[2], 0) : 0;
     lighting[i] = a + (1 - a) * shade;
     old[i] = a + (1 - a) * Math.max(nx * pl[0] + ny * pl[1] + nz * pl[2], 0);
-    // without_sheen: the photo's shine taken out as far as the new light darkens the skin
-    const drop = Math.min(Math.max(1 - lighting[i] / Math.max(old[i], 1e-3), 0), 1);
+    // without_sheen: the photo's shine taken out as far as the new light darkens the skin or moves its highlight
+    const nh = nx * h[0] + ny * h[1] + nz * h[2], nh2 = Math.max(nx * h2[0] + ny * h2[1] + nz * h2[2], 0);
+    const lobe = nh > 1e-3 ? Math.pow(Math.min(nh2 / nh, 1), K.SHINE_LOBE) : 1;
+    const drop = Math.min(Math.max(1 - Math.min(lighting[i] / Math.max(old[i], 1e-3), lobe), 0), 1);
     let mean = 0;
     for (let c = 0; c < C; c++) {
       const albedo = Math.max(f.albedo16[C * i + c] * scale - f.sheen16[C * i + c] * scale * drop, 0);

@@ -38,6 +38,7 @@ from .photo_relight import (
     reflection_map,
     shading_trust,
     sheen,
+    shine_lobe,
     skin,
     skin_exposure,
     smooth_coarse,
@@ -184,7 +185,7 @@ class FaceRelight:
         new_lighting = with_ambient(new_shading, self.ambient)
         # the albedo this light can trust: I / S also where S is small but S' is no larger
         light_albedo = without_sheen(self.albedo_for(self.trust_for(new_lighting)), self.shine, self.lighting,
-                                     new_lighting)
+                                     new_lighting, shine_lobe(self.normals, self.light, s))
         # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
         # a side light leaves the shadowed side dim, not black
         unexposed = light_albedo * new_lighting[..., None]

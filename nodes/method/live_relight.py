@@ -33,6 +33,7 @@ from .photo_relight import (
     exposure_gain,
     face_rim,
     quieted,
+    shine_lobe,
     smoothstep,
     with_ambient,
     without_sheen,
@@ -181,7 +182,7 @@ def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
 def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None) -> np.ndarray:
     """(h, w, C) float32 in [0, 1], in the photo's encoding: the preview with its face relit by
     ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (the albedo less the photo's shine where the light
-    darkens the skin, ``without_sheen``; ``S'`` the new shading, less the
+    darkens the skin or moves its highlight away, ``without_sheen``, ``shine_lobe``; ``S'`` the new shading, less the
     share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than the clipping proves,
     faded by ``alpha`` into the photo times the face's change of light at its border, which the photo
     around the face follows over the feather (``fade8``). cast: the light's cast shadow (``live_cast``), traced when None."""
@@ -198,7 +199,8 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     new = np.where(face, (1.0 - cast) * np.clip(normals @ s.astype(np.float32), 0.0, None), 0.0).astype(np.float32)
     lighting = with_ambient(new, live.ambient)
     old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
-    unexposed = without_sheen(albedo, shine, old, lighting) * lighting[..., None]
+    lobe = shine_lobe(normals, live.photo_light, s)
+    unexposed = without_sheen(albedo, shine, old, lighting, lobe) * lighting[..., None]
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
     bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]

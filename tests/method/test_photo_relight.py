@@ -449,3 +449,26 @@ def test_dark_hair_at_the_faces_edge_is_relit_as_the_hair_inside_it():
         ratio = np.nan_to_num(layer.relit).mean(axis=-1) / np.maximum(photo.mean(axis=-1), 1e-3)
         # measured: 0.65 / 4.9 at the edge against 0.68 / 5.2 inside; a half-trusted edge gave 4.0 / 31
         assert np.median(ratio[edge & dark]) < 1.5 * np.median(ratio[inside & dark]), az
+
+
+def test_a_highlight_stays_under_its_own_light_and_leaves_with_it():
+    """``shine_lobe``: the photo's shine is its light's reflection, brightest where the normal is halfway between
+    light and view; a new light moves that place. Under the photo's own light every pixel keeps all of it; at the
+    highlight's peak a light moved by 60 degrees keeps cos(30)^14 (13 %); a pixel facing the new halfway vector
+    better than the old keeps all (no shine is made); a cheek turned away from the new light keeps almost none.
+    With ``without_sheen`` the drop is the larger of the lobe's and the shading's."""
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+    from shadowflow.nodes.method.photo_relight import SHINE_LOBE, shine_lobe, without_sheen
+
+    old, new = light_from_angles(0, 0), light_from_angles(-60, 0)
+    half_new = (new + [0, 0, 1]) / np.linalg.norm(new + [0, 0, 1])
+    cheek = -np.sign(new[0]) * np.array([np.sin(np.radians(35)), 0.0, 0.0]) + [0.0, 0.0, np.cos(np.radians(35))]  # turned from it
+    normals = np.array([[[0.0, 0.0, 1.0], half_new, cheek]], np.float32)
+    np.testing.assert_array_equal(shine_lobe(normals, old, old), 1.0)
+    lobe = shine_lobe(normals, old, new)[0]
+    assert abs(lobe[0] - np.cos(np.radians(30)) ** SHINE_LOBE) < 1e-4, lobe
+    assert lobe[1] == 1.0 and lobe[2] < 0.01, lobe
+    albedo, shine = np.full((1, 3, 1), 0.9, np.float32), np.full((1, 3, 1), 0.3, np.float32)
+    lighting = np.full((1, 3), 0.8, np.float32)
+    out = without_sheen(albedo, shine, lighting, lighting, lobe[None])[0, :, 0]
+    np.testing.assert_allclose(out, 0.9 - 0.3 * (1.0 - lobe), atol=1e-6)
