@@ -116,10 +116,10 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                     f"{html.escape(printable(str(rec.get('status', ''))))}<td>{html.escape(str(rec.get('found', '')))}"
                     f"<td>{_deg(pose.get('yaw'))} / {_deg(pose.get('pitch'))} / {_deg(pose.get('roll'))}"
                     f"<td>{_light_text(rec.get('light'))}<td><a href=\"{html.escape(_face_dir(k + 1))}\">files</a>")
-    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING, "SHINE_LOBE": SHINE_LOBE,
+    constants = {"FACE": FACE, "SKIN": SKIN, "CLIPPED_BIT": CLIPPED_BIT, "RIM": RIM, "LIT_SHADING": LIT_SHADING,
                  "CLIP_RATIO_FLOOR": CLIP_RATIO_FLOOR, "FIELD_REACH": FIELD_REACH, "RATIO_OUTSIDE": list(RATIO_OUTSIDE),
                  "BEYOND": BEYOND, "RATIO_BEYOND": RATIO_BEYOND, "DETAIL_SHARE": DETAIL_SHARE,
-                 "CAST_REACH": SOFT_CAST_REACH}
+                 "CAST_REACH": SOFT_CAST_REACH, "SHINE_LOBE": SHINE_LOBE}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),
         name=html.escape(printable(os.path.basename(frame.source))),
@@ -320,7 +320,10 @@ function render(f, light) {
   const lighting = new Float32Array(N), unexposed = new Float32Array(N * C), skinLit = [];
   const pl = f.photo_light, old = new Float32Array(N);
   // shine_lobe: the halfway vectors of the photo's light and the new one with the view (+z)
-  const half = l => { const v = [l[0], l[1], l[2] + 1], m = Math.max(Math.hypot(...v), 1e-9); return v.map(x => x / m); };
+  const half = l => {
+    const v = [l[0], l[1], l[2] + 1], m = Math.max(Math.hypot(...v), 1e-9);
+    return v.map(x => x / m);
+  };
   const h = half(pl), h2 = half(s);
   for (let i = 0; i < N; i++) {
     const nx = f.normals16[3 * i] / 32767, ny = f.normals16[3 * i + 1] / 32767, nz = f.normals16[3 * i + 2] / 32767;

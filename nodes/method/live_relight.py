@@ -182,10 +182,11 @@ def live_cast(live: LiveFace, light: np.ndarray) -> np.ndarray:
 def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None) -> np.ndarray:
     """(h, w, C) float32 in [0, 1], in the photo's encoding: the preview with its face relit by
     ``light`` (3,), camera frame: ``albedo x (a + (1 - a) S')`` (the albedo less the photo's shine where the light
-    darkens the skin or moves its highlight away, ``without_sheen``, ``shine_lobe``; ``S'`` the new shading, less the
-    share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than the clipping proves,
-    faded by ``alpha`` into the photo times the face's change of light at its border, which the photo
-    around the face follows over the feather (``fade8``). cast: the light's cast shadow (``live_cast``), traced when None."""
+    darkens the skin or moves its highlight away, ``without_sheen``, ``shine_lobe``; ``S'`` the new shading, less
+    the share of a pixel its cast shadow covers), exposed as the photo's lit skin, clipped pixels no darker than
+    the clipping proves, faded by ``alpha`` into the photo times the face's change of light at its border, which
+    the photo around the face follows over the feather (``fade8``). cast: the light's cast shadow
+    (``live_cast``), traced when None."""
     s = np.asarray(light, np.float64)
     s = s / np.linalg.norm(s)
     cast = live_cast(live, s) if cast is None else cast

@@ -596,6 +596,7 @@ class QualityNode:
                    inside=float(np.mean(seen[core_face(m)[m.mask]])),
                    doubts=placement.doubts if placement is not None else (),
                    plausible=placement.plausible if placement is not None else True)
+        q.signals["covered"] = float(np.mean(unread[seen])) if seen.any() else 0.0  # hair the fit left out
         frame.meta["quality"] = q.record()
         if q.no_face:
             raise FrameFailed(f"{frame.source}: {NO_FACE} ({'; '.join(q.flags)})")
@@ -614,7 +615,8 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         IntegrateNode(model, options.integrator),
         ShadowNode(options.shadows, options.fit.dark_threshold),
         AlbedoNode(model, options.albedo_fill),
-        QualityNode(model, options.fit.huber_k),  # before the relighting: a frame with no face fails without paying for it
+        # before the relighting: a frame with no face fails without paying for it
+        QualityNode(model, options.fit.huber_k),
     ]
     if with_views:
         nodes += [RelightNode(options), PhotoRelightNode(model, options), NovelViewNode(model, options)]

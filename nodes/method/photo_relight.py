@@ -236,7 +236,8 @@ def without_sheen(albedo: np.ndarray, shine: np.ndarray, lighting: np.ndarray, n
     return np.clip(np.asarray(albedo, np.float32) - shine * drop[..., None], 0.0, None).astype(np.float32)
 
 
-def shine_lobe(normals: np.ndarray, light: np.ndarray, new_light: np.ndarray, exponent: float = SHINE_LOBE) -> np.ndarray:
+def shine_lobe(normals: np.ndarray, light: np.ndarray, new_light: np.ndarray,
+               exponent: float = SHINE_LOBE) -> np.ndarray:
     """(H, W) float32 in [0, 1]: how much of the photo's shine stays where it is under a new light. A highlight is
     the light's reflection toward the camera, brightest where the normal is halfway between the light and the
     view (Blinn-Phong: ``(n . h)^k``); under the new light that place moves to the new halfway vector ``h'``,

@@ -85,5 +85,6 @@ def test_the_astronauts_fringe_is_left_out_of_her_fit_and_nothing_below_her_brow
     middle = (cols > m.eyes[0, 0]) & (cols < m.eyes[1, 0]) & (rows > eye_row - 0.2 * np.ptp(m.eyes[:, 0])) \
         & (rows < lips_bottom)
     assert not (covered & middle).any()  # her face between her eyes and down to her lips is all fitted
+    assert abs(p.quality["covered"] - covered.sum() / (outline & face.data["grid_valid"]).sum()) < 1e-3
     # and hair it is: darker than the rest of her face by more than half
     assert np.median(face.data["grid_image"][covered]) < 0.5 * np.median(face.data["grid_image"][outline & ~covered])
