@@ -104,15 +104,16 @@ def test_every_composited_face_is_found_and_relit_as_its_tight_crop_is(subjects,
         rows.append((path.name, share, round(roll), scene - carried))
     deltas = np.array([r[3] for r in rows])
     print("\n".join(f"{name} {share:.2f} roll {roll:+d}: {d:+.2f} dB" for name, share, roll, d in rows))
-    # measured: mean -0.13 dB, each -0.90..+0.64 dB (before hair and the dark head drawn around a crop, inside
+    # measured: mean +0.02 dB, each -0.88..+0.68 dB (before hair and the dark head drawn around a crop, inside
     # the face's outline, were left out of the fit and the albedo, nodes/photo/cover.py: mean -0.49, each
-    # -1.84..+0.42; docs/accuracy.md, "What covers a face"). Scored where the scene is wholly the crop; with the
+    # -1.84..+0.42; with hair left out but before the shine moved with its light, mean -0.13; docs/accuracy.md,
+    # "What covers a face"). Scored where the scene is wholly the crop; with the
     # pasted border's blend in the score the smallest faces came out up to 5.4 dB "better" than their crop.
     # Before the room's light was read on the face's core only, a large face lost 3.2-3.9 dB (B03 at 0.45
     # and 0.6: its outline's rim, hair and background, lit the room up to half the lamp). What is left: the
     # drawn head on the face's shadowed side, where darkness says nothing (left out by hand, 0.3-0.4 dB more),
     # and the placement (the crop's own eyes given: within 0.1 dB)
-    assert deltas.mean() > -0.35 and deltas.min() > -1.4, [(r[0], r[1], round(r[3], 2)) for r in rows]
+    assert deltas.mean() > -0.25 and deltas.min() > -1.3, [(r[0], r[1], round(r[3], 2)) for r in rows]
 
 
 @pytest.mark.slow
