@@ -299,19 +299,19 @@ class FacesNode:
         grid_image, seen = face_on_grid(d["image"], placement, m)
         if "light" in d:
             light, how = np.asarray(d["light"], np.float64), frame.meta.get("light_source", "given")
-            covered = covered_on_grid(grid_image, seen, placement, m, al.vector_to_model(light))
         else:
             use = seen.copy()
             if "colour" in d:  # the skin only: hair over the forehead, brows and eyes are dark but not shaded
                 grid_colour = to_model_grid(d["colour"], al, m.grid)
                 use &= skin(grid_colour, use & m.mask)
-            estimate = light_on_face(grid_image, use, m)
-            # not estimated again without what covers the face: on the five Yale B subjects that moved the light by
-            # -0.5 to +0.6 degrees (means per light), B05's at +25 from 4.4 to 10.2 and at +35,+15 from 6.9 to 11.9
-            covered = covered_on_grid(grid_image, seen, placement, m, estimate)
-            light, how = al.vector_to_input(estimate), "estimated"
+            light, how = al.vector_to_input(light_on_face(grid_image, use, m)), "estimated"
+        grid_light = al.vector_to_model(light)
+        # judged under the light found above: estimated again without what covers the face, on the five Yale B
+        # subjects the light moved by -0.5 to +0.6 degrees (means per light), B05's at +25 from 4.4 to 10.2 and at
+        # +35,+15 from 6.9 to 11.9
+        covered = covered_on_grid(grid_image, seen, placement, m, grid_light)
         face.data.update(alignment=al, placement=placement, eyes_found=placement.found, grid_image=grid_image,
-                         grid_valid=seen, grid_covered=covered, light=light, grid_light=al.vector_to_model(light))
+                         grid_valid=seen, grid_covered=covered, light=light, grid_light=grid_light)
         face.meta.update(alignment=al.how, light=[round(float(x), 6) for x in light], light_source=how,
                          placement=placement.record())
         return face

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .robust_fit.robust import huber_weights
+
 NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
 
 # thresholds set between real and rendered faces (good) and the hostile corpus of tests/method/test_quality.py
@@ -96,8 +98,7 @@ def unread_weights(intensity: np.ndarray, model_normals: np.ndarray, light: np.n
     intensity (N,) remapped brightness; model_normals (N, 3); light (3,) unit, both model frame."""
     on_cone = np.arccos(np.clip(np.asarray(intensity, np.float64), 0.0, 1.0))
     fitted = np.arccos(np.clip(np.asarray(model_normals, np.float64) @ np.asarray(light, np.float64), -1.0, 1.0))
-    distance = np.abs(on_cone - fitted)
-    return np.where(distance <= threshold, 1.0, threshold / np.maximum(distance, 1e-12))
+    return huber_weights(on_cone - fitted, threshold)
 
 
 def assess(eyes: str, explained: float, downweighted: float, clipped: float, inside: float,

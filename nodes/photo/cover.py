@@ -14,9 +14,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
-from .placement import FacePlacement, features_on_grid
+from .placement import FacePlacement, features_on_grid, outline_mask
 
 # a pixel under this share of the face's typical brightness-to-shading ratio is not lit skin: the astronaut's hair
 # is a third of her face's; the head the composite photos draw around a Yale B crop 0.4-0.5 of its skin, missed at
@@ -73,6 +72,6 @@ def covered_on_grid(grid_image: np.ndarray, seen: np.ndarray, placement: FacePla
     fit trusts (the model's own edge without landmarks); the landmarks' eyes, brows and lips are kept.
     grid_image (Hm, Wm) linear brightness on the model grid; seen (Hm, Wm) bool."""
     shading = model.to_image(model.mean_normals @ np.asarray(grid_light, np.float64))
-    outline = placement.grid_outline("fit") or placement.grid_outline("oval")
-    inside = polygon_mask(outline[0], model.grid) & model.mask if outline else model.mask
+    outline = outline_mask(placement, model.grid, "fit")
+    inside = model.mask if outline is None else outline & model.mask
     return covered_pixels(grid_image, seen & model.mask, shading, ~inside, features_on_grid(placement, model.grid))

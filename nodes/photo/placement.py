@@ -178,15 +178,19 @@ def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | Non
     return [place_found(model, f, shape, face_length) for f in find_faces(photo_rgb)]
 
 
+def outline_mask(placement: FacePlacement, grid: tuple[int, int], name: str = "oval") -> np.ndarray | None:
+    """(Hm, Wm) bool: the model pixels inside the face's outline ``name`` (``oval``: the face's own; ``fit``: what
+    its fit trusts, when that is narrower, else the oval); None when the face mesh drew none."""
+    outline = placement.grid_outline(name) or placement.grid_outline("oval")
+    return polygon_mask(outline[0], grid) if outline else None
+
+
 def outline_on_grid(placement: FacePlacement, model: ShapeModel, shape: tuple[int, int], name: str = "oval") -> np.ndarray:
     """(Hm, Wm) bool: the model pixels inside a photo of ``shape`` (H, W) and inside the face's outline
-    ``name`` (``oval``: the face's own; ``fit``: what its fit trusts, when that is narrower) when the face
-    mesh drew one."""
+    ``name`` (``outline_mask``) when the face mesh drew one."""
     seen = inside_input(placement.alignment, shape, model.grid)
-    outline = placement.grid_outline(name) or placement.grid_outline("oval")
-    if outline:
-        seen &= polygon_mask(outline[0], model.grid)
-    return seen
+    outline = outline_mask(placement, model.grid, name)
+    return seen if outline is None else seen & outline
 
 
 def features_on_grid(placement: FacePlacement, grid: tuple[int, int]) -> np.ndarray | None:
