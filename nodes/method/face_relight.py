@@ -28,6 +28,7 @@ from .photo_relight import (
     axis_distance,
     clipped_floor,
     exposure_target,
+    glints,
     grow,
     inner_alpha,
     lit_weight,
@@ -63,6 +64,8 @@ FILL_DETAIL_AXIS = (0.05, 0.2)
 # everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
 # ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
 INNER_MARGIN = 4
+# the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints
+GLINT_FEATURE_MARGIN = 0.05
 
 
 class FaceRelight:
@@ -77,7 +80,8 @@ class FaceRelight:
     or None. eyes: (2, 2) the eyes' centres in photo pixels where a face mesh found them, else None
     (no eye detail: a render without eye texture has no eye to show). midline: (2, 2) two points of the
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
-    for a turned face); fill_detail: that detail's strength (0: none). segment: (h, w, C) linear photo -> (h, w) how
+    for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
+    brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour). segment: (h, w, C) linear photo -> (h, w) how
     sure a segmentation is that each pixel is the person (``mediapipe.person_share``), or None (the whole feather).
     """
 
@@ -85,7 +89,8 @@ class FaceRelight:
                  normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, depth: np.ndarray, light: np.ndarray,
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
-                 fill_detail: float = FILL_DETAIL, segment: Callable[[np.ndarray], np.ndarray] | None = None):
+                 fill_detail: float = FILL_DETAIL, features: list[np.ndarray] | None = None,
+                 segment: Callable[[np.ndarray], np.ndarray] | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -137,7 +142,13 @@ class FaceRelight:
         # ambient, so a photo with fill light keeps its own pixels further round the face; what is not skin
         # (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the fitted shading
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
-        self.not_skin = face_lit & ~face_skin if photo.shape[-1] == 3 else np.zeros_like(face_lit)
+        # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
+        self.glints = np.zeros_like(face_lit)
+        if features:
+            parts = np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], shape) for o in features])
+            self.glints = glints(photo, self.skin_only, face_lit, SHEEN_SCALE * iod_px,
+                                 grow(parts, GLINT_FEATURE_MARGIN * iod_px))
+        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.fill_detail = fill_detail if midline is not None else 0.0
         self.detail = None  # the detail seen across the face and its trust, once, from the light-independent trust
         if self.fill_detail > 0:
@@ -153,7 +164,7 @@ class FaceRelight:
             self.detail = (detail, (seen * near).astype(np.float32))
         self.albedo = self.albedo_for(self.trust_for())
         # the photo's shine, which a new light takes out where it darkens the skin (``without_sheen``)
-        self.shine = sheen(self.albedo, self.skin_only, self.measured > 0.5, SHEEN_SCALE * iod_px)
+        self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
 

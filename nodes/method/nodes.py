@@ -559,6 +559,8 @@ class PhotoRelightNode:
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
             light=d["light"], iod_px=iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
             eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
+            features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
+            if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")))
 
 

@@ -65,6 +65,10 @@ RIM_SHARE = 0.35
 # interocular distances) is the photo's specular shine, not the skin's colour (``sheen``)
 SHEEN_MARGIN = 1.1
 SHEEN_SCALE = 0.15
+# a glint (``glints``): skin's colour plus white to within this share of the pixel's colour, with at least this
+# share of the skin's level around it under the white
+GLINT_FIT = 0.05
+GLINT_DIFFUSE = 0.4
 # how sharp skin's shine is (``shine_lobe``): the Blinn-Phong exponent 2 / m^2 - 2 of the Beckmann roughness
 # m = 0.35 measured on faces (Weyrich et al. 2006): the peak of a highlight keeps 13 % of itself under a light
 # moved by 60 degrees, a cheek's shine beside it under 1 %
@@ -206,6 +210,48 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
     filled = base[..., None] * gain
     out = w[..., None] * measured + (1.0 - w[..., None]) * filled
     return np.where(face[..., None], np.clip(out, 0.0, None), np.nan).astype(np.float32)
+
+
+def glints(photo: np.ndarray, skin: np.ndarray, where: np.ndarray, sigma_px: float,
+           features: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) bool: the pixels of ``where`` (H, W) bool that are skin with the light's white reflection on it, too
+    white to pass ``skin``'s colour test. Each is brighter than the skin's level around it (the average over
+    ``sigma_px`` of ``skin`` (H, W) bool) and its colour ``c`` (linear RGB) is the skin's median colour ``m`` times
+    ``a`` plus white ``k (1, 1, 1)``, ``k > 0``, to within ``GLINT_FIT`` of ``|c|``; and its patch of such pixels
+    holds one with skin under the white, at least ``GLINT_DIFFUSE`` of that level in ``a`` (a highlight's core is
+    white, the skin's colour showing at its rim). Not in ``features`` (H, W) bool (eyes, teeth, lips, brows: white
+    or bright, and theirs). A grey photo has no colour to tell by: ``skin`` is all of it there, and none are glints.
+
+    A highlight on a forehead or a cheek is whiter than the skin around it; told apart from the skin by its colour
+    alone it was kept as the photo shows it, like an eye, and stayed as a pale patch on a cheek relit into shadow.
+    A grey wall or white hair (no skin under the white at its rim) and a lip (not the skin's colour) are not."""
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    out = np.zeros(where.shape, bool)
+    if img.shape[-1] != 3 or skin.sum() <= 50:
+        return out
+    m = np.median(img[skin], axis=0).astype(np.float64)
+    m = m / max(float(m.mean()), 1e-6)  # the skin's colour at brightness 1 (mean of the channels)
+    basis = np.stack([m, np.ones(3)], axis=1)  # (3, 2): skin, white
+    cand = where & ~skin
+    if features is not None:
+        cand &= ~features
+    if not cand.any():
+        return out
+    c = img[cand].astype(np.float64)  # (n, 3)
+    ak = c @ np.linalg.pinv(basis).T  # (n, 2) least squares: c ~ a m + k 1
+    fit_error = np.linalg.norm(c - ak @ basis.T, axis=1) / np.maximum(np.linalg.norm(c, axis=1), 1e-6)
+    level, _ = weighted_blur(img.mean(axis=-1), skin.astype(np.float32), sigma_px)
+    lv = level[cand].astype(np.float64)
+    white = (fit_error < GLINT_FIT) & (ak[:, 1] > 0.0) & (c.mean(axis=1) > lv)
+    patches = np.zeros(where.shape, np.uint8)
+    patches[cand] = white
+    seeds = np.zeros(where.shape, bool)
+    seeds[cand] = white & (ak[:, 0] >= GLINT_DIFFUSE * lv)
+    count, labels = cv2.connectedComponents(patches, connectivity=8)
+    keep = np.zeros(count, bool)
+    keep[np.unique(labels[seeds])] = True
+    keep[0] = False
+    return keep[labels]
 
 
 def sheen(albedo: np.ndarray, skin: np.ndarray, trusted: np.ndarray, sigma_px: float,

@@ -414,6 +414,66 @@ def test_the_photos_shine_leaves_the_skin_a_new_light_darkens_and_stays_under_it
     assert abs(half[peak][0] - (albedo[peak][0] - 0.5 * shine[peak][0])) < 1e-6
 
 
+def test_a_highlight_too_white_to_pass_as_skin_is_found_as_shine_and_nothing_white_beside_it():
+    """``glints``: linear skin (0.7, 0.48, 0.33) with a highlight of white added (+0.5 at its peak: its core, clipped
+    to 1 in red, is almost white), a grey wall inside the face's edge, a white tooth under the mouth's outline and a
+    red lip. What of the highlight is too white for the skin's colour is found, its near-white core too; the wall,
+    the tooth, the lip and the skin are not. A grey photo has none."""
+    from shadowflow.nodes.method.photo_relight import glints, skin
+
+    yy, xx = np.mgrid[0:100, 0:100].astype(np.float32)
+    face = (xx - 50) ** 2 + (yy - 50) ** 2 < 45**2
+    colour = np.array([0.7, 0.48, 0.33], np.float32)
+    spot = np.exp(-((xx - 30) ** 2 + (yy - 45) ** 2) / (2 * 4.0**2))
+    photo = (colour * (0.9 + 0.1 * xx / 100)[..., None] + 0.5 * spot[..., None]).astype(np.float32)
+    wall = face & (xx > 85)
+    photo[wall] = 0.8
+    tooth = (np.abs(xx - 55) < 4) & (np.abs(yy - 75) < 3)
+    photo[tooth] = (0.85, 0.82, 0.75)
+    lip = (np.abs(xx - 55) < 8) & (np.abs(yy - 82) < 2)
+    photo[lip] = (0.55, 0.2, 0.2)
+    photo = np.clip(photo, 0.0, 1.0)
+    mouth = (np.abs(xx - 55) < 9) & (np.abs(yy - 78) < 7)
+    skin_px = skin(photo, face)
+    found = glints(photo, skin_px, face, 15.0, mouth)
+    highlight = face & (spot > 0.15)
+    assert not skin_px[(yy.astype(int) == 45) & (xx.astype(int) == 30)].any()  # its core fails the skin's colour
+    assert (highlight & ~skin_px).sum() > 10 and found[highlight & ~skin_px].all()  # the rest passes as skin
+    assert not found[wall | mouth | (face & (spot < 0.01))].any()
+    assert not glints(photo.mean(axis=-1, keepdims=True), face, face, 15.0).any()
+
+
+def test_the_astronauts_cheek_relit_into_shadow_keeps_no_pale_patch_of_her_highlight():
+    """The astronaut relit from 60 degrees to her left (her right cheek into shadow): the highlight on that cheek,
+    nearly white in the photo (1.13x the skin around it), comes back as bright as that skin (measured 1.02x in the
+    sRGB luma; 1.15x, a pale patch, when a pixel too white for the skin's colour was kept as the photo shows it)."""
+    skimage = pytest.importorskip("skimage")
+    import dataclasses
+
+    import shadowflow
+    from shadowflow.nodes.geometry.raster import polygon_mask
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    rgb = np.ascontiguousarray(skimage.data.astronaut())
+    run = shadowflow.fit(rgb, options=dataclasses.replace(shadowflow.MethodOptions(),
+                                                          extra_lights=(light_from_angles(-60, 10),)))
+    relit, photo = run.relit_extra[0][1], rgb.astype(np.float32) / 255.0
+    parts = np.zeros(run.mask.shape, bool)
+    for part in ("eyes", "brows", "lips", "mouth"):
+        for poly in run.frame.data["placement"].outlines[part]:
+            parts |= polygon_mask(poly, parts.shape)
+    parts = ndimage.binary_dilation(parts, iterations=3)
+    luma = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    darkened = run.mask & (relit @ luma < 0.6 * (photo @ luma))
+    labels, n = ndimage.label(run.mask & ~parts & darkened & (photo.min(axis=-1) >= 225 / 255))
+    blobs = [labels == k for k in range(1, n + 1) if (labels == k).sum() >= 3]
+    assert blobs  # the cheek's highlight, 9 pixels at (198, 122)
+    for blob in blobs:
+        ring = ndimage.binary_dilation(blob, iterations=4) & ~ndimage.binary_dilation(blob) & run.mask & ~parts
+        pale = (relit @ luma)[blob].mean() / np.median((relit @ luma)[ring])
+        assert pale < 1.07, (np.argwhere(blob).mean(axis=0), pale)
+
+
 def test_the_photos_own_pixels_are_trusted_up_to_the_faces_edge_and_feathered_from_shadows_only():
     """``lit_weight``: lit face pixels keep their own I / S up to the face's edge (the relit face fades into
     the photo there anyway); a shadow's edge is feathered. A half-trusted edge took the fill, skin, and drew a
