@@ -82,7 +82,8 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
                   f"<td>{_text(_reason(source, status))}" for source, step, status in failed]
         parts.append("</table>")
     head = "\n".join(parts)
-    sheet = (f"<h2>Every frame ({n_ok})</h2><table class=sheet><tr><th>frame<th>input<th>weights"
+    # the sheet scrolls within its own box: wider than a laptop's window, it gave the whole page a scrollbar
+    sheet = (f"<h2>Every frame ({n_ok})</h2><div class=wide><table class=sheet><tr><th>frame<th>input<th>weights"
              + "".join(f"<th>{name}" for name, _ in LINKED) + "</tr>")
 
     def page():  # card by card and row by row: 2,000 frames' embedded pictures are tens of MB
@@ -101,7 +102,7 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
         for r in records:  # and again, a row at a time
             if _written(out, r):
                 yield ("\n" + _row(out, r, thumbs.pop(r["stem"], None))).encode()
-        yield f"\n</table><script>{SLIDER_SCRIPT}</script></body></html>\n".encode()
+        yield f"\n</table></div><script>{SLIDER_SCRIPT}</script></body></html>\n".encode()
 
     return atomic_write_chunks(out / REPORT_NAME, page())
 
@@ -347,7 +348,7 @@ _HEAD = """<!doctype html><html lang=en><head><meta charset=utf-8><title>{title}
 <style>""" + SLIDER_STYLE.replace("{", "{{").replace("}", "}}") + """
 body {{ font: 14px/1.4 system-ui, sans-serif; margin: 24px; color: #222; }}
 h1 {{ font-size: 22px; margin: 0 0 4px; }} h2 {{ font-size: 17px; margin: 24px 0 8px; }}
-.meta {{ color: #666; }} .plot {{ max-width: 100%; }}
+.meta {{ color: #666; }} .plot {{ max-width: 100%; }} .wide {{ overflow-x: auto; max-width: 100%; }}
 table {{ border-collapse: collapse; }} td, th {{ padding: 4px 6px; vertical-align: top; text-align: left; }}
 .sheet tr:nth-child(even) {{ background: #f4f4f4; }} .sheet img {{ display: block; image-rendering: pixelated; }}
 .facts {{ min-width: 210px; font-size: 13px; }} .ok {{ color: #1a7f37; }} .doubtful {{ color: #b35900; }}

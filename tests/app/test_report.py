@@ -62,6 +62,19 @@ def test_a_real_browser_renders_the_report(run_with_a_failure, tmp_path):
     assert np.mean(grey < 200) > 0.10  # the plot and the pictures drawn, not a blank or broken page
 
 
+@pytest.mark.skipif(BROWSER is None, reason="no headless browser (apt-get install chromium)")
+def test_the_report_fits_a_laptops_window_and_its_sheet_scrolls_in_its_own_box(run_with_a_failure, tmp_path):
+    """At 1000 px the page is no wider than its window (the contact sheet, 1,086 px wide with its margin, scrolls in its own box;
+    it gave the whole page a horizontal scrollbar)."""
+    probe = tmp_path / "probe.html"
+    probe.write_text((run_with_a_failure / "report.html").read_text().replace(
+        "</body>", '<script>document.body.dataset.width = document.documentElement.scrollWidth</script></body>'))
+    dom = subprocess.run([BROWSER, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1000,800",
+                          "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    width = re.search(r'data-width="(\d+)"', dom)
+    assert width is not None and 0 < int(width.group(1)) <= 1000, width
+
+
 def test_the_run_makes_its_cards_pictures_as_the_report_would_read_them_back(tmp_path, monkeypatch):
     """A colour photo's card: the run makes its before/after pictures while it holds the photo and its relit
     file, so the report reads neither back, and they are the pictures the report makes from the files."""
