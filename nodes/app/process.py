@@ -8,6 +8,12 @@ from typing import Callable, Iterator
 
 from ...flow.blas import single_threaded_blas
 
+# glibc's allocator (``release_large_frees``): arrays from 4 MiB (a 1 MP photo's plane) are mapped and given back
+# when freed; smaller ones (a fit's buffers, 1-4 MB at 128², a face's box at 4 MP) are reused from the heap, which
+# keeps 4 MiB of freed memory at its top before it gives any back
+MMAP_THRESHOLD = 4 << 20
+TRIM_THRESHOLD = 4 << 20
+
 
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
@@ -20,17 +26,22 @@ def one_blas_thread() -> Iterator[None]:
 
 
 def release_large_frees() -> None:
-    """glibc only: serve arrays of 1 MiB and more by ``mmap`` (``M_MMAP_THRESHOLD``), so that their
-    memory goes back to the system when freed, and keep to two malloc arenas (``M_ARENA_MAX``).
+    """glibc only: serve arrays of ``MMAP_THRESHOLD`` and more by ``mmap`` (``M_MMAP_THRESHOLD``), so that their
+    memory goes back to the system when freed, keep to two malloc arenas (``M_ARENA_MAX``), and let a heap keep
+    up to ``TRIM_THRESHOLD`` of freed memory at its top (``M_TRIM_THRESHOLD``).
     By default glibc raises the mmap threshold up to 32 MiB as arrays are freed, and a large
     photo's arrays then stay in per-thread heaps: a 33 MP photo's run peaked at 860 MB RSS
     instead of 660 (``benchmarks/bench_photo.py --scale 25 --jpeg``); and each of the pipeline's
     dozen threads gets an arena of its own, whose freed pieces other threads cannot reuse: RSS
     grew by about 40 kB a frame (192 -> 207 MiB over 360 unrecorded frames; flat with two
-    arenas, ``benchmarks/bench_soak.py``). Call it before the threads start. Elsewhere: nothing."""
+    arenas, ``benchmarks/bench_soak.py``). Setting the mmap threshold fixes the trim threshold at its
+    128 kiB default too: every array of a megabyte or more, a fit's (2N, K) modes product each step, came
+    from fresh pages, zeroed by the kernel, and a 128² face's fit took 48 ms instead of 35 (docs/speed.md).
+    Call it before the threads start. Elsewhere: nothing."""
     mallopt = _libc_function("mallopt")
     if mallopt is not None:
-        mallopt(-3, 1 << 20)  # M_MMAP_THRESHOLD
+        mallopt(-3, MMAP_THRESHOLD)  # M_MMAP_THRESHOLD
+        mallopt(-1, TRIM_THRESHOLD)  # M_TRIM_THRESHOLD
         mallopt(-8, 2)  # M_ARENA_MAX
 
 
