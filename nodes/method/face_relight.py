@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from ..geometry.raster import polygon_mask
@@ -64,8 +65,11 @@ FILL_DETAIL_AXIS = (0.05, 0.2)
 # everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
 # ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
 INNER_MARGIN = 4
-# the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints
+# the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints; nor is
+# anything this near the face's edge; and a glint is this near a pixel with the skin's colour under its white
 GLINT_FEATURE_MARGIN = 0.05
+GLINT_EDGE = 0.1
+GLINT_REACH = 0.1
 
 
 class FaceRelight:
@@ -81,7 +85,8 @@ class FaceRelight:
     (no eye detail: a render without eye texture has no eye to show). midline: (2, 2) two points of the
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
     for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
-    brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour). segment: (h, w, C) linear photo -> (h, w) how
+    brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
+    segment: (h, w, C) linear photo -> (h, w) how
     sure a segmentation is that each pixel is the person (``mediapipe.person_share``), or None (the whole feather).
     """
 
@@ -146,8 +151,10 @@ class FaceRelight:
         self.glints = np.zeros_like(face_lit)
         if features:
             parts = np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], shape) for o in features])
-            self.glints = glints(photo, self.skin_only, face_lit, SHEEN_SCALE * iod_px,
-                                 grow(parts, GLINT_FEATURE_MARGIN * iod_px))
+            # not at the face's edge either, where skin blends into a bright wall or white hair as skin and white do
+            inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, 3) > GLINT_EDGE * iod_px
+            self.glints = glints(photo, self.skin_only, face_lit & inside, SHEEN_SCALE * iod_px,
+                                 grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
         self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.fill_detail = fill_detail if midline is not None else 0.0
         self.detail = None  # the detail seen across the face and its trust, once, from the light-independent trust

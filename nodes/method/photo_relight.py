@@ -213,14 +213,15 @@ def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coa
 
 
 def glints(photo: np.ndarray, skin: np.ndarray, where: np.ndarray, sigma_px: float,
-           features: np.ndarray | None = None) -> np.ndarray:
+           features: np.ndarray | None = None, reach_px: float | None = None) -> np.ndarray:
     """(H, W) bool: the pixels of ``where`` (H, W) bool that are skin with the light's white reflection on it, too
     white to pass ``skin``'s colour test. Each is brighter than the skin's level around it (the average over
     ``sigma_px`` of ``skin`` (H, W) bool) and its colour ``c`` (linear RGB) is the skin's median colour ``m`` times
     ``a`` plus white ``k (1, 1, 1)``, ``k > 0``, to within ``GLINT_FIT`` of ``|c|``; and its patch of such pixels
     holds one with skin under the white, at least ``GLINT_DIFFUSE`` of that level in ``a`` (a highlight's core is
-    white, the skin's colour showing at its rim). Not in ``features`` (H, W) bool (eyes, teeth, lips, brows: white
-    or bright, and theirs). A grey photo has no colour to tell by: ``skin`` is all of it there, and none are glints.
+    white, the skin's colour showing at its rim), within ``reach_px`` of it when given (a highlight is small: white
+    hair or a wall that one touches is not taken whole). Not in ``features`` (H, W) bool (eyes, teeth, lips, brows:
+    white or bright, and theirs). A grey photo has no colour to tell by: ``skin`` is all of it there, and none are.
 
     A highlight on a forehead or a cheek is whiter than the skin around it; told apart from the skin by its colour
     alone it was kept as the photo shows it, like an eye, and stayed as a pale patch on a cheek relit into shadow.
@@ -251,7 +252,10 @@ def glints(photo: np.ndarray, skin: np.ndarray, where: np.ndarray, sigma_px: flo
     keep = np.zeros(count, bool)
     keep[np.unique(labels[seeds])] = True
     keep[0] = False
-    return keep[labels]
+    out = keep[labels]
+    if reach_px is not None and seeds.any():
+        out &= cv2.distanceTransform((~seeds).astype(np.uint8), cv2.DIST_L2, 3) <= reach_px
+    return out
 
 
 def sheen(albedo: np.ndarray, skin: np.ndarray, trusted: np.ndarray, sigma_px: float,

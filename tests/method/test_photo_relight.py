@@ -416,9 +416,10 @@ def test_the_photos_shine_leaves_the_skin_a_new_light_darkens_and_stays_under_it
 
 def test_a_highlight_too_white_to_pass_as_skin_is_found_as_shine_and_nothing_white_beside_it():
     """``glints``: linear skin (0.7, 0.48, 0.33) with a highlight of white added (+0.5 at its peak: its core, clipped
-    to 1 in red, is almost white), a grey wall inside the face's edge, a white tooth under the mouth's outline and a
-    red lip. What of the highlight is too white for the skin's colour is found, its near-white core too; the wall,
-    the tooth, the lip and the skin are not. A grey photo has none."""
+    to 1 in red, is almost white), a grey wall the skin blends into over 4 px, a white tooth under the mouth's
+    outline and a red lip. What of the highlight is too white for the skin's colour is found, its near-white core
+    too; the tooth, the lip and the skin are not, nor the wall beyond ``reach_px`` of the blend (skin and white
+    there, as a highlight's rim is: without the reach the whole wall is taken). A grey photo has none."""
     from shadowflow.nodes.method.photo_relight import glints, skin
 
     yy, xx = np.mgrid[0:100, 0:100].astype(np.float32)
@@ -426,20 +427,23 @@ def test_a_highlight_too_white_to_pass_as_skin_is_found_as_shine_and_nothing_whi
     colour = np.array([0.7, 0.48, 0.33], np.float32)
     spot = np.exp(-((xx - 30) ** 2 + (yy - 45) ** 2) / (2 * 4.0**2))
     photo = (colour * (0.9 + 0.1 * xx / 100)[..., None] + 0.5 * spot[..., None]).astype(np.float32)
-    wall = face & (xx > 85)
-    photo[wall] = 0.8
+    blend = np.clip((xx - 72) / 4, 0, 1)[..., None]  # skin to wall over x = 72..76
+    photo = (1 - blend) * photo + blend * np.float32(0.9)
+    wall = face & (xx >= 76)
     tooth = (np.abs(xx - 55) < 4) & (np.abs(yy - 75) < 3)
     photo[tooth] = (0.85, 0.82, 0.75)
     lip = (np.abs(xx - 55) < 8) & (np.abs(yy - 82) < 2)
     photo[lip] = (0.55, 0.2, 0.2)
     photo = np.clip(photo, 0.0, 1.0)
     mouth = (np.abs(xx - 55) < 9) & (np.abs(yy - 78) < 7)
-    skin_px = skin(photo, face)
-    found = glints(photo, skin_px, face, 15.0, mouth)
+    skin_px = skin(photo, face & (xx < 70))
+    found = glints(photo, skin_px, face, 15.0, mouth, reach_px=6.0)
     highlight = face & (spot > 0.15)
     assert not skin_px[(yy.astype(int) == 45) & (xx.astype(int) == 30)].any()  # its core fails the skin's colour
     assert (highlight & ~skin_px).sum() > 10 and found[highlight & ~skin_px].all()  # the rest passes as skin
-    assert not found[wall | mouth | (face & (spot < 0.01))].any()
+    assert not found[mouth | (face & (spot < 0.01) & (xx < 70))].any()
+    assert not found[wall & (xx > 84)].any()
+    assert glints(photo, skin_px, face, 15.0, mouth)[wall & (xx > 84)].all()  # why the reach
     assert not glints(photo.mean(axis=-1, keepdims=True), face, face, 15.0).any()
 
 
