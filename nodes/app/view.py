@@ -318,7 +318,7 @@ function render(f, light) {
   const cast = castOnPreview(f, castMargin(f.depth, f.grid[0], f.grid[1], sm));
   const N = f.h * f.w, C = f.c, scale = f.albedo_scale / 65535, a = f.ambient;
   const lighting = new Float32Array(N), unexposed = new Float32Array(N * C), skinLit = [];
-  const pl = f.photo_light, old = new Float32Array(N);
+  const pl = f.photo_light, old = new Float32Array(N), keep = new Float32Array(N);
   // shine_lobe: the halfway vectors of the photo's light and the new one with the view (+z)
   const half = l => {
     const v = [l[0], l[1], l[2] + 1], m = Math.max(Math.hypot(...v), 1e-9);
@@ -335,6 +335,7 @@ function render(f, light) {
     const nh = nx * h[0] + ny * h[1] + nz * h[2], nh2 = Math.max(nx * h2[0] + ny * h2[1] + nz * h2[2], 0);
     const lobe = nh > 1e-3 ? Math.pow(Math.min(nh2 / nh, 1), K.SHINE_LOBE) : 1;
     const drop = Math.min(Math.max(1 - Math.min(lighting[i] / Math.max(old[i], 1e-3), lobe), 0), 1);
+    keep[i] = 1 - drop;
     let mean = 0;
     for (let c = 0; c < C; c++) {
       const albedo = Math.max(f.albedo16[C * i + c] * scale - f.sheen16[C * i + c] * scale * drop, 0);
@@ -352,12 +353,16 @@ function render(f, light) {
   const relit = new Float32Array(N * C), photo = new Float32Array(N * C), w = new Float32Array(N);
   const rim = new Float32Array(N);  // where the face's change of light is measured for the photo around it
   for (let i = 0; i < N; i++) {
-    const bound = gain * lighting[i] / Math.max(old[i], K.CLIP_RATIO_FLOOR);
+    // no darker than the clipping proves, less the shine the light takes (clipped_floor)
+    const top = 1 / Math.max(old[i], K.CLIP_RATIO_FLOOR);
     w[i] = f.flags[i] & K.FACE ? 1 : 0;
     rim[i] = f.flags[i] & K.RIM ? 1 : 0;
     for (let c = 0; c < C; c++) {
       let v = gain * unexposed[C * i + c];
-      if (f.flags[i] & (K.CLIPPED_BIT << c)) v = Math.max(v, bound);
+      if (f.flags[i] & (K.CLIPPED_BIT << c)) {
+        const diffuse = Math.min(top, (f.albedo16[C * i + c] - f.sheen16[C * i + c]) * scale);
+        v = Math.max(v, gain * lighting[i] * (diffuse + (top - diffuse) * keep[i]));
+      }
       relit[C * i + c] = Math.min(Math.max(v, 0), 1);
       let p = f.photo8[C * i + c] / 255;
       if (f.encoding === 'srgb') p = srgbToLinear(p);

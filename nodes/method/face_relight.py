@@ -40,6 +40,7 @@ from .photo_relight import (
     reflection_map,
     shading_trust,
     sheen,
+    shine_kept,
     shine_lobe,
     skin,
     skin_exposure,
@@ -202,13 +203,15 @@ class FaceRelight:
         new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
         new_lighting = with_ambient(new_shading, self.ambient)
         # the albedo this light can trust: I / S also where S is small but S' is no larger
-        light_albedo = without_sheen(self.albedo_for(self.trust_for(new_lighting)), self.shine, self.lighting,
-                                     new_lighting, shine_lobe(self.normals, self.light, s))
+        albedo = self.albedo_for(self.trust_for(new_lighting))
+        keep = shine_kept(self.lighting, new_lighting, shine_lobe(self.normals, self.light, s))
+        light_albedo = without_sheen(albedo, self.shine, self.lighting, new_lighting, keep)
         # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
         # a side light leaves the shadowed side dim, not black
         unexposed = light_albedo * new_lighting[..., None]
         gain = skin_exposure(photo, unexposed, self.lit_skin, self.skin_only & (new_shading >= LIT_SHADING))
-        face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face)
+        face_image = clipped_floor(np.float32(gain) * unexposed, photo, self.lighting, new_lighting, gain, face,
+                                   albedo - self.shine, keep)
         # into the layer's box: the relit face's light carried over its border into the photo around it
         relit = self._in_layer(np.clip(face_image, 0.0, 1.0))
         return FaceLayer(self.layer_box, self.layer_face, relit,

@@ -33,6 +33,7 @@ from .photo_relight import (
     exposure_gain,
     face_rim,
     quieted,
+    shine_kept,
     shine_lobe,
     smoothstep,
     with_ambient,
@@ -200,11 +201,14 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     new = np.where(face, (1.0 - cast) * np.clip(normals @ s.astype(np.float32), 0.0, None), 0.0).astype(np.float32)
     lighting = with_ambient(new, live.ambient)
     old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
-    lobe = shine_lobe(normals, live.photo_light, s)
-    unexposed = without_sheen(albedo, shine, old, lighting, lobe) * lighting[..., None]
+    keep = shine_kept(old, lighting, shine_lobe(normals, live.photo_light, s))
+    unexposed = without_sheen(albedo, shine, old, lighting, keep) * lighting[..., None]
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
-    bound = np.float32(gain) * (lighting / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
+    # no darker than the clipping proves, less the shine the light takes (``clipped_floor``)
+    top = (np.float32(1.0) / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
+    diffuse = np.minimum(top, albedo - shine)
+    bound = np.float32(gain) * lighting[..., None] * (diffuse + (top - diffuse) * keep[..., None])
     face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
     # the face's change of light at its border, carried into the photo there (``outside_gain``)
     rim = ((live.flags & RIM) > 0).astype(np.float32)

@@ -273,16 +273,23 @@ def sheen(albedo: np.ndarray, skin: np.ndarray, trusted: np.ndarray, sigma_px: f
     return np.where(skin[..., None], excess, np.float32(0.0)).astype(np.float32)
 
 
+def shine_kept(lighting: np.ndarray, new_lighting: np.ndarray, lobe: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float32 in [0, 1]: the share of the photo's shine a new light keeps: ``S'/S`` (a pixel going into
+    shadow loses it) and at most ``lobe`` (``shine_lobe``: its highlight moves away). lighting, new_lighting (H, W)
+    the photo's and the new light's."""
+    keep = np.asarray(new_lighting, np.float32) / np.maximum(np.asarray(lighting, np.float32), np.float32(1e-3))
+    if lobe is not None:
+        keep = np.minimum(keep, lobe)
+    return np.clip(keep, 0.0, 1.0).astype(np.float32)
+
+
 def without_sheen(albedo: np.ndarray, shine: np.ndarray, lighting: np.ndarray, new_lighting: np.ndarray,
                   lobe: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) the albedo a new light sees: the photo's shine (``sheen``) taken out as far as the new light
     darkens the pixel, ``1 - S'/S`` (the photo's own light keeps it all; a pixel going into shadow loses it, a
     highlight being the light's own reflection), and as far as the highlight moves away from it (``lobe``, what
     ``shine_lobe`` keeps, None: all). lighting, new_lighting (H, W) the photo's and the new light's."""
-    keep = np.asarray(new_lighting, np.float32) / np.maximum(np.asarray(lighting, np.float32), np.float32(1e-3))
-    if lobe is not None:
-        keep = np.minimum(keep, lobe)
-    drop = np.clip(np.float32(1.0) - keep, 0.0, 1.0)
+    drop = np.float32(1.0) - shine_kept(lighting, new_lighting, lobe)
     return np.clip(np.asarray(albedo, np.float32) - shine * drop[..., None], 0.0, None).astype(np.float32)
 
 
@@ -350,21 +357,31 @@ def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.n
 
 
 def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,
-                  gain: float, face: np.ndarray) -> np.ndarray:
+                  gain: float, face: np.ndarray, diffuse: np.ndarray | None = None,
+                  keep: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) ``face_image`` (the relit face, exposed by ``gain``) raised, where the photo is
     clipped, to what the clipping proves: a clipped pixel's true brightness is at least the top of
     the range, so under the new light (Lambertian) it is at least ``S' / S`` of it, ``gain x S' / S``
     exposed. Otherwise unknown: the fill (``photo_albedo``) stays where it is brighter. With the
     photo's own light (``S' = S``) a clipped pixel comes back clipped, as in the photo; a highlight
     relit away from its light (``S' < S``) may come back darker, never brighter than its bound says.
+    diffuse (H, W, C), keep (H, W): the albedo there without the photo's shine (the fill less ``sheen``'s shine: at
+    most ``SHEEN_MARGIN`` x the skin around it) and the share of the shine the new light keeps (``shine_kept``), or
+    None (all of the top is diffuse): of the top's albedo ``1 / S``, what is over ``diffuse`` is shine, and only
+    ``keep`` of it stays. A clipped highlight kept its whole top and came back a bright blotch beside the same
+    highlight's unclipped rim, whose shine had left with the light (Yale B at +-70, relit frontally).
     photo (H, W, C) in [0, 1]; shading, new_shading (H, W) ``n . s`` and ``n . s'`` (0 in the new
     light's cast shadow); face (H, W) bool."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     clipped = (img >= CLIPPED) & face[..., None]
     if not clipped.any():
         return face_image
-    ratio = np.asarray(new_shading, np.float32) / np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
-    bound = np.float32(gain) * ratio[..., None]
+    old = np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
+    top = (np.float32(1.0) / old)[..., None]  # the clipped top's albedo
+    if diffuse is not None and keep is not None:
+        base = np.minimum(top, np.nan_to_num(np.asarray(diffuse, np.float32)))
+        top = base + (top - base) * np.clip(np.asarray(keep, np.float32), 0.0, 1.0)[..., None]
+    bound = np.float32(gain) * np.asarray(new_shading, np.float32)[..., None] * top
     return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
 
 

@@ -166,8 +166,8 @@ def test_low_shading_is_trusted_when_the_new_light_does_not_amplify_it():
 
 def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
     """Clipping proves a pixel at least as bright as the top of the range: under the new light at
-    least S'/S of that. The fill below the bound is raised to it; a brighter fill, unclipped pixels
-    and pixels the new light leaves in shadow are untouched."""
+    least S'/S of that, less the shine the new light takes. The fill below the bound is raised to it; a brighter
+    fill, unclipped pixels and pixels the new light leaves in shadow are untouched."""
     shading = np.array([[0.9, 0.9, 0.5, 0.9]], np.float32)
     new = np.array([[0.9, 0.45, 0.5, 0.0]], np.float32)
     photo = np.array([[1.0, 1.0, 0.4, 1.0]], np.float32)[..., None]
@@ -176,6 +176,14 @@ def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
     out = clipped_floor(filled, photo, shading, new, 1.2, face)[..., 0]
     np.testing.assert_allclose(out, [[1.2, 0.6, 0.3, 0.0]], rtol=1e-6)
     assert clipped_floor(filled * 3, photo, shading, new, 1.2, face)[0, 0, 0] == pytest.approx(1.5)
+    # with the skin's albedo there (0.5) and the share of the shine the light keeps: of the top's albedo 1 / 0.9, what
+    # is over 0.5 is shine, and only that share of it stays; all of it kept, the bound is as above
+    diffuse, keep = np.full((1, 4, 1), 0.5, np.float32), np.full((1, 4), 0.2, np.float32)
+    out = clipped_floor(filled, photo, shading, new, 1.2, face, diffuse, keep)[..., 0]
+    bound = 1.2 * np.array([0.9, 0.45]) * (0.5 + (1 / 0.9 - 0.5) * 0.2)  # 0.672 and 0.336, under the fill's 0.5
+    np.testing.assert_allclose(out[0, :2], np.maximum(bound, 0.5), rtol=1e-5)
+    np.testing.assert_allclose(clipped_floor(filled, photo, shading, new, 1.2, face, diffuse, keep * 5)[..., 0],
+                               [[1.2, 0.6, 0.3, 0.0]], rtol=1e-6)
 
 
 def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
