@@ -149,32 +149,43 @@ class FaceRelight:
         # (hair, eyes, teeth, glasses) keeps its own pixels wherever it is lit, whatever the fitted shading
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
-        self.glints = np.zeros_like(face_lit)
-        if features:
-            parts = np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], shape) for o in features])
-            # not at the face's edge either, where skin blends into a bright wall or white hair as skin and white do
-            inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, 3) > GLINT_EDGE * iod_px
-            self.glints = glints(photo, self.skin_only, face_lit & inside, SHEEN_SCALE * iod_px,
-                                 grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
+        self.glints = self._glints(features, face_lit, iod_px)
         self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else np.zeros_like(face_lit)
         self.fill_detail = fill_detail if midline is not None else 0.0
-        self.detail = None  # the detail seen across the face and its trust, once, from the light-independent trust
-        if self.fill_detail > 0:
-            px = max(al.scale, 1.0)
-            measured = np.atleast_3d(photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
-            axis = np.asarray(midline, np.float64) - [x0, y0]
-            detail, seen = mirrored_detail(measured, np.where(face, self.trust_for(), np.float32(0.0)),
-                                           reflection_map(shape, axis), FILL_DETAIL_BAND[0] * px,
-                                           FILL_DETAIL_BAND[1] * px)
-            # near the axis a pixel's mirror is its neighbour: the detail there meets its own reflection as a
-            # symmetric pattern (a glabella's lines lit from the side came back as a "Y" at +-70)
-            near = smoothstep(axis_distance(shape, axis) / np.float32(iod_px), *FILL_DETAIL_AXIS)
-            self.detail = (detail, (seen * near).astype(np.float32))
+        # the detail seen across the face and its trust, once, from the light-independent trust
+        self.detail = self._mirrored_detail(midline, iod_px) if self.fill_detail > 0 else None
         self.albedo = self.albedo_for(self.trust_for())
         # the photo's shine, which a new light takes out where it darkens the skin (``without_sheen``)
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _glints(self, features: list[np.ndarray] | None, face_lit: np.ndarray, iod_px: float) -> np.ndarray:
+        """(h, w) bool: the box's highlights too white to pass as skin (``glints``), off the face mesh's eyes, brows,
+        lips and mouth (``features``, photo pixels; None: none told) and off the face's edge, where skin blends
+        into a bright wall or white hair as skin and white do."""
+        if not features:
+            return np.zeros_like(face_lit)
+        y0, _, x0, _ = self.box
+        parts = np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], self.shape) for o in features])
+        inside = cv2.distanceTransform(self.face.astype(np.uint8), cv2.DIST_L2, 3) > GLINT_EDGE * iod_px
+        return glints(self.photo, self.skin_only, face_lit & inside, SHEEN_SCALE * iod_px,
+                      grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
+
+    def _mirrored_detail(self, midline: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
+        """The measured albedo's detail seen across the face's ``midline`` (2, 2) photo pixels, and its trust
+        (``mirrored_detail``), faded out near the midline."""
+        y0, _, x0, _ = self.box
+        px = max(self.al.scale, 1.0)
+        measured = np.atleast_3d(self.photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
+        axis = np.asarray(midline, np.float64) - [x0, y0]
+        detail, seen = mirrored_detail(measured, np.where(self.face, self.trust_for(), np.float32(0.0)),
+                                       reflection_map(self.shape, axis), FILL_DETAIL_BAND[0] * px,
+                                       FILL_DETAIL_BAND[1] * px)
+        # near the axis a pixel's mirror is its neighbour: the detail there meets its own reflection as a
+        # symmetric pattern (a glabella's lines lit from the side came back as a "Y" at +-70)
+        near = smoothstep(axis_distance(self.shape, axis) / np.float32(iod_px), *FILL_DETAIL_AXIS)
+        return detail, (seen * near).astype(np.float32)
 
     def albedo_for(self, trust: np.ndarray) -> np.ndarray:
         """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere, with
