@@ -68,8 +68,8 @@ def astronaut_figure(folder: Path) -> np.ndarray:
     return np.hstack([panel(rgb[..., ::-1], "photo"),
                       panel(found, f"face found (yaw {pose['yaw']:+.0f}, pitch {pose['pitch']:+.0f})"),
                       panel(_grey8(relit[0]), "relit frontally"),
-                      panel(_grey8(relit[1]), "relit from the right (60, 10)"),
-                      panel(_grey8(relit[2]), "relit from the left (-60, 10)")])
+                      panel(_grey8(relit[1]), "relit from the right (-60, 10)"),
+                      panel(_grey8(relit[2]), "relit from the left (60, 10)")])
 
 
 def demo_figure(folder: Path) -> np.ndarray:
