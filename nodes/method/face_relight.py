@@ -87,8 +87,8 @@ class FaceRelight:
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
     for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
     brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
-    segment: (h, w, C) linear photo -> (h, w) how
-    sure a segmentation is that each pixel is the person (``mediapipe.person_share``), or None (the whole feather).
+    segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel is the person
+    (``mediapipe.person_share``), or None (the whole feather).
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -216,7 +216,7 @@ class FaceRelight:
         # the albedo this light can trust: I / S also where S is small but S' is no larger
         albedo = self.albedo_for(self.trust_for(new_lighting))
         keep = shine_kept(self.lighting, new_lighting, shine_lobe(self.normals, self.light, s))
-        light_albedo = without_sheen(albedo, self.shine, self.lighting, new_lighting, keep)
+        light_albedo = without_sheen(albedo, self.shine, self.lighting, new_lighting, keep)  # keep <= S'/S: as is
         # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,
         # a side light leaves the shadowed side dim, not black
         unexposed = light_albedo * new_lighting[..., None]

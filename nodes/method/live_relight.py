@@ -202,7 +202,7 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     lighting = with_ambient(new, live.ambient)
     old = with_ambient(np.clip(normals @ live.photo_light.astype(np.float32), 0.0, None), live.ambient)
     keep = shine_kept(old, lighting, shine_lobe(normals, live.photo_light, s))
-    unexposed = without_sheen(albedo, shine, old, lighting, keep) * lighting[..., None]
+    unexposed = without_sheen(albedo, shine, old, lighting, keep) * lighting[..., None]  # keep <= S'/S: as is
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
     # no darker than the clipping proves, less the shine the light takes (``clipped_floor``)
