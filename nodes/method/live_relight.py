@@ -24,12 +24,12 @@ import numpy as np
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .photo_relight import (
-    CLIP_RATIO_FLOOR,
     DETAIL_SHARE,
     LIT_SHADING,
     RIM_SHARE,
     beyond_ratio,
     beyond_reach,
+    clipped_bound,
     exposure_gain,
     face_rim,
     quieted,
@@ -206,9 +206,7 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
     # no darker than the clipping proves, less the shine the light takes (``clipped_floor``)
-    top = (np.float32(1.0) / np.maximum(old, np.float32(CLIP_RATIO_FLOOR)))[..., None]
-    diffuse = np.minimum(top, albedo - shine)
-    bound = np.float32(gain) * lighting[..., None] * (diffuse + (top - diffuse) * keep[..., None])
+    bound = clipped_bound(old, lighting, gain, albedo - shine, keep)
     face_image = np.clip(np.where(clipped, np.maximum(face_image, bound), face_image), 0.0, 1.0)
     # the face's change of light at its border, carried into the photo there (``outside_gain``)
     rim = ((live.flags & RIM) > 0).astype(np.float32)

@@ -376,13 +376,21 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     clipped = (img >= CLIPPED) & face[..., None]
     if not clipped.any():
         return face_image
+    bound = clipped_bound(shading, new_shading, gain, diffuse, keep)
+    return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
+
+
+def clipped_bound(shading: np.ndarray, new_shading: np.ndarray, gain: float, diffuse: np.ndarray | None = None,
+                  keep: np.ndarray | None = None) -> np.ndarray:
+    """(H, W, C or 1) float32: the least a clipped pixel can be relit to (``clipped_floor``, whose arguments these
+    are): ``gain S'`` times the clipped top's albedo ``1 / S``, of which only ``keep`` of what is over ``diffuse`` (the
+    shine) stays. Shared by the product and the live preview (``live_relight.render_live``)."""
     old = np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
     top = (np.float32(1.0) / old)[..., None]  # the clipped top's albedo
     if diffuse is not None and keep is not None:
         base = np.minimum(top, np.nan_to_num(np.asarray(diffuse, np.float32)))
         top = base + (top - base) * np.clip(np.asarray(keep, np.float32), 0.0, 1.0)[..., None]
-    bound = np.float32(gain) * np.asarray(new_shading, np.float32)[..., None] * top
-    return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
+    return (np.float32(gain) * np.asarray(new_shading, np.float32)[..., None] * top).astype(np.float32)
 
 
 def photo_ambient(intensity: np.ndarray, coarse: np.ndarray, shading: np.ndarray, face: np.ndarray,

@@ -64,7 +64,6 @@ def covered_pixels(image: np.ndarray, seen: np.ndarray, shading: np.ndarray, bey
     return (covered | edge) & seen & ~keep
 
 
-
 def covered_on_grid(grid_image: np.ndarray, seen: np.ndarray, placement: FacePlacement, model: ShapeModel,
                     grid_light: np.ndarray) -> np.ndarray:
     """(Hm, Wm) bool: the ``seen`` model pixels that hair or a dark head covers (``covered_pixels``), judged
