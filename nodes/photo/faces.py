@@ -65,16 +65,22 @@ TIGHT_CROPS = (1.15, 1.5)
 
 @dataclass(frozen=True)
 class Pose:
-    """Head rotation in degrees, camera frame (x right, y up, z toward the viewer): yaw > 0 the face
-    turned toward the image's right, pitch > 0 the face tilted up, roll > 0 turned counter-clockwise
-    as seen in the photo (``R = Ry(yaw) Rx(-pitch) Rz(roll)``). view: the same rotation as ``Rz(roll')
-    Ry(yaw') Rx(-pitch')``, the head turned and tilted, then rolled in the photo's plane: (yaw', pitch')
-    is how the model grid sees the head once its placement has taken the roll off."""
+    """Head rotation in degrees, camera frame (x right, y up, z toward the viewer), as the head's own:
+    yaw > 0 the face turned toward the image's right, pitch > 0 the face tilted up, then roll > 0 the
+    whole head turned counter-clockwise as seen in the photo (``R = Rz(roll) Ry(yaw) Rx(-pitch)``). So a
+    photo's turn in its own plane (a photo on its side, upside down) moves the roll alone: a head looking
+    down is ``pitch < 0`` whichever way up the photo is (camera-axis angles, ``Ry Rx Rz``, read a head
+    looking down in a photo upside down as looking up). ``view``, (yaw, pitch), is how the model grid sees
+    the head once its placement has taken the roll off."""
 
     yaw: float
     pitch: float
     roll: float
-    view: tuple[float, float] = (0.0, 0.0)  # (yaw, pitch) of the head with the photo's own roll taken off
+
+    @property
+    def view(self) -> tuple[float, float]:
+        """(yaw, pitch) degrees of the head with the photo's own roll taken off."""
+        return (self.yaw, self.pitch)
 
     def record(self) -> dict[str, float]:
         return {"yaw": round(self.yaw, 1), "pitch": round(self.pitch, 1), "roll": round(self.roll, 1)}
@@ -266,11 +272,9 @@ def head_pose(face: FoundFace) -> Pose:
     dst = face.mesh[mesh_idx] * np.array([1.0, -1.0, 1.0])  # y up
     from scipy.spatial.transform import Rotation
 
-    # R = Ry(yaw) Rx(-pitch) Rz(roll): turned about the vertical, then tilted, then rolled in its own plane
-    rotation = Rotation.from_matrix(_rotation(src, dst))
-    yaw, minus_pitch, roll = rotation.as_euler("YXZ", degrees=True)
-    _, view_yaw, view_minus_pitch = rotation.as_euler("ZYX", degrees=True)
-    return Pose(float(yaw), float(-minus_pitch), float(roll), (float(view_yaw), float(-view_minus_pitch)))
+    # R = Rz(roll) Ry(yaw) Rx(-pitch): turned about the head's vertical, tilted, then rolled in the photo's plane
+    roll, yaw, minus_pitch = Rotation.from_matrix(_rotation(src, dst)).as_euler("ZYX", degrees=True)
+    return Pose(float(yaw), float(-minus_pitch), float(roll))
 
 
 def _rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:

@@ -145,10 +145,12 @@ def test_placement_recovers_a_similarity_and_a_face_length():
     assert np.allclose(grid @ matrix[:, :2].T + matrix[:, 2], photo, atol=0.02)
 
 
-def test_pose_reads_a_turned_template_back():
+def test_pose_reads_a_turned_template_back_whichever_way_up_the_photo_is():
+    """The head's own yaw and pitch, then its roll in the photo's plane; before, angles about the camera's
+    axes read this head at 180 degrees of roll as tilted up (+10) and at 90 as turned by 10."""
     mesh_idx, template = F._pairs()
     src = F._template_3d()[template]
-    yaw, pitch, roll = np.radians([20.0, -10.0, 5.0])
+    yaw, pitch = np.radians([20.0, -10.0])
 
     def about(axis, a):
         c, s = np.cos(a), np.sin(a)
@@ -156,14 +158,16 @@ def test_pose_reads_a_turned_template_back():
                 "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
 
     # turned toward the image's right, tilted down (its forward axis's y falls), rolled counter-clockwise
-    r = about("y", yaw) @ about("x", -pitch) @ about("z", roll)
-    assert r[1, 2] < 0 and r[0, 2] > 0
-    turned = src @ r.T * 9.0 + [400.0, -300.0, 0.0]
-    mesh = np.zeros((468, 3))
-    mesh[mesh_idx] = turned * [1.0, -1.0, 1.0]  # photo pixels: y down
-    pose = F.head_pose(F.FoundFace(mesh, 1.0, 1.0))
-    assert pose.yaw == pytest.approx(20.0, abs=0.5) and pose.pitch == pytest.approx(-10.0, abs=0.5)
-    assert pose.roll == pytest.approx(5.0, abs=0.5)
+    head = about("y", yaw) @ about("x", -pitch)
+    assert head[1, 2] < 0 and head[0, 2] > 0
+    for roll_deg in (5.0, 35.0, 90.0, 180.0, -120.0):  # a photo on its side or upside down moves the roll alone
+        r = about("z", np.radians(roll_deg)) @ head
+        turned = src @ r.T * 9.0 + [400.0, -300.0, 0.0]
+        mesh = np.zeros((468, 3))
+        mesh[mesh_idx] = turned * [1.0, -1.0, 1.0]  # photo pixels: y down
+        pose = F.head_pose(F.FoundFace(mesh, 1.0, 1.0))
+        assert pose.yaw == pytest.approx(20.0, abs=0.5) and pose.pitch == pytest.approx(-10.0, abs=0.5), roll_deg
+        assert pose.roll == pytest.approx(roll_deg, abs=0.5)
 
 
 def test_the_astronaut_is_found_where_her_eyes_are(astronaut):
