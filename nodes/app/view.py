@@ -353,20 +353,24 @@ function render(f, light) {
   const relit = new Float32Array(N * C), photo = new Float32Array(N * C), w = new Float32Array(N);
   const rim = new Float32Array(N);  // where the face's change of light is measured for the photo around it
   for (let i = 0; i < N; i++) {
-    // no darker than the clipping proves, less the shine the light takes (clipped_floor)
-    const top = 1 / Math.max(old[i], K.CLIP_RATIO_FLOOR);
+    // no darker than the clipping proves, less the shine the light takes (clipped_floor): a pixel clipped in
+    // any channel is bounded in all, its unclipped channels by their own values
+    const over = 1 / Math.max(old[i], K.CLIP_RATIO_FLOOR);
+    let bounded = false;
+    for (let c = 0; c < C; c++) if (f.flags[i] & (K.CLIPPED_BIT << c)) bounded = true;
     w[i] = f.flags[i] & K.FACE ? 1 : 0;
     rim[i] = f.flags[i] & K.RIM ? 1 : 0;
     for (let c = 0; c < C; c++) {
+      let p = f.photo8[C * i + c] / 255;
+      if (f.encoding === 'srgb') p = srgbToLinear(p);
+      photo[C * i + c] = p;
       let v = gain * unexposed[C * i + c];
-      if (f.flags[i] & (K.CLIPPED_BIT << c)) {
+      if (bounded) {
+        const top = (f.flags[i] & (K.CLIPPED_BIT << c) ? 1 : p) * over;
         const diffuse = Math.min(top, (f.albedo16[C * i + c] - f.sheen16[C * i + c]) * scale);
         v = Math.max(v, gain * lighting[i] * (diffuse + (top - diffuse) * keep[i]));
       }
       relit[C * i + c] = Math.min(Math.max(v, 0), 1);
-      let p = f.photo8[C * i + c] / 255;
-      if (f.encoding === 'srgb') p = srgbToLinear(p);
-      photo[C * i + c] = p;
     }
   }
   // outside_gain: the face's change of light at its border, carried into the photo around it over the feather

@@ -365,6 +365,9 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     exposed. Otherwise unknown: the fill (``photo_albedo``) stays where it is brighter. With the
     photo's own light (``S' = S``) a clipped pixel comes back clipped, as in the photo; a highlight
     relit away from its light (``S' < S``) may come back darker, never brighter than its bound says.
+    A pixel clipped in some channels is bounded in all: its others hold their own values, ``I_c S' / S``
+    (each channel bounded alone, a near-white highlight clipped in red and blue came back magenta: its
+    green, just under the top, took the skin's fill).
     diffuse (H, W, C), keep (H, W): the albedo there without the photo's shine (the fill less ``sheen``'s shine: at
     most ``SHEEN_MARGIN`` x the skin around it) and the share of the shine the new light keeps (``shine_kept``), or
     None (all of the top is diffuse): of the top's albedo ``1 / S``, what is over ``diffuse`` is shine, and only
@@ -373,20 +376,22 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     photo (H, W, C) in [0, 1]; shading, new_shading (H, W) ``n . s`` and ``n . s'`` (0 in the new
     light's cast shadow); face (H, W) bool."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
-    clipped = (img >= CLIPPED) & face[..., None]
-    if not clipped.any():
+    clipped = img >= CLIPPED
+    bounded = clipped.any(axis=-1) & face
+    if not bounded.any():
         return face_image
-    bound = clipped_bound(shading, new_shading, gain, diffuse, keep)
-    return np.where(clipped, np.maximum(face_image, bound), face_image).astype(np.float32)
+    bound = clipped_bound(shading, new_shading, gain, diffuse, keep, np.where(clipped, np.float32(1.0), img))
+    return np.where(bounded[..., None], np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
 def clipped_bound(shading: np.ndarray, new_shading: np.ndarray, gain: float, diffuse: np.ndarray | None = None,
-                  keep: np.ndarray | None = None) -> np.ndarray:
+                  keep: np.ndarray | None = None, level: np.ndarray | float = 1.0) -> np.ndarray:
     """(H, W, C or 1) float32: the least a clipped pixel can be relit to (``clipped_floor``, whose arguments these
-    are): ``gain S'`` times the clipped top's albedo ``1 / S``, of which only ``keep`` of what is over ``diffuse`` (the
-    shine) stays. Shared by the product and the live preview (``live_relight.render_live``)."""
+    are): ``gain S'`` times the top's albedo ``level / S`` (``level`` (H, W, C): 1 in a clipped channel, the photo's
+    own value in the others), of which only ``keep`` of what is over ``diffuse`` (the shine) stays. Shared by the
+    product and the live preview (``live_relight.render_live``)."""
     old = np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
-    top = (np.float32(1.0) / old)[..., None]  # the clipped top's albedo
+    top = np.asarray(level, np.float32) / old[..., None]  # the top's albedo
     if diffuse is not None and keep is not None:
         base = np.minimum(top, np.nan_to_num(np.asarray(diffuse, np.float32)))
         top = base + (top - base) * np.clip(np.asarray(keep, np.float32), 0.0, 1.0)[..., None]

@@ -186,6 +186,21 @@ def test_a_clipped_pixel_relit_by_its_own_light_stays_clipped():
                                [[1.2, 0.6, 0.3, 0.0]], rtol=1e-6)
 
 
+def test_a_pixel_clipped_in_some_channels_is_bounded_in_all_by_their_own_values():
+    """A near-white highlight clipped in red and blue, its green just under the top, filled with the skin's
+    colour and relit by its own light: it comes back near-white, each unclipped channel no darker than its own
+    value times S'/S. Bounding each channel alone kept the skin's green there: a magenta patch."""
+    shading = np.full((1, 2), 0.8, np.float32)
+    photo = np.array([[[1.0, 0.98, 1.0], [0.9, 0.7, 0.6]]], np.float32)  # the second pixel is not clipped at all
+    skin_fill = np.array([[[0.84, 0.59, 0.50], [0.84, 0.59, 0.50]]], np.float32)
+    face = np.ones((1, 2), bool)
+    out = clipped_floor(skin_fill, photo, shading, shading, 1.0, face)
+    np.testing.assert_allclose(out[0, 0], [1.0, 0.98, 1.0], rtol=1e-6)
+    np.testing.assert_allclose(out[0, 1], skin_fill[0, 1])  # unclipped: the fill as it was
+    half = clipped_floor(skin_fill, photo, shading, 0.5 * shading, 1.0, face)  # a light half as bright there
+    np.testing.assert_allclose(half[0, 0], np.maximum(skin_fill[0, 0], 0.5 * photo[0, 0]), rtol=1e-6)
+
+
 def test_the_relighting_node_smooths_the_fits_map_before_it_fills(tmp_path):
     """A face rendered 3x finer than the model grid, its shadowed side filled from the fit's albedo
     map, here replaced by a checkerboard of the model grid's pixels (the worst blocks it could hold):
