@@ -28,7 +28,7 @@ from .face_relight import FILL_DETAIL, FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
 from .products import photo_channels
-from .quality import NO_FACE, assess, core_face, explained_variance, unread_weights
+from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, eye_region, unread_weights
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
@@ -588,6 +588,9 @@ class QualityNode:
         saturated = d["saturated"]
         use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~saturated
         placement: FacePlacement | None = d.get("placement")
+        if placement is not None:  # the eyes and around them are albedo (lashes, sunglasses): no shape explains them
+            iod = float(np.linalg.norm(np.subtract(*np.asarray(m.eyes, np.float64))))
+            use &= ~eye_region(placement.grid_outline("eyes"), m.grid, EYEWEAR_MARGIN * iod)[m.mask]
         unread = covered_mask(frame, m)  # the fit left them out; its quality counts them as it would have
         weights = np.where(unread, unread_weights(d["remapped"][m.mask], r.model_normals, d["grid_light"],
                                                   self.huber_k * r.sigma), r.weights)
