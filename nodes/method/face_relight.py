@@ -88,7 +88,8 @@ class FaceRelight:
     for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
     brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
     segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel is the person
-    (``mediapipe.person_share``), or None (the whole feather).
+    (``mediapipe.person_share``), or None (the whole feather). covered: (Hm, Wm) bool, what the fit left out as
+    covering the face (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -96,7 +97,7 @@ class FaceRelight:
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
                  fill_detail: float = FILL_DETAIL, features: list[np.ndarray] | None = None,
-                 segment: Callable[[np.ndarray], np.ndarray] | None = None):
+                 segment: Callable[[np.ndarray], np.ndarray] | None = None, covered: np.ndarray | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -129,14 +130,21 @@ class FaceRelight:
         self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         box_grey = grey[y0:y1, x0:x1]
         coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, al, shape)) >= 0.5
-        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow
-        face_skin = skin(photo, face)
+        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow; in grey,
+        # what the fit left out as covering the face (hair over the forehead, ``photo.cover``) is told from skin by
+        # that alone (taken for shadow, a fringe was filled with a flat patch of skin). Not in colour, where the
+        # skin's colour tells: there it also took the darkness drawn around a composite's crop (0.1-0.5 dB lost)
+        covered_px = np.zeros_like(face)
+        if covered is not None and photo.shape[-1] == 1:
+            covered_px = face & grow(np.nan_to_num(scalar_to_input(covered.astype(np.float32), mask, al, shape)) >= 0.5,
+                                     max(al.scale, 1.0))  # and its edge, a model pixel wide
+        face_skin = skin(photo, face) & ~covered_px
         self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, face_skin)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
         self.measured = lit_weight(photo, face_lit, face, 1.5 * px)  # the light-independent part of the trust
-        self.skin_only = skin(photo, face & face_lit)
+        self.skin_only = skin(photo, face & face_lit) & ~covered_px
         self.lit_skin = self.skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
         self.match_px = MATCH_SIGMA * iod_px
         self.eyes = None if eyes is None else EyeDetail(photo, shading, face_lit, np.asarray(eyes) - [x0, y0],
@@ -150,7 +158,7 @@ class FaceRelight:
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
         self.glints = self._glints(features, face_lit, iod_px)
-        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else np.zeros_like(face_lit)
+        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & covered_px
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the detail seen across the face and its trust, once, from the light-independent trust
         self.detail = self._mirrored_detail(midline, iod_px) if self.fill_detail > 0 else None

@@ -561,7 +561,8 @@ class PhotoRelightNode:
             eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
             features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
             if meshed else None,
-            segment=person_segmenter(frame.meta.get("encoding", "linear")))
+            segment=person_segmenter(frame.meta.get("encoding", "linear")),
+            covered=m.to_image(covered_mask(frame, m), fill=False).astype(bool))
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:
