@@ -88,8 +88,8 @@ class FaceRelight:
     for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
     brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
     segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel is the person
-    (``mediapipe.person_share``), or None (the whole feather). covered: (Hm, Wm) bool, what the fit left out as
-    covering the face (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
+    (``mediapipe.person_share``), or None (the whole feather). hair: (Hm, Wm) bool, what the fit left out as
+    covering the face's upper part (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -97,7 +97,7 @@ class FaceRelight:
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
                  fill_detail: float = FILL_DETAIL, features: list[np.ndarray] | None = None,
-                 segment: Callable[[np.ndarray], np.ndarray] | None = None, covered: np.ndarray | None = None):
+                 segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -131,12 +131,12 @@ class FaceRelight:
         box_grey = grey[y0:y1, x0:x1]
         coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, al, shape)) >= 0.5
         # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow; in grey,
-        # what the fit left out as covering the face (hair over the forehead, ``photo.cover``) is told from skin by
-        # that alone (taken for shadow, a fringe was filled with a flat patch of skin). Not in colour, where the
-        # skin's colour tells: there it also took the darkness drawn around a composite's crop (0.1-0.5 dB lost)
+        # ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of skin).
+        # Not in colour, where the skin's colour tells: there it also took the darkness drawn around a composite's
+        # crop (0.1-0.5 dB lost)
         covered_px = np.zeros_like(face)
-        if covered is not None and photo.shape[-1] == 1:
-            covered_px = face & grow(np.nan_to_num(scalar_to_input(covered.astype(np.float32), mask, al, shape)) >= 0.5,
+        if hair is not None and photo.shape[-1] == 1:
+            covered_px = face & grow(np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, al, shape)) >= 0.5,
                                      max(al.scale, 1.0))  # and its edge, a model pixel wide
         face_skin = skin(photo, face) & ~covered_px
         self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, face_skin)

@@ -156,11 +156,24 @@ def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
     return np.ones(model.n_pixels, bool) if valid is None else valid[model.mask]
 
 
+HAIR_BELOW_EYES = 0.25  # interocular distances below the eyes' row that hair over a temple may reach
+
+
 def covered_mask(frame: Frame, model: ShapeModel) -> np.ndarray:
     """(N,) bool over the model pixels: those the photo shows that hair or a dark head covers
     (``photo.cover``; none without ``grid_covered``)."""
     grid = frame.data.get("grid_covered")
     return np.zeros(model.n_pixels, bool) if grid is None else grid[model.mask]
+
+
+def covered_above_eyes(frame: Frame, model: ShapeModel) -> np.ndarray:
+    """(Hm, Wm) bool: what covers the face (``covered_mask``) from above the eyes' row plus ``HAIR_BELOW_EYES``
+    interocular distances: hair over the forehead and temples. Lower down it is as often the jaw's own shadow on
+    the neck, which the cover step takes too (the demo's faces lit from above)."""
+    eyes = np.asarray(model.eyes, np.float64)
+    below = float(np.mean(eyes[:, 1])) + HAIR_BELOW_EYES * float(np.linalg.norm(eyes[1] - eyes[0]))
+    rows = np.arange(model.grid[0])[:, None] <= below
+    return model.to_image(covered_mask(frame, model), fill=False).astype(bool) & rows
 
 
 def fitted_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
@@ -562,7 +575,7 @@ class PhotoRelightNode:
             features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
             if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")),
-            covered=m.to_image(covered_mask(frame, m), fill=False).astype(bool))
+            hair=covered_above_eyes(frame, m))
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:
