@@ -134,17 +134,17 @@ class FaceRelight:
         # ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of skin).
         # Not in colour, where the skin's colour tells: there it also took the darkness drawn around a composite's
         # crop (0.1-0.5 dB lost)
-        covered_px = np.zeros_like(face)
+        hair_px = np.zeros_like(face)
         if hair is not None and photo.shape[-1] == 1:
-            covered_px = face & grow(np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, al, shape)) >= 0.5,
+            hair_px = face & grow(np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, al, shape)) >= 0.5,
                                      max(al.scale, 1.0))  # and its edge, a model pixel wide
-        face_skin = skin(photo, face) & ~covered_px
+        face_skin = skin(photo, face) & ~hair_px
         self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, face_skin)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
         self.measured = lit_weight(photo, face_lit, face, 1.5 * px)  # the light-independent part of the trust
-        self.skin_only = skin(photo, face & face_lit) & ~covered_px
+        self.skin_only = skin(photo, face & face_lit) & ~hair_px
         self.lit_skin = self.skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
         self.match_px = MATCH_SIGMA * iod_px
         self.eyes = None if eyes is None else EyeDetail(photo, shading, face_lit, np.asarray(eyes) - [x0, y0],
@@ -158,7 +158,7 @@ class FaceRelight:
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
         self.glints = self._glints(features, face_lit, iod_px)
-        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & covered_px
+        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the detail seen across the face and its trust, once, from the light-independent trust
         self.detail = self._mirrored_detail(midline, iod_px) if self.fill_detail > 0 else None

@@ -36,6 +36,7 @@ from .shadow import confirm_with_image, far_darker, shadow_maps
 from .turned import ViewChoiceNode, face_model, turned_placements
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
+HAIR_BELOW_EYES = 0.25  # interocular distances below the eyes' row that hair over a temple may reach
 # every option of ``MethodOptions`` that is one of a few names, and those names, the default first: the
 # options check against them and the command line offers them
 CHOICES: dict[str, tuple[str, ...]] = {
@@ -154,9 +155,6 @@ def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
     model grid without ``LoadNode``'s ``grid_valid``, e.g. a render)."""
     valid = frame.data.get("grid_valid")
     return np.ones(model.n_pixels, bool) if valid is None else valid[model.mask]
-
-
-HAIR_BELOW_EYES = 0.25  # interocular distances below the eyes' row that hair over a temple may reach
 
 
 def covered_mask(frame: Frame, model: ShapeModel) -> np.ndarray:

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ..geometry.raster import polygon_mask
 from .robust_fit.robust import huber_weights
 
 NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
@@ -77,8 +78,6 @@ def core_face(model) -> np.ndarray:
 def eye_region(eye_outlines: list[np.ndarray], grid: tuple[int, int], margin_px: float) -> np.ndarray:
     """(Hm, Wm) bool: the eyes' outlines (each (n, 2) ``(col, row)`` model pixels) filled and grown by
     ``margin_px`` model pixels; all False without outlines."""
-    from ..geometry.raster import polygon_mask
-
     if not eye_outlines:
         return np.zeros(grid, bool)
     eyes = np.logical_or.reduce([polygon_mask(o, grid) for o in eye_outlines])
