@@ -29,7 +29,7 @@ from .photo_relight import (
     RIM_SHARE,
     beyond_ratio,
     beyond_reach,
-    clipped_bound,
+    clipped_floor,
     exposure_gain,
     face_rim,
     quieted,
@@ -206,9 +206,8 @@ def render_live(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = Non
     gain = exposure_gain(live.want, unexposed, skin & (new >= LIT_SHADING))
     face_image = np.float32(gain) * unexposed
     # no darker than the clipping proves, less the shine the light takes (``clipped_floor``)
-    bound = clipped_bound(old, lighting, gain, albedo - shine, keep, np.where(clipped, np.float32(1.0), photo))
-    bounded = clipped.any(axis=-1, keepdims=True)  # a pixel clipped in any channel is bounded in all
-    face_image = np.clip(np.where(bounded, np.maximum(face_image, bound), face_image), 0.0, 1.0)
+    face_image = np.clip(clipped_floor(face_image, photo, old, lighting, gain, face, albedo - shine, keep, clipped),
+                         0.0, 1.0)
     # the face's change of light at its border, carried into the photo there (``outside_gain``)
     rim = ((live.flags & RIM) > 0).astype(np.float32)
     w = rim[..., None]

@@ -21,7 +21,7 @@ from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.given import given_eyes, known_light
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
 from ..photo.mediapipe import person_share
-from ..photo.placement import FacePlacement, face_on_grid, model_box, place_faces
+from ..photo.placement import FacePlacement, face_on_grid, features_on_grid, model_box, place_faces
 from .albedo import FILL_CEILING, estimate_albedo
 from .eye_detail import CONTRAST as EYE_CONTRAST
 from .face_relight import FILL_DETAIL, FaceRelight, albedo_on_grid
@@ -168,10 +168,11 @@ def covered_above_eyes(frame: Frame, model: ShapeModel) -> np.ndarray:
     """(Hm, Wm) bool: what covers the face (``covered_mask``) from above the eyes' row plus ``HAIR_BELOW_EYES``
     interocular distances: hair over the forehead and temples. Lower down it is as often the jaw's own shadow on
     the neck, which the cover step takes too (the demo's faces lit from above)."""
-    eyes = np.asarray(model.eyes, np.float64)
-    below = float(np.mean(eyes[:, 1])) + HAIR_BELOW_EYES * float(np.linalg.norm(eyes[1] - eyes[0]))
-    rows = np.arange(model.grid[0])[:, None] <= below
-    return model.to_image(covered_mask(frame, model), fill=False).astype(bool) & rows
+    grid = frame.data.get("grid_covered")
+    if grid is None:
+        return np.zeros(model.grid, bool)
+    below = float(np.mean(np.asarray(model.eyes, np.float64)[:, 1])) + HAIR_BELOW_EYES * model.iod
+    return grid & (np.arange(model.grid[0])[:, None] <= below)
 
 
 def fitted_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
@@ -560,7 +561,7 @@ class PhotoRelightNode:
             eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
         # a frontal face's symmetry axis: the model's, across its eyes' midpoint (a turned face's mirror is a map
         # on the model grid, which the fit's albedo uses; its photo gets no detail from across the face)
-        iod = float(np.linalg.norm(np.subtract(*m.eyes)))  # model pixels
+        iod = m.iod  # model pixels
         midline = None
         if m.mirror is None:
             centre = np.mean(m.eyes, axis=0)
@@ -600,9 +601,9 @@ class QualityNode:
         saturated = d["saturated"]
         use = seen & d["shadow"].lit[m.mask] & (shading > 0.1) & ~saturated
         placement: FacePlacement | None = d.get("placement")
-        if placement is not None:  # the eyes and around them are albedo (lashes, sunglasses): no shape explains them
-            iod = float(np.linalg.norm(np.subtract(*np.asarray(m.eyes, np.float64))))
-            use &= ~eye_region(placement.grid_outline("eyes"), m.grid, EYEWEAR_MARGIN * iod)[m.mask]
+        eyes = None if placement is None else features_on_grid(placement, m.grid, ("eyes",))
+        if eyes is not None:  # the eyes and around them are albedo (lashes, sunglasses): no shape explains them
+            use &= ~eye_region(eyes, EYEWEAR_MARGIN * m.iod)[m.mask]
         unread = covered_mask(frame, m)  # the fit left them out; its quality counts them as it would have
         weights = np.where(unread, unread_weights(d["remapped"][m.mask], r.model_normals, d["grid_light"],
                                                   self.huber_k * r.sigma), r.weights)

@@ -358,7 +358,7 @@ def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.n
 
 def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,
                   gain: float, face: np.ndarray, diffuse: np.ndarray | None = None,
-                  keep: np.ndarray | None = None) -> np.ndarray:
+                  keep: np.ndarray | None = None, clipped: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) ``face_image`` (the relit face, exposed by ``gain``) raised, where the photo is
     clipped, to what the clipping proves: a clipped pixel's true brightness is at least the top of
     the range, so under the new light (Lambertian) it is at least ``S' / S`` of it, ``gain x S' / S``
@@ -374,28 +374,20 @@ def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray
     ``keep`` of it stays. A clipped highlight kept its whole top and came back a bright blotch beside the same
     highlight's unclipped rim, whose shine had left with the light (Yale B at +-70, relit frontally).
     photo (H, W, C) in [0, 1]; shading, new_shading (H, W) ``n . s`` and ``n . s'`` (0 in the new
-    light's cast shadow); face (H, W) bool."""
+    light's cast shadow); face (H, W) bool; clipped (H, W, C) bool: the photo's clipped channels, when known
+    otherwise than from ``photo`` (the live preview's, measured on the photo before it was scaled), else None."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
-    clipped = img >= CLIPPED
+    clipped = img >= CLIPPED if clipped is None else np.asarray(clipped, bool)
     bounded = clipped.any(axis=-1) & face
     if not bounded.any():
         return face_image
-    bound = clipped_bound(shading, new_shading, gain, diffuse, keep, np.where(clipped, np.float32(1.0), img))
-    return np.where(bounded[..., None], np.maximum(face_image, bound), face_image).astype(np.float32)
-
-
-def clipped_bound(shading: np.ndarray, new_shading: np.ndarray, gain: float, diffuse: np.ndarray | None = None,
-                  keep: np.ndarray | None = None, level: np.ndarray | float = 1.0) -> np.ndarray:
-    """(H, W, C or 1) float32: the least a clipped pixel can be relit to (``clipped_floor``, whose arguments these
-    are): ``gain S'`` times the top's albedo ``level / S`` (``level`` (H, W, C): 1 in a clipped channel, the photo's
-    own value in the others), of which only ``keep`` of what is over ``diffuse`` (the shine) stays. Shared by the
-    product and the live preview (``live_relight.render_live``)."""
     old = np.maximum(np.asarray(shading, np.float32), np.float32(CLIP_RATIO_FLOOR))
-    top = np.asarray(level, np.float32) / old[..., None]  # the top's albedo
+    top = np.where(clipped, np.float32(1.0), img) / old[..., None]  # the top's albedo: 1 where clipped, else its own
     if diffuse is not None and keep is not None:
         base = np.minimum(top, np.nan_to_num(np.asarray(diffuse, np.float32)))
         top = base + (top - base) * np.clip(np.asarray(keep, np.float32), 0.0, 1.0)[..., None]
-    return (np.float32(gain) * np.asarray(new_shading, np.float32)[..., None] * top).astype(np.float32)
+    bound = np.float32(gain) * np.asarray(new_shading, np.float32)[..., None] * top
+    return np.where(bounded[..., None], np.maximum(face_image, bound), face_image).astype(np.float32)
 
 
 def photo_ambient(intensity: np.ndarray, coarse: np.ndarray, shading: np.ndarray, face: np.ndarray,

@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..geometry.raster import polygon_mask
 from .robust_fit.robust import huber_weights
 
 NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
@@ -67,7 +66,7 @@ def core_face(model) -> np.ndarray:
     """(Hm, Wm) bool: the model's face from the brows to below the mouth, between the outer eye
     corners: what a usable photo shows whole."""
     eyes = np.asarray(model.eyes, np.float64)
-    iod = float(np.linalg.norm(eyes[1] - eyes[0]))
+    iod = model.iod
     rows, cols = np.mgrid[0:model.grid[0], 0:model.grid[1]]
     eye_row = float(eyes[:, 1].mean())
     box = ((cols >= eyes[0, 0] - 0.4 * iod) & (cols <= eyes[1, 0] + 0.4 * iod)
@@ -75,13 +74,9 @@ def core_face(model) -> np.ndarray:
     return box & model.mask
 
 
-def eye_region(eye_outlines: list[np.ndarray], grid: tuple[int, int], margin_px: float) -> np.ndarray:
-    """(Hm, Wm) bool: the eyes' outlines (each (n, 2) ``(col, row)`` model pixels) filled and grown by
-    ``margin_px`` model pixels; all False without outlines."""
-    if not eye_outlines:
-        return np.zeros(grid, bool)
-    eyes = np.logical_or.reduce([polygon_mask(o, grid) for o in eye_outlines])
-    return cv2.distanceTransform((~eyes).astype(np.uint8), cv2.DIST_L2, 3) <= margin_px
+def eye_region(eyes: np.ndarray, margin_px: float) -> np.ndarray:
+    """(Hm, Wm) bool: the eyes (Hm, Wm) bool (``placement.features_on_grid``) grown by ``margin_px`` model pixels."""
+    return cv2.distanceTransform((~np.asarray(eyes, bool)).astype(np.uint8), cv2.DIST_L2, 3) <= margin_px
 
 
 def explained_variance(intensity: np.ndarray, shading: np.ndarray, use: np.ndarray,

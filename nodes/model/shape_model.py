@@ -77,6 +77,11 @@ class ShapeModel:
         return self._derived[key]
 
     @property
+    def iod(self) -> float:
+        """Model pixels between the canonical eye centres."""
+        return float(np.linalg.norm(np.subtract(*np.asarray(self.eyes, np.float64))))
+
+    @property
     def normal_variance(self) -> np.ndarray:
         """(N,) variance of each pixel's normal over the modes (AEP radians squared, both axes)."""
         if "normal_variance" not in self._derived:

@@ -193,9 +193,11 @@ def outline_on_grid(placement: FacePlacement, model: ShapeModel, shape: tuple[in
     return seen if outline is None else seen & outline
 
 
-def features_on_grid(placement: FacePlacement, grid: tuple[int, int]) -> np.ndarray | None:
-    """(Hm, Wm) bool: the face's eyes, brows and lips on the model grid, from its landmarks (None without)."""
-    parts = [o for name in ("eyes", "brows", "lips") for o in placement.grid_outline(name)]
+def features_on_grid(placement: FacePlacement, grid: tuple[int, int],
+                     names: tuple[str, ...] = ("eyes", "brows", "lips")) -> np.ndarray | None:
+    """(Hm, Wm) bool: the face's ``names`` (its eyes, brows and lips) on the model grid, from its landmarks (None
+    without)."""
+    parts = [o for name in names for o in placement.grid_outline(name)]
     if not parts:
         return None
     return np.logical_or.reduce([polygon_mask(o, grid) for o in parts])

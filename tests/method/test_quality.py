@@ -247,9 +247,10 @@ def test_a_face_in_sunglasses_is_ok_its_lenses_read_as_albedo(tmp_path):
 
 
 def test_the_eye_region_is_the_eyes_grown_by_its_margin():
+    from shadowflow.nodes.geometry.raster import polygon_mask
     from shadowflow.nodes.method.quality import eye_region
 
     eye = np.array([[20.0, 30.0], [30.0, 30.0], [30.0, 34.0], [20.0, 34.0]])
-    region = eye_region([eye], (64, 64), 3.0)
+    region = eye_region(polygon_mask(eye, (64, 64)), 3.0)
     assert region[32, 25] and region[32, 17] and region[37, 25] and not region[32, 14] and not region[40, 25]
-    assert not eye_region([], (64, 64), 3.0).any()
+    assert not eye_region(np.zeros((64, 64), bool), 3.0).any()

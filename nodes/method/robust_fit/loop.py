@@ -319,7 +319,7 @@ def _without_smooth_albedo(p: FitProblem, st: FitState) -> np.ndarray:
     trusted = (st.weights >= ALBEDO_MIN_WEIGHT) & ~st.released & (shading >= MIN_SHADING)
     if p.dark is not None:
         trusted &= ~p.dark
-    iod = float(np.linalg.norm(np.subtract(*p.model.eyes)))
+    iod = p.model.iod
     albedo = smooth_albedo(p.model.mask, p.intensity, shading, trusted, p.config.albedo_sigma * iod)
     return np.clip(p.intensity / albedo, 0.0, 1.0)
 
