@@ -32,7 +32,7 @@ from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_varia
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
-from .shadow import confirm_with_image, far_darker, shadow_maps
+from .shadow import confirm_with_image, far_darker, near_cast, shadow_maps
 from .turned import ViewChoiceNode, face_model, turned_placements
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
@@ -463,6 +463,14 @@ class ShadowNode:
         maps = shadow_maps(d["depth"], d["normals"], d["grid_light"], candidates=dark)
         if self.mode == "confirmed":
             maps = confirm_with_image(maps, d["remapped"], self.dark_threshold, far_dark)
+            # the eyes, brows and lips are dark by their albedo, hair over the face by its own: a near miss of the
+            # ray does not make them shadow (a fringe lit from the side came back with patches of skin)
+            placement: FacePlacement | None = d.get("placement")
+            features = None if placement is None else features_on_grid(placement, d["depth"].shape)
+            covered = d.get("grid_covered")
+            if covered is not None:
+                features = covered if features is None else features | covered
+            maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark, features)
         frame.data["shadow"] = maps
         return frame
 

@@ -168,6 +168,37 @@ def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: 
     return ShadowMaps(cast=cast, attached=attached)
 
 
+# the fitted surface is smoother than a face and its nose lower: a ray toward the light passing over it by under this
+# many pixels of travel (its height over the surface over its rise per pixel) may be blocked by the real one
+# (``near_cast``; docs/relighting.md, "Shadows")
+NEAR_CAST = 0.5
+
+
+def near_cast(maps: ShadowMaps, depth: np.ndarray, light: np.ndarray, intensity: np.ndarray, dark_threshold: float,
+              far_dark: np.ndarray, features: np.ndarray | None = None, travel: float = NEAR_CAST) -> ShadowMaps:
+    """Confirmed shadows ``maps`` (``confirm_with_image``) and the dark regions a ray nearly blocked seeds.
+
+    At a light near the view axis the nose casts a narrow shadow the fitted nose, too low, does not: no
+    traced cast shadow seeds it, and its darkness stays in the albedo. Rays from the dark pixels are traced
+    again, blocked where the surface comes within ``travel`` pixels of travel of them (``travel x`` their
+    rise per pixel of height; at a grazing light, whose traced shadows already reach, that is little), and
+    the dark regions they seed join the cast shadow, off ``features`` (H, W) bool grown by a pixel (the face
+    mesh's eyes, brows and lips: dark by their albedo, which a guess must not claim; None: none). depth, light as
+    ``shadow_maps``; intensity, dark_threshold, far_dark as ``confirm_with_image``."""
+    s = np.asarray(light, np.float64)
+    horiz = float(np.hypot(s[0], s[1]))
+    if horiz < 1e-6 or s[2] <= 0:
+        return maps
+    off = np.zeros(np.shape(depth), bool) if features is None else ndimage.binary_dilation(features)
+    dark = ((np.asarray(intensity) <= dark_threshold) | far_dark) & ~off & ~maps.attached & ~maps.cast
+    if not dark.any():
+        return maps
+    near = cast_shadow(depth, s, bias=-travel * s[2] / horiz, sources=dark & np.isfinite(depth))
+    seeded = confirm_with_image(ShadowMaps(near, maps.attached), np.where(off, np.inf, intensity), dark_threshold,
+                                far_dark & ~off).cast
+    return ShadowMaps(cast=maps.cast | (seeded & ~off & ~maps.attached), attached=maps.attached)
+
+
 # a pixel the fitted shape turns from the light is in shadow on the photo when it is darker than 0.45 x
 # this x the typical albedo: real attached shadows keep only ambient light; skin the fit turned too far is brighter
 PHOTO_SHADOW_FLOOR = 0.3

@@ -97,3 +97,35 @@ def test_the_margin_of_a_cast_shadow_is_its_yes_or_no_and_gives_a_straight_edge_
     # a light on the view axis casts nothing; from behind the face plane everything is in shadow
     assert (cast_margin(z, np.array([0.0, 0.0, 1.0]))[:, :-2] == -0.5).all()
     assert (cast_margin(z, light_from_angles(95.0))[:, :-2] == 0.5).all()
+
+
+def test_a_narrow_shadow_beside_a_ridge_too_low_to_cast_it_is_found_and_a_dark_feature_beside_it_is_not():
+    """A light 25 degrees from the view axis and a fitted ridge (the nose) 1.8 px high: the ray from the pixel
+    beside it clears it by 0.4 px of height, so no cast shadow is traced there, yet the photo is dark in a band
+    beside it (the real nose is higher). The band is found from that near miss; a dark feature touching the band
+    (an eye, given as a feature) is not; a light on the view axis finds nothing."""
+    from shadowflow.nodes.method.shadow import ShadowMaps, near_cast
+
+    z = np.zeros((40, 60))
+    z[:, 30:34] = 1.8
+    s = light_from_angles(25)  # toward the image's left: shadows fall to the right
+    intensity = np.full(z.shape, 0.8)
+    intensity[10:30, 34:39] = 0.1  # the shadow the real, higher ridge casts
+    intensity[10:30, 39:44] = 0.15  # an eye beside it: dark by its albedo
+    eye = np.zeros(z.shape, bool)
+    eye[10:30, 40:44] = True  # its outline, a pixel inside its dark edge (the feature is grown by one)
+    none = np.zeros(z.shape, bool)
+    normals = np.dstack([np.zeros_like(z), np.zeros_like(z), np.ones_like(z)])
+    traced = confirm_with_image(shadow_maps(z, normals, s), intensity, 0.3, none)
+    assert not traced.cast.any()  # the fitted ridge casts nothing
+    maps = near_cast(traced, z, s, intensity, 0.3, none, eye)
+    band = np.zeros(z.shape, bool)
+    band[10:30, 34:39] = True
+    assert np.array_equal(maps.cast, band)
+    # without the feature the eye is taken for the shadow it touches: the reason features are left out
+    assert near_cast(traced, z, s, intensity, 0.3, none).cast[10:30, 39:44].all()
+    # a frontal light casts no shadow, near or not
+    assert not near_cast(traced, z, np.array([0.0, 0.0, 1.0]), intensity, 0.3, none, eye).cast.any()
+    # nor does a ridge that the ray clears by more than the near miss's travel (0.5 px: 1.07 px of height here)
+    z[:, 30:34] = 1.0
+    assert not near_cast(traced, z, s, intensity, 0.3, none, eye).cast.any()
