@@ -23,6 +23,8 @@ from .live_relight import live_relight_data
 from .photo_relight import (
     AMBIENT_RIM,
     CLIPPED,
+    LIFT_AXIS,
+    LIFT_SIGMA,
     LIT_SHADING,
     SHEEN_SCALE,
     FaceLayer,
@@ -33,6 +35,7 @@ from .photo_relight import (
     grow,
     inner_alpha,
     lit_weight,
+    mirror_lift,
     mirrored_detail,
     outside_gain,
     photo_albedo,
@@ -85,8 +88,9 @@ class FaceRelight:
     or None. eyes: (2, 2) the eyes' centres in photo pixels where a face mesh found them, else None
     (no eye detail: a render without eye texture has no eye to show). midline: (2, 2) two points of the
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
-    for a turned face); fill_detail: that detail's strength (0: none). features: the outlines (n, 2) of the eyes,
-    brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
+    for a turned face); fill_detail: that detail's strength (0: none); mirror_lift: how far the albedo of the
+    side the photo's light reaches less is raised toward its mirror's (``photo_relight.mirror_lift``; 0: not, 1:
+    fully). features: the outlines (n, 2) of the eyes, brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
     segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel is the person
     (``mediapipe.person_share``), or None (the whole feather). hair: (Hm, Wm) bool, what the fit left out as
     covering the face's upper part (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
@@ -96,7 +100,7 @@ class FaceRelight:
                  normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, depth: np.ndarray, light: np.ndarray,
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
-                 fill_detail: float = FILL_DETAIL, features: list[np.ndarray] | None = None,
+                 fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, features: list[np.ndarray] | None = None,
                  segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
@@ -160,8 +164,11 @@ class FaceRelight:
         self.glints = self._glints(features, face_lit, iod_px)
         self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
         self.fill_detail = fill_detail if midline is not None else 0.0
+        # the face seen across its midline: its detail for the fill, its level for the side lit less
+        self.lift_sigma = LIFT_SIGMA * iod_px
+        self.mirror, off_axis, self.lift_reach = self._across(midline, iod_px, mirror_lift)
         # the detail seen across the face and its trust, once, from the light-independent trust
-        self.detail = self._mirrored_detail(midline, iod_px) if self.fill_detail > 0 else None
+        self.detail = self._mirrored_detail(off_axis, iod_px) if self.fill_detail > 0 else None
         self.albedo = self.albedo_for(self.trust_for())
         # the photo's shine, which a new light takes out where it darkens the skin (``without_sheen``)
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
@@ -180,30 +187,48 @@ class FaceRelight:
         return glints(self.photo, self.skin_only, face_lit & inside, SHEEN_SCALE * iod_px,
                       grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
 
-    def _mirrored_detail(self, midline: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
-        """The measured albedo's detail seen across the face's ``midline`` (2, 2) photo pixels, and its trust
-        (``mirrored_detail``), faded out near the midline."""
+    def _across(self, midline: np.ndarray | None, iod_px: float, lift: float):
+        """The face seen across its ``midline`` (2, 2) photo pixels: its ``reflection_map``, each pixel's distance
+        from the midline (h, w) in interocular distances, and how far the side lit less is raised toward its
+        mirror's level (``mirror_lift``'s reach (h, w), ``lift`` at most; None at 0). Nones without a midline."""
+        if midline is None:
+            return None, None, None
         y0, _, x0, _ = self.box
+        axis = np.asarray(midline, np.float64) - [x0, y0]
+        off_axis = axis_distance(self.shape, axis) / np.float32(iod_px)
+        reach = None
+        if lift > 0:
+            reach = (np.float32(lift) * smoothstep(off_axis, 0.0, LIFT_AXIS) * self.face).astype(np.float32)
+        return reflection_map(self.shape, axis), off_axis, reach
+
+    def _mirrored_detail(self, off_axis: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
+        """The measured albedo's detail seen across the face's midline, and its trust (``mirrored_detail``),
+        faded out near the midline (``off_axis`` (h, w): each pixel's distance from it, interocular distances)."""
         px = max(self.al.scale, 1.0)
         measured = np.atleast_3d(self.photo) / np.maximum(self.lighting, np.float32(1e-3))[..., None]
-        axis = np.asarray(midline, np.float64) - [x0, y0]
         detail, seen = mirrored_detail(measured, np.where(self.face, self.trust_for(), np.float32(0.0)),
-                                       reflection_map(self.shape, axis), FILL_DETAIL_BAND[0] * px,
-                                       FILL_DETAIL_BAND[1] * px)
+                                       self.mirror, FILL_DETAIL_BAND[0] * px, FILL_DETAIL_BAND[1] * px)
         # near the axis a pixel's mirror is its neighbour: the detail there meets its own reflection as a
         # symmetric pattern (a glabella's lines lit from the side came back as a "Y" at +-70)
-        near = smoothstep(axis_distance(self.shape, axis) / np.float32(iod_px), *FILL_DETAIL_AXIS)
+        near = smoothstep(off_axis, *FILL_DETAIL_AXIS)
         return detail, (seen * near).astype(np.float32)
 
-    def albedo_for(self, trust: np.ndarray) -> np.ndarray:
+    def albedo_for(self, trust: np.ndarray, new: np.ndarray | None = None) -> np.ndarray:
         """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere, with
-        the detail the face shows across its midline where it is the fit's (``mirrored_detail``)."""
+        the detail the face shows across its midline where it is the fit's (``mirrored_detail``), and the side
+        the photo's light reaches less raised toward its mirror's level as far as the new lighting ``new`` (h, w)
+        brightens it (``mirror_lift``; None: any light)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
         if self.detail is not None:
             detail, seen = self.detail
             weight = np.where(self.face, trust, np.float32(0.0))
             fill = (np.float32(self.fill_detail) * (np.float32(1.0) - weight) * seen)[..., None]
             a = (a * (np.float32(1.0) + fill * (detail - np.float32(1.0)))).astype(np.float32)
+        if self.lift_reach is not None:
+            amplification = None if new is None else new / np.maximum(self.lighting, np.float32(1e-3))
+            # the level is the trusted skin's: in shadow, the fill is already the mirror's or the fit's map
+            a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.mirror, self.lighting,
+                                self.lift_sigma, self.lift_reach, amplification)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 
     def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:
@@ -222,7 +247,7 @@ class FaceRelight:
         new_shading = (np.float32(1.0) - cast_in) * np.clip(self.normals @ s.astype(np.float32), 0.0, None)
         new_lighting = with_ambient(new_shading, self.ambient)
         # the albedo this light can trust: I / S also where S is small but S' is no larger
-        albedo = self.albedo_for(self.trust_for(new_lighting))
+        albedo = self.albedo_for(self.trust_for(new_lighting), new_lighting)
         keep = shine_kept(self.lighting, new_lighting, shine_lobe(self.normals, self.light, s))
         light_albedo = without_sheen(albedo, self.shine, self.lighting, new_lighting, keep)  # keep <= S'/S: as is
         # the room's light as the photo has it (``with_ambient``): the photo's own light gives the photo back,

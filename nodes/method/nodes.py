@@ -81,6 +81,9 @@ class MethodOptions:
     # the detail the lit side of a frontal face shows, seen across its midline, put into the fill of its shadowed
     # side at this strength (``face_relight.mirrored_detail``); 0: the fit's smooth map alone
     fill_detail: float = FILL_DETAIL
+    # the side of a frontal face its light reaches less: its albedo raised toward its mirror's level, at this
+    # strength (``photo_relight.mirror_lift``); 0: measured as it is
+    mirror_lift: float = 1.0
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
     # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
@@ -113,6 +116,8 @@ class MethodOptions:
             raise ValueError(f"eye_contrast is between 0 (off) and 1, not {self.eye_contrast!r}")
         if not 0.0 <= self.fill_detail <= 1.0:
             raise ValueError(f"fill_detail is between 0 (off) and 1, not {self.fill_detail!r}")
+        if not 0.0 <= self.mirror_lift <= 1.0:
+            raise ValueError(f"mirror_lift is between 0 (off) and 1, not {self.mirror_lift!r}")
         if not -90.0 <= self.novel_yaw_deg <= 90.0:
             raise ValueError(f"novel_yaw_deg turns the face by -90 to 90 degrees, not {self.novel_yaw_deg!r}")
         if self.novel_size is not None and not 32 <= self.novel_size <= 4096:
@@ -579,6 +584,7 @@ class PhotoRelightNode:
             mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
             light=d["light"], iod_px=iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
             eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
+            mirror_lift=self.options.mirror_lift,
             features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
             if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")),

@@ -41,6 +41,15 @@ AMBIENT_RIM = 0.15
 AMBIENT_MIN_SHARE = 0.003
 # a filled pixel's detail seen across the face is kept within this range of its local level (``mirrored_detail``)
 DETAIL_RANGE = (0.5, 2.0)
+# the albedo of the side the light reaches less is raised toward its mirror's (``mirror_lift``), both averaged
+# over this many interocular distances, by at most this factor, where the trusted skin around either covers
+# this share (a ramp); not within this many interocular distances of the face's midline; as far as a new light
+# brightens the pixel, S' / S over this ramp (docs/relighting.md)
+LIFT_SIGMA = 0.06
+LIFT_CAP = 1.6
+LIFT_SUPPORT = (0.2, 0.4)
+LIFT_AXIS = 0.05
+LIFT_AMPLIFICATION = (1.0, 1.2)
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
 # wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
@@ -354,6 +363,39 @@ def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.n
                      borderValue=1.0).reshape(band.shape)
     trust = cv2.remap(w, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     return seen, np.clip(2.0 * trust - 1.0, 0.0, 1.0).astype(np.float32)
+
+
+def mirror_lift(albedo: np.ndarray, weight: np.ndarray, mirror: tuple[np.ndarray, np.ndarray],
+                shading: np.ndarray, sigma_px: float, reach: np.ndarray,
+                amplification: np.ndarray | None = None) -> np.ndarray:
+    """(H, W, C) float32 >= 1: how much the albedo of the side a photo's light reaches less is raised
+    toward its mirror pixel's, both averaged over ``sigma_px`` (``weighted_blur`` by ``weight`` (H, W),
+    the trusted skin) and the raise at most ``LIFT_CAP``.
+
+    An error ``e`` in the fitted shading ``S`` leaves ``e / S`` in ``I / S``, and the fitted normals of the
+    far flank of the nose and the cheek beyond it lean toward the light (the model's surface is smoother
+    than a face): their albedo holds a shadow the relighting then brightens by ``S' / S``. A face's albedo
+    is nearly symmetric at this scale, and the mirror pixel, lit more, is measured with a smaller error.
+    The raise's exponent is how much less lit the pixel is than its mirror, ``(S_m - S) / S_m``, times
+    ``reach`` (H, W) in [0, 1] (0 where the mirror says nothing: near the midline, off the face), times
+    how much the new light brightens the pixel (``amplification`` ``S' / S`` (H, W) over
+    ``LIFT_AMPLIFICATION``; None: fully): a photo relit with its own light keeps its own pixels.
+    albedo (H, W, C); shading (H, W) ``S`` with the room's light; mirror: ``reflection_map``."""
+    a = np.nan_to_num(np.asarray(albedo, np.float32))  # NaN off the face
+    level, around = weighted_blur(a, weight, sigma_px)
+    seen = cv2.remap(level, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                     borderValue=0.0).reshape(level.shape)
+    seen_around = cv2.remap(around, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                            borderValue=0.0)
+    s = np.asarray(shading, np.float32)
+    s_seen = cv2.remap(s, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    strength = np.clip((s_seen - s) / np.maximum(s_seen, np.float32(1e-3)), 0.0, 1.0) * reach
+    # measured on both sides: the trusted skin around the pixel and around its mirror
+    strength *= smoothstep(around, *LIFT_SUPPORT) * smoothstep(seen_around, *LIFT_SUPPORT)
+    if amplification is not None:
+        strength *= smoothstep(amplification, *LIFT_AMPLIFICATION)
+    ratio = np.clip(seen / np.maximum(level, np.float32(1e-4)), 1.0, LIFT_CAP)
+    return np.power(ratio, strength[..., None]).astype(np.float32)
 
 
 def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,

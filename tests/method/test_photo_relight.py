@@ -559,3 +559,35 @@ def test_a_highlight_stays_under_its_own_light_and_leaves_with_it():
     lighting = np.full((1, 3), 0.8, np.float32)
     out = without_sheen(albedo, shine, lighting, lighting, lobe[None])[0, :, 0]
     np.testing.assert_allclose(out, 0.9 - 0.3 * (1.0 - lobe), atol=1e-6)
+
+
+def test_the_side_lit_less_is_raised_toward_its_mirrors_level_as_far_as_a_new_light_brightens_it():
+    """A symmetric albedo whose right half holds a shadow the fitted shading missed (0.7 of it) where the photo's
+    light reaches less (S 0.15 against 0.9 across): it is raised toward its mirror's level, by how much less lit it
+    is (5/6 of the way in log terms), never past it; the lit side, a real dark mark on it, the midline and a pixel
+    relit by its own light are left as they are."""
+    from shadowflow.nodes.method.photo_relight import LIFT_CAP, mirror_lift, reflection_map
+
+    h, w = 60, 80
+    mirror = reflection_map((h, w), np.array([[40.0, 0.0], [40.0, 59.0]]))
+    xx = np.mgrid[0:h, 0:w][1]
+    right, left = xx > 40, xx < 40
+    albedo = np.full((h, w, 1), 0.6, np.float32)
+    albedo[right] *= 0.7
+    albedo[20:26, 10:16] = 0.2  # a mole on the lit side: its mirror on the right is not darkened to match it
+    shading = np.where(right, 0.15, 0.9).astype(np.float32)
+    reach = (np.abs(xx - 40) > 4).astype(np.float32)  # nothing near the midline
+    lift = mirror_lift(albedo, np.ones((h, w), np.float32), mirror, shading, 2.0, reach)
+    yy = np.mgrid[0:h, 0:w][0]
+    core = right & (np.abs(xx - 60) < 8) & (yy > 36) & (yy < 56)  # away from the mole's mirror
+    want = (1.0 / 0.7) ** ((0.9 - 0.15) / 0.9)
+    np.testing.assert_allclose(lift[core][:, 0], want, rtol=0.02)
+    assert lift.min() >= 1.0 and lift.max() <= min(1.0 / 0.7, LIFT_CAP) + 1e-4
+    assert np.all(lift[left] == 1.0) and np.all(lift[np.abs(xx - 40) <= 4] == 1.0)
+    assert np.all(lift[19:27, 64:71] < lift[core].min())  # the mole's mirror: only as far as its surroundings say
+    # the photo's own light (S' = S) keeps its pixels; a light brightening the right side 1.5x lifts it fully
+    same = mirror_lift(albedo, np.ones((h, w), np.float32), mirror, shading, 2.0, reach, np.ones((h, w), np.float32))
+    assert np.all(same == 1.0)
+    brighter = mirror_lift(albedo, np.ones((h, w), np.float32), mirror, shading, 2.0, reach,
+                           np.full((h, w), 1.5, np.float32))
+    np.testing.assert_allclose(brighter[core], lift[core], rtol=1e-5)

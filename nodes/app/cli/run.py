@@ -55,13 +55,14 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     _view_size(args.view_size)
     _strength("--eye-contrast", args.eye_contrast)
     _strength("--fill-detail", args.fill_detail)
+    _strength("--mirror-lift", args.mirror_lift)
     _max_pixels(args.max_megapixels)
     for light in args.relight or ():
         parse_light(light)
 
 
 def _strength(flag: str, c: float) -> float:
-    """A detail's strength given as ``flag`` (--eye-contrast, --fill-detail): 0 (off) to 1."""
+    """A detail's strength given as ``flag`` (--eye-contrast, --fill-detail, --mirror-lift): 0 (off) to 1."""
     if not (0.0 <= c <= 1.0):
         raise ValueError(f"{flag} is between 0 (off) and 1, not {c:g}")
     return c
@@ -139,6 +140,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
                          eye_contrast=_strength("--eye-contrast", args.eye_contrast),
                          fill_detail=_strength("--fill-detail", args.fill_detail),
+                         mirror_lift=_strength("--mirror-lift", args.mirror_lift),
                          max_pixels=_max_pixels(args.max_megapixels),
                          encoding=args.encoding, arrays=args.arrays)
 
@@ -254,6 +256,9 @@ def add_parser(sub) -> None:
                    help="a frontal face's shadowed side, filled from the fit's smooth albedo, gets the detail its lit "
                         f"side shows across the face (nostrils, lips, skin) at this strength (default {FILL_DETAIL:g}; "
                         "0: off, the smooth fill)")
+    r.add_argument("--mirror-lift", type=float, default=1.0, metavar="C",
+                   help="the side of a frontal face the photo's light reaches less keeps its measured albedo no darker "
+                        "than the other side's, seen across the face, at this strength (default 1; 0: off, as measured)")
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
