@@ -166,7 +166,7 @@ class FaceRelight:
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the face seen across its midline: its detail for the fill, its level for the side lit less
         self.lift_sigma = LIFT_SIGMA * iod_px
-        self.mirror, off_axis, self.lift_reach = self._across(midline, iod_px, mirror_lift)
+        self.axis, self.mirror, off_axis, self.lift_reach = self._across(midline, iod_px, mirror_lift)
         # the detail seen across the face and its trust, once, from the light-independent trust
         self.detail = self._mirrored_detail(off_axis, iod_px) if self.fill_detail > 0 else None
         self.albedo = self.albedo_for(self.trust_for())
@@ -188,18 +188,19 @@ class FaceRelight:
                       grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
 
     def _across(self, midline: np.ndarray | None, iod_px: float, lift: float):
-        """The face seen across its ``midline`` (2, 2) photo pixels: its ``reflection_map``, each pixel's distance
-        from the midline (h, w) in interocular distances, and how far the side lit less is raised toward its
-        mirror's level (``mirror_lift``'s reach (h, w), ``lift`` at most; None at 0). Nones without a midline."""
+        """The face seen across its ``midline`` (2, 2) photo pixels: that line in the box's pixels, its
+        ``reflection_map``, each pixel's distance from it (h, w) in interocular distances, and how far the side lit
+        less is raised toward its mirror's level (``mirror_lift``'s reach (h, w), ``lift`` at most; None at 0).
+        Nones without a midline."""
         if midline is None:
-            return None, None, None
+            return None, None, None, None
         y0, _, x0, _ = self.box
         axis = np.asarray(midline, np.float64) - [x0, y0]
         off_axis = axis_distance(self.shape, axis) / np.float32(iod_px)
         reach = None
         if lift > 0:
             reach = (np.float32(lift) * smoothstep(off_axis, 0.0, LIFT_AXIS) * self.face).astype(np.float32)
-        return reflection_map(self.shape, axis), off_axis, reach
+        return axis, reflection_map(self.shape, axis), off_axis, reach
 
     def _mirrored_detail(self, off_axis: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
         """The measured albedo's detail seen across the face's midline, and its trust (``mirrored_detail``),
@@ -227,7 +228,7 @@ class FaceRelight:
         if self.lift_reach is not None:
             amplification = None if new is None else new / np.maximum(self.lighting, np.float32(1e-3))
             # the level is the trusted skin's: in shadow, the fill is already the mirror's or the fit's map
-            a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.mirror, self.lighting,
+            a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.axis, self.lighting,
                                 self.lift_sigma, self.lift_reach, amplification)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 

@@ -50,6 +50,7 @@ LIFT_CAP = 1.6
 LIFT_SUPPORT = (0.2, 0.4)
 LIFT_AXIS = 0.05
 LIFT_AMPLIFICATION = (1.0, 1.2)
+LIFT_STEP = 4.0  # the lift is computed on a grid of sigma / this pixels (at least the box's)
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``): a
 # wider fade costs the relit face (docs/tuning.md, "Relighting the photo")
 INNER_FEATHER = 0.12
@@ -365,12 +366,12 @@ def mirrored_detail(measured: np.ndarray, weight: np.ndarray, mirror: tuple[np.n
     return seen, np.clip(2.0 * trust - 1.0, 0.0, 1.0).astype(np.float32)
 
 
-def mirror_lift(albedo: np.ndarray, weight: np.ndarray, mirror: tuple[np.ndarray, np.ndarray],
-                shading: np.ndarray, sigma_px: float, reach: np.ndarray,
-                amplification: np.ndarray | None = None) -> np.ndarray:
+def mirror_lift(albedo: np.ndarray, weight: np.ndarray, axis: np.ndarray, shading: np.ndarray, sigma_px: float,
+                reach: np.ndarray, amplification: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) float32 >= 1: how much the albedo of the side a photo's light reaches less is raised
-    toward its mirror pixel's, both averaged over ``sigma_px`` (``weighted_blur`` by ``weight`` (H, W),
-    the trusted skin) and the raise at most ``LIFT_CAP``.
+    toward its mirror pixel's across the face's ``axis`` (2, 2) ``[x, y]`` (``reflection_map``), both averaged
+    over ``sigma_px`` (``weighted_blur`` by ``weight`` (H, W), the trusted skin) and the raise at most
+    ``LIFT_CAP``.
 
     An error ``e`` in the fitted shading ``S`` leaves ``e / S`` in ``I / S``, and the fitted normals of the
     far flank of the nose and the cheek beyond it lean toward the light (the model's surface is smoother
@@ -380,22 +381,45 @@ def mirror_lift(albedo: np.ndarray, weight: np.ndarray, mirror: tuple[np.ndarray
     ``reach`` (H, W) in [0, 1] (0 where the mirror says nothing: near the midline, off the face), times
     how much the new light brightens the pixel (``amplification`` ``S' / S`` (H, W) over
     ``LIFT_AMPLIFICATION``; None: fully): a photo relit with its own light keeps its own pixels.
-    albedo (H, W, C); shading (H, W) ``S`` with the room's light; mirror: ``reflection_map``."""
+    albedo (H, W, C); shading (H, W) ``S`` with the room's light. A smooth field: computed on a grid
+    ``LIFT_STEP`` times finer than ``sigma_px`` (a 4-megapixel face's box a ninth of its pixels), then
+    brought back (bilinear)."""
     a = np.nan_to_num(np.asarray(albedo, np.float32))  # NaN off the face
-    level, around = weighted_blur(a, weight, sigma_px)
-    seen = cv2.remap(level, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=0.0).reshape(level.shape)
-    seen_around = cv2.remap(around, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                            borderValue=0.0)
-    s = np.asarray(shading, np.float32)
-    s_seen = cv2.remap(s, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    strength = np.clip((s_seen - s) / np.maximum(s_seen, np.float32(1e-3)), 0.0, 1.0) * reach
+    h, w = a.shape[:2]
+    step = max(1, int(sigma_px // LIFT_STEP))
+    hs, ws = h // step, w // step
+    if min(hs, ws) < 2:
+        step, hs, ws = 1, h, w
+
+    def small(v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v, np.float32)[:hs * step, :ws * step]
+        return v if step == 1 else cv2.resize(v, (ws, hs), interpolation=cv2.INTER_AREA).reshape((hs, ws) + v.shape[2:])
+
+    wt = small(weight)
+    mean = small(a * np.asarray(weight, np.float32)[..., None]) / np.maximum(wt, np.float32(1e-12))[..., None]
+    level, around = weighted_blur(mean, wt, sigma_px / step)
+    # pixel centres: a small pixel's is (i + 0.5) step - 0.5 of the box's
+    mirror = reflection_map((hs, ws), (np.asarray(axis, np.float64) + 0.5) / step - 0.5)
+
+    def across(v: np.ndarray) -> np.ndarray:
+        return cv2.remap(v, mirror[0], mirror[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                         borderValue=0.0).reshape(v.shape)
+
+    s = small(shading)
+    s_seen = across(s)
+    strength = np.clip((s_seen - s) / np.maximum(s_seen, np.float32(1e-3)), 0.0, 1.0) * small(reach)
     # measured on both sides: the trusted skin around the pixel and around its mirror
-    strength *= smoothstep(around, *LIFT_SUPPORT) * smoothstep(seen_around, *LIFT_SUPPORT)
+    strength *= smoothstep(around, *LIFT_SUPPORT) * smoothstep(across(around), *LIFT_SUPPORT)
     if amplification is not None:
-        strength *= smoothstep(amplification, *LIFT_AMPLIFICATION)
-    ratio = np.clip(seen / np.maximum(level, np.float32(1e-4)), 1.0, LIFT_CAP)
-    return np.power(ratio, strength[..., None]).astype(np.float32)
+        strength *= smoothstep(small(amplification), *LIFT_AMPLIFICATION)
+    ratio = np.clip(across(level) / np.maximum(level, np.float32(1e-4)), 1.0, LIFT_CAP)
+    lift = np.power(ratio, strength[..., None]).astype(np.float32)
+    if step > 1:
+        lift = cv2.resize(lift, (ws * step, hs * step), interpolation=cv2.INTER_LINEAR).reshape(
+            (hs * step, ws * step, lift.shape[2]))
+    if lift.shape[:2] != (h, w):  # the last few rows and columns past a whole step: the edge's own
+        lift = np.pad(lift, ((0, h - lift.shape[0]), (0, w - lift.shape[1]), (0, 0)), mode="edge")
+    return lift
 
 
 def clipped_floor(face_image: np.ndarray, photo: np.ndarray, shading: np.ndarray, new_shading: np.ndarray,
