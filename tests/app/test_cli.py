@@ -373,3 +373,15 @@ def test_a_line_on_stderr_is_one_write_so_threads_never_run_two_into_one(monkeyp
         t.join()
     Progress(None, enabled=False).write("doubtful: a.png: small")
     assert len(stderr.calls) == 801 and all(c.endswith("\n") and c.count("\n") == 1 for c in stderr.calls)
+
+
+def test_eval_yaleb_lights_are_the_tuned_eight_the_held_out_set_or_pairs_given():
+    from shadowflow.nodes.app.cli.evaluate import yaleb_lights
+    from shadowflow.nodes.evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS
+
+    assert yaleb_lights("default") == INPUT_LIGHTS
+    assert yaleb_lights("held-out") == HELD_OUT_LIGHTS and not set(HELD_OUT_LIGHTS) & set(INPUT_LIGHTS)
+    assert yaleb_lights("25,0; -35,15") == [(25, 0), (-35, 15)]
+    for bad in ("", "25", "25,0;x,1", "25,0,3"):
+        with pytest.raises(ValueError, match="--lights"):
+            yaleb_lights(bad)

@@ -317,3 +317,16 @@ def test_yaleb_the_noses_narrow_shadow_at_25_degrees_is_taken_out():
                            None, lights=[(-25, 0)], estimate_light=False, bounds=False)[0]
     on = [r for r in rows if r["subject"] == "yaleB04" and r["light"].startswith("-25")][0]
     assert off["psnr"] < on["psnr"] - 0.5, (off["psnr"], on["psnr"])
+
+
+def test_yaleb_a_photo_that_fails_is_left_out_and_named_when_asked_else_it_stops_the_run(yaleb_subject):
+    from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.model.default_model import default_model
+
+    args = (yaleb_subject, default_model(), MethodOptions(light="yaleb"), None)
+    rows = evaluate_subject(*args, lights=[(25, 0), (1, 1)], estimate_light=False, bounds=False, skip_unfound=True)
+    assert rows[0]["light"] == "+25,+0" and rows[0]["psnr"] > 20 and "skipped" not in rows[0]
+    assert rows[1]["light"] == "+1,+1" and "P00A+001E+01" in rows[1]["skipped"]  # no such exposure
+    with pytest.raises(RuntimeError, match="P00A\\+001E\\+01"):
+        evaluate_subject(*args, lights=[(1, 1)], estimate_light=False, bounds=False)

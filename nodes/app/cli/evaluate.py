@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
-from ...evaluation.yaleb_benchmark import evaluate_yaleb, format_report, summarise
+from ...evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS, evaluate_yaleb, format_report, summarise
 from ...method.nodes import CHOICES, MethodOptions
 from ...model.default_model import train_from_recipe
 from ...model.sources import load_source
@@ -58,6 +58,22 @@ def _mapper(spec: str | None):
         yield functools.partial(ordered_map, client)
 
 
+def yaleb_lights(spec: str) -> list[tuple[int, int]]:
+    """``--lights``: "default" (``INPUT_LIGHTS``), "held-out" (``HELD_OUT_LIGHTS``) or "A,E;A,E;..." (Yale B's
+    azimuth and elevation, whole degrees)."""
+    if spec == "default":
+        return list(INPUT_LIGHTS)
+    if spec == "held-out":
+        return list(HELD_OUT_LIGHTS)
+    try:
+        lights = [tuple(int(v) for v in pair.split(",")) for pair in spec.split(";") if pair.strip()]
+    except ValueError:
+        lights = []
+    if not lights or any(len(pair) != 2 for pair in lights):
+        raise ValueError(f"--lights {spec!r}: default, held-out or A,E;A,E;... (whole degrees)")
+    return lights
+
+
 def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     if not args.data:
         raise ValueError("eval yaleb needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
@@ -69,8 +85,9 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
           "ground truth: photometric stereo of each subject's exposures")
+    lights = yaleb_lights(args.lights)
     with _mapper(args.dask) as mapper:
-        report = evaluate_yaleb(args.data, model, options, mapper=mapper)
+        report = evaluate_yaleb(args.data, model, options, lights=lights, mapper=mapper)
     summary = summarise(report["rows"])
     print(format_report(report, summary))
     report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
@@ -151,6 +168,10 @@ def add_parser(sub) -> None:
     e.add_argument("--integrator", choices=CHOICES["integrator"], default=MethodOptions.integrator, help="as run --integrator")
     e.add_argument("--shadows", choices=CHOICES["shadows"], default=MethodOptions.shadows, help="as run --shadows")
     e.add_argument("--albedo-fill", choices=CHOICES["albedo_fill"], help="as run --albedo-fill")
+    e.add_argument("--lights", default="default", metavar="default|held-out|A,E;...",
+                   help="eval yaleb: the input lights: the eight the method was tuned on (default), 23 it was not "
+                        "(held-out; photos whose face is not found are left out and named), or Yale B's azimuth, "
+                        "elevation pairs")
     e.add_argument("--json", help="write the report here")
     e.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR,
                    help="spread the faces and lights (synthetic) or the subjects (yaleb) over a Dask cluster; "
