@@ -627,7 +627,9 @@ class QualityNode:
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
                    inside=float(np.mean(seen[core_face(m)[m.mask]])),
                    doubts=placement.doubts if placement is not None else (),
-                   plausible=placement.plausible if placement is not None else True)
+                   plausible=placement.plausible if placement is not None else True,
+                   presence=placement.presence if placement is not None else None,
+                   detection=placement.face.score if placement is not None and placement.face is not None else None)
         q.signals["covered"] = float(np.mean(unread[seen])) if seen.any() else 0.0  # hair the fit left out
         frame.meta["quality"] = q.record()
         if q.no_face:

@@ -18,8 +18,10 @@ Signals (all measured on what the method already computed):
 
 The score is ``explained`` scaled down by each problem, and halved by each flag; ``flags`` name
 the problems, the placement's doubts (``photo.placement``) among them. A frame with no eyes whose
-fit explains little has no face: it fails with that reason. A frame with a flag is doubtful: its
-outputs are written and its status says why.
+fit explains little has no face: it fails with that reason; so does a found face whose fit explains very
+little, unless the face detector and the face mesh are both sure of it and its landmarks have a face's
+proportions (a portrait in soft light, whose brightness is mostly albedo). A frame with a flag is
+doubtful: its outputs are written and its status says why.
 """
 from __future__ import annotations
 
@@ -39,6 +41,11 @@ NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much t
 # a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a
 # face); under MIN_EXPLAINED, doubtful
 LEAST_EXPLAINED = 0.25
+# ... unless the face detector and the face mesh are this sure of it and its landmarks have a face's proportions:
+# then it is a face the fit does not explain (a portrait in soft light, whose brightness is mostly its albedo),
+# doubtful, not none (the rings: detector 0.50; real faces in soft light 0.83-0.97; docs/tuning.md)
+CONFIDENT_DETECTION = 0.75
+CONFIDENT_PRESENCE = 0.9
 MAX_DOWNWEIGHTED = 0.7  # of the seen face's pixels the fit may give a weight under 0.5
 MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles
 MIN_INSIDE = 0.75  # of the face's core inside the frame
@@ -113,10 +120,12 @@ def unread_weights(intensity: np.ndarray, model_normals: np.ndarray, light: np.n
 
 
 def assess(eyes: str, explained: float, downweighted: float, clipped: float, inside: float,
-           doubts: tuple[str, ...] = (), plausible: bool = True) -> Quality:
+           doubts: tuple[str, ...] = (), plausible: bool = True, presence: float | None = None,
+           detection: float | None = None) -> Quality:
     """The score and flags of one frame from its signals (module docstring); ``doubts``: what the
     face's placement found wrong (``photo.placement``), each a flag; ``plausible``: whether its
-    landmarks have a face's proportions."""
+    landmarks have a face's proportions; ``presence``, ``detection``: the face mesh's and the face
+    detector's scores for a found face (None: not found by them)."""
     signals = {"eyes": eyes, "explained": explained, "downweighted": downweighted, "clipped": clipped,
                "inside": inside}
     flags = list(doubts)
@@ -139,6 +148,10 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
     # mesh saw or whose placement is in doubt too, is none
     unexplained = explained < (MIN_EXPLAINED if eyes == "mesh only" or doubts else LEAST_EXPLAINED)
+    # ... but one both nets are sure of, in a face's proportions, with nothing else in doubt, is a face: doubtful
+    confirmed = (eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE
+                 and (detection or 0.0) >= CONFIDENT_DETECTION)
+    unexplained = unexplained and not confirmed
     # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
     implausible = not plausible and explained < NO_FACE_EXPLAINED
     no_face = (eyes == "none" and explained < NO_FACE_EXPLAINED) or unexplained or implausible

@@ -254,3 +254,20 @@ def test_the_eye_region_is_the_eyes_grown_by_its_margin():
     region = eye_region(polygon_mask(eye, (64, 64)), 3.0)
     assert region[32, 25] and region[32, 17] and region[37, 25] and not region[32, 14] and not region[40, 25]
     assert not eye_region(np.zeros((64, 64), bool), 3.0).any()
+
+
+def test_a_face_both_nets_are_sure_of_is_doubtful_not_none_when_its_fit_explains_little():
+    """A portrait in soft light: its brightness is mostly albedo, so the fitted shape explains little of it (a
+    film still measured -0.57, three photos of a footballer 0.11-0.21), yet the detector (0.83-0.97) and the face
+    mesh (1.0) are sure and the landmarks have a face's proportions: doubtful, with outputs, not "no face found".
+    Concentric rings, which the mesh also takes for a face (presence 1.0), the detector scores 0.50: none."""
+    from shadowflow.nodes.method.quality import assess
+
+    soft = dict(eyes="detected", explained=0.1, downweighted=0.3, clipped=0.0, inside=1.0)
+    q = assess(**soft, presence=1.0, detection=0.95)
+    assert not q.no_face and q.flags == ["the fitted face explains 10 % of the image's shading"]
+    assert assess(**soft, presence=1.0, detection=0.5).no_face  # the rings
+    assert assess(**soft, presence=0.7, detection=0.95).no_face  # the mesh unsure
+    assert assess(**soft, presence=1.0, detection=0.95, plausible=False).no_face  # not a face's proportions
+    assert assess(**soft, presence=1.0, detection=0.95, doubts=("the face is small",)).no_face
+    assert assess(**soft).no_face  # eyes given or a render: the fit alone decides
