@@ -302,11 +302,16 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
     for subject_rows, subject_frontal in mapper(evaluate_one_subject, items, (model, options, lights, estimate_light)):
         rows.extend(subject_rows)
         frontal.append(subject_frontal)
+    return {**_left_out(rows, note), "frontal": frontal,
+            "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
+
+
+def _left_out(rows: list[dict], note) -> dict:
+    """``{"rows": the rows measured, "skipped": those of photos that failed}``, each of the latter noted."""
     skipped = [r for r in rows if "skipped" in r]
     for r in skipped:
         note(f"{r['subject']} {r['light']}: left out ({r['skipped']})")
-    return {"rows": [r for r in rows if "skipped" not in r], "skipped": skipped, "frontal": frontal,
-            "subjects": {s.name: {"excluded": s.excluded} for s in subjects}}
+    return {"rows": [r for r in rows if "skipped" not in r], "skipped": skipped}
 
 
 def _others_mean(subjects: list, i: int) -> np.ndarray | None:

@@ -90,10 +90,13 @@ class FaceRelight:
     face's vertical symmetry axis in photo pixels, or None (no detail seen across the face in the fill, as
     for a turned face); fill_detail: that detail's strength (0: none); mirror_lift: how far the albedo of the
     side the photo's light reaches less is raised toward its mirror's (``photo_relight.mirror_lift``; 0: not, 1:
-    fully). features: the outlines (n, 2) of the eyes, brows, lips and mouth in photo pixels where a face mesh drew them, or None (no glints told in colour).
+    fully). features: the outlines (n, 2) of the eyes, brows, lips and mouth in photo pixels where a face mesh drew
+    them, or None (no glints told in colour).
     segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel is the person
     (``mediapipe.person_share``), or None (the whole feather). hair: (Hm, Wm) bool, what the fit left out as
     covering the face's upper part (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
+    near: (Hm, Wm) bool, the part of the fit's shadows found from rays the surface nearly blocks (``ShadowMaps.near``),
+    or None: dark pixels there are shadow, but no shadow grows from them across the photo's dark pixels.
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -101,7 +104,8 @@ class FaceRelight:
                  iod_px: float, outline: np.ndarray | None = None, eyes: np.ndarray | None = None,
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
                  fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, features: list[np.ndarray] | None = None,
-                 segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None):
+                 segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None,
+                 near: np.ndarray | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -133,7 +137,6 @@ class FaceRelight:
         self.normals = np.nan_to_num(normals_to_input(normals, mask, al, shape)).astype(np.float32)
         self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         box_grey = grey[y0:y1, x0:x1]
-        coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, al, shape)) >= 0.5
         # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow; in grey,
         # ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of skin).
         # Not in colour, where the skin's colour tells: there it also took the darkness drawn around a composite's
@@ -143,7 +146,7 @@ class FaceRelight:
             hair_px = face & grow(np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, al, shape)) >= 0.5,
                                      max(al.scale, 1.0))  # and its edge, a model pixel wide
         face_skin = skin(photo, face) & ~hair_px
-        self.shadow = photo_shadows(box_grey, shading, face & ~coarse_lit, face_skin)
+        self.shadow = self._shadows(box_grey, mask, lit, near, face_skin)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
@@ -174,6 +177,18 @@ class FaceRelight:
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _shadows(self, grey: np.ndarray, mask: np.ndarray, lit: np.ndarray, near: np.ndarray | None,
+                 face_skin: np.ndarray) -> np.ndarray:
+        """(h, w) bool: the box's shadows at the photo's resolution (``photo_shadows``) from the fit's, ``lit``
+        (Hm, Wm) bool, on the model grid (``mask``); those found from rays nearly blocked (``near``, or None) are
+        taken where the box's ``grey`` (h, w) is dark, not grown across it."""
+        coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+        near_px = None
+        if near is not None and near.any():
+            near_px = np.nan_to_num(scalar_to_input(near.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+            coarse_lit = coarse_lit | near_px
+        return photo_shadows(grey, self.shading, self.face & ~coarse_lit, face_skin, near=near_px)
 
     def _glints(self, features: list[np.ndarray] | None, face_lit: np.ndarray, iod_px: float) -> np.ndarray:
         """(h, w) bool: the box's highlights too white to pass as skin (``glints``), off the face mesh's eyes, brows,

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
+import cv2
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
@@ -32,7 +33,7 @@ from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_varia
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
-from .shadow import confirm_with_image, far_darker, near_cast, shadow_maps
+from .shadow import NEAR_CAST_MOUTH, confirm_with_image, far_darker, near_cast, shadow_maps
 from .turned import ViewChoiceNode, face_model, turned_placements
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
@@ -468,16 +469,32 @@ class ShadowNode:
         maps = shadow_maps(d["depth"], d["normals"], d["grid_light"], candidates=dark)
         if self.mode == "confirmed":
             maps = confirm_with_image(maps, d["remapped"], self.dark_threshold, far_dark)
-            # the eyes, brows and lips are dark by their albedo, hair over the face by its own: a near miss of the
-            # ray does not make them shadow (a fringe lit from the side came back with patches of skin)
-            placement: FacePlacement | None = d.get("placement")
-            features = None if placement is None else features_on_grid(placement, d["depth"].shape)
-            covered = d.get("grid_covered")
-            if covered is not None:
-                features = covered if features is None else features | covered
-            maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark, features)
+            maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark,
+                             near_cast_kept_out(d.get("placement"), d.get("grid_covered"), d["depth"].shape))
         frame.data["shadow"] = maps
         return frame
+
+
+def near_cast_kept_out(placement: FacePlacement | None, covered: np.ndarray | None,
+                       grid: tuple[int, int]) -> np.ndarray | None:
+    """(Hm, Wm) bool: what a near miss of the ray (``shadow.near_cast``) must not make shadow, being dark by
+    its albedo: the face mesh's eyes and brows, its lips and the mouth's surroundings within ``NEAR_CAST_MOUTH``
+    interocular distances (a moustache, a goatee: under a light from above the lower lip nearly shades the chin,
+    and a goatee's middle came back a patch of skin), and hair over the face (``covered``: a fringe lit from the
+    side took patches of skin). None when there is nothing to keep out."""
+    out = None if covered is None else np.asarray(covered, bool)
+    if placement is None:
+        return out
+    features = features_on_grid(placement, grid, ("eyes", "brows"))
+    lips = features_on_grid(placement, grid, ("lips",))
+    eyes = [np.mean(o, axis=0) for o in placement.grid_outline("eyes")]
+    if lips is not None and len(eyes) == 2:
+        iod = float(np.linalg.norm(eyes[1] - eyes[0]))
+        away = cv2.distanceTransform((~lips).astype(np.uint8), cv2.DIST_L2, 3)
+        features = (away <= NEAR_CAST_MOUTH * iod) if features is None else features | (away <= NEAR_CAST_MOUTH * iod)
+    if features is None:
+        return out
+    return features if out is None else features | out
 
 
 class AlbedoNode:
@@ -588,7 +605,7 @@ class PhotoRelightNode:
             features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
             if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")),
-            hair=covered_above_eyes(frame, m))
+            hair=covered_above_eyes(frame, m), near=d["shadow"].near)
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

@@ -145,14 +145,18 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     score *= 1.0 - max(0.0, clipped - 0.05)
     score *= min(1.0, inside / MIN_INSIDE) ** 4
     score *= 0.5 ** len(flags)  # a doubtful frame never outscores a clean one of the same fit
+    return Quality(score, flags, signals, _no_face(eyes, explained, doubts, plausible, presence, detection))
+
+
+def _no_face(eyes: str, explained: float, doubts: tuple[str, ...], plausible: bool, presence: float | None,
+             detection: float | None) -> bool:
+    """Whether a frame holds no face (``assess``'s arguments)."""
     # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
     # mesh saw or whose placement is in doubt too, is none
     unexplained = explained < (MIN_EXPLAINED if eyes == "mesh only" or doubts else LEAST_EXPLAINED)
     # ... but one both nets are sure of, in a face's proportions, with nothing else in doubt, is a face: doubtful
     confirmed = (eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE
                  and (detection or 0.0) >= CONFIDENT_DETECTION)
-    unexplained = unexplained and not confirmed
     # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
     implausible = not plausible and explained < NO_FACE_EXPLAINED
-    no_face = (eyes == "none" and explained < NO_FACE_EXPLAINED) or unexplained or implausible
-    return Quality(score, flags, signals, no_face)
+    return (eyes == "none" and explained < NO_FACE_EXPLAINED) or (unexplained and not confirmed) or implausible

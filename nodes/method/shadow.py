@@ -10,10 +10,12 @@ from scipy import ndimage
 @dataclass(frozen=True)
 class ShadowMaps:
     """``cast``: (H, W) bool, light blocked by another part of the surface (and facing it);
-    ``attached``: (H, W) bool, surface facing away from the light (n . s <= 0)."""
+    ``attached``: (H, W) bool, surface facing away from the light (n . s <= 0); ``near``: (H, W) bool,
+    the part of ``cast`` found only from rays the surface nearly blocks (``near_cast``), or None."""
 
     cast: np.ndarray
     attached: np.ndarray
+    near: np.ndarray | None = None
 
     @property
     def lit(self) -> np.ndarray:
@@ -170,20 +172,27 @@ def confirm_with_image(maps: ShadowMaps, intensity: np.ndarray, dark_threshold: 
 
 # the fitted surface is smoother than a face and its nose lower: a ray toward the light passing over it by under this
 # many pixels of travel (its height over the surface over its rise per pixel) may be blocked by the real one
-# (``near_cast``; docs/relighting.md, "Shadows")
+# (``near_cast``; docs/relighting.md); a dark region so seeded that covers more than this share of the face is the
+# face's own dark (a beard under a light from above: 7 % of it), not a narrow shadow (a nose's at 25 degrees, 0.3 %)
 NEAR_CAST = 0.5
+NEAR_CAST_AREA = 0.02
+# ... nor within this many interocular distances of the lips, where a moustache or a goatee is (``near_cast_kept_out``)
+NEAR_CAST_MOUTH = 0.2
 
 
 def near_cast(maps: ShadowMaps, depth: np.ndarray, light: np.ndarray, intensity: np.ndarray, dark_threshold: float,
-              far_dark: np.ndarray, features: np.ndarray | None = None, travel: float = NEAR_CAST) -> ShadowMaps:
-    """Confirmed shadows ``maps`` (``confirm_with_image``) and the dark regions a ray nearly blocked seeds.
+              far_dark: np.ndarray, features: np.ndarray | None = None, travel: float = NEAR_CAST,
+              largest: float = NEAR_CAST_AREA) -> ShadowMaps:
+    """Confirmed shadows ``maps`` (``confirm_with_image``) and the dark regions a ray nearly blocked seeds
+    (also given alone, as ``near``).
 
     At a light near the view axis the nose casts a narrow shadow the fitted nose, too low, does not: no
     traced cast shadow seeds it, and its darkness stays in the albedo. Rays from the dark pixels are traced
     again, blocked where the surface comes within ``travel`` pixels of travel of them (``travel x`` their
     rise per pixel of height; at a grazing light, whose traced shadows already reach, that is little), and
     the dark regions they seed join the cast shadow, off ``features`` (H, W) bool grown by a pixel (the face
-    mesh's eyes, brows and lips: dark by their albedo, which a guess must not claim; None: none). depth, light as
+    mesh's eyes, brows and lips: dark by their albedo, which a guess must not claim; None: none) and each no
+    larger than ``largest`` of the face (a larger one is the face's own dark: a beard). depth, light as
     ``shadow_maps``; intensity, dark_threshold, far_dark as ``confirm_with_image``."""
     s = np.asarray(light, np.float64)
     horiz = float(np.hypot(s[0], s[1]))
@@ -195,8 +204,12 @@ def near_cast(maps: ShadowMaps, depth: np.ndarray, light: np.ndarray, intensity:
         return maps
     near = cast_shadow(depth, s, bias=-travel * s[2] / horiz, sources=dark & np.isfinite(depth))
     seeded = confirm_with_image(ShadowMaps(near, maps.attached), np.where(off, np.inf, intensity), dark_threshold,
-                                far_dark & ~off).cast
-    return ShadowMaps(cast=maps.cast | (seeded & ~off & ~maps.attached), attached=maps.attached)
+                                far_dark & ~off).cast & ~off & ~maps.attached
+    labels, n = ndimage.label(seeded, structure=np.ones((3, 3), bool))
+    if n:
+        size = np.asarray(ndimage.sum(seeded, labels, np.arange(1, n + 1)))
+        seeded = np.isin(labels, np.flatnonzero(size <= largest * np.isfinite(depth).sum()) + 1)
+    return ShadowMaps(cast=maps.cast | seeded, attached=maps.attached, near=seeded)
 
 
 # a pixel the fitted shape turns from the light is in shadow on the photo when it is darker than 0.45 x
@@ -205,12 +218,16 @@ PHOTO_SHADOW_FLOOR = 0.3
 
 
 def photo_shadows(intensity: np.ndarray, shading: np.ndarray, coarse: np.ndarray, face: np.ndarray,
-                  relative: float = 0.45) -> np.ndarray:
+                  relative: float = 0.45, near: np.ndarray | None = None) -> np.ndarray:
     """(H, W) bool: the shadows at the photo's resolution. The model grid's shadows (``coarse``,
     mapped to the photo) say where; the photo says exactly which pixels: those far darker than
     predicted (``far_darker``) in regions that meet the coarse shadows. A coarse shadow pixel the
-    photo shows lit is lit. intensity, shading (H, W) on the photo grid; coarse, face (H, W) bool."""
+    photo shows lit is lit. intensity, shading (H, W) on the photo grid; coarse, face (H, W) bool.
+    near (H, W) bool: the coarse shadows found from rays the surface nearly blocks (``near_cast``), taken
+    where the photo is dark but not grown across it: grown, a near shadow in an eye socket took the brow
+    beside it, and one on an upper lip the beard around it (a portrait lit from above)."""
     dark = far_darker(intensity, shading, face, relative, floor=PHOTO_SHADOW_FLOOR)
     labels, _ = ndimage.label(dark, structure=np.ones((3, 3), bool))
     seeds = np.unique(labels[ndimage.binary_dilation(coarse) & dark])
-    return np.isin(labels, seeds[seeds > 0]) & face
+    found = np.isin(labels, seeds[seeds > 0]) & face
+    return found if near is None else found | (near & dark & face)

@@ -144,6 +144,15 @@ def test_shadows_on_the_photo_are_the_far_darker_regions_that_meet_the_shapes_sh
     assert iou > 0.9, iou
     assert not found[30:36, 40:60].any()  # the brow, on the lit side
     assert far_darker(photo, shading, face)[cast].mean() > 0.95
+    # a shadow found from rays the surface nearly blocks takes its own dark pixels, never the brow it touches
+    # (a coarse shadow there grows across the brow: it is as dark)
+    near = np.zeros_like(face)
+    near[36:40, 50:60] = True
+    lit_photo = albedo * (shading + 0.08)
+    lit_photo[36:40, 50:60] *= 0.2
+    dark = photo_shadows(lit_photo, shading, np.zeros_like(face), face, near=near)
+    assert np.array_equal(dark, near & face)
+    assert photo_shadows(lit_photo, shading, near, face)[30:36, 50:60].all()
 
 
 def test_low_shading_is_trusted_when_the_new_light_does_not_amplify_it():

@@ -102,18 +102,19 @@ def test_the_margin_of_a_cast_shadow_is_its_yes_or_no_and_gives_a_straight_edge_
 def test_a_narrow_shadow_beside_a_ridge_too_low_to_cast_it_is_found_and_a_dark_feature_beside_it_is_not():
     """A light 25 degrees from the view axis and a fitted ridge (the nose) 1.8 px high: the ray from the pixel
     beside it clears it by 0.4 px of height, so no cast shadow is traced there, yet the photo is dark in a band
-    beside it (the real nose is higher). The band is found from that near miss; a dark feature touching the band
-    (an eye, given as a feature) is not; a light on the view axis finds nothing."""
-    from shadowflow.nodes.method.shadow import ShadowMaps, near_cast
+    beside it (the real nose is higher). The band is found from that near miss (given alone as ``near``); a dark
+    feature touching the band (an eye, given as a feature) is not, nor a dark region over 2 % of the face (a
+    beard); a light on the view axis finds nothing."""
+    from shadowflow.nodes.method.shadow import near_cast
 
-    z = np.zeros((40, 60))
+    z = np.zeros((80, 120))  # the face: 9,600 px; the band 100 (1 %)
     z[:, 30:34] = 1.8
     s = light_from_angles(25)  # toward the image's left: shadows fall to the right
     intensity = np.full(z.shape, 0.8)
     intensity[10:30, 34:39] = 0.1  # the shadow the real, higher ridge casts
-    intensity[10:30, 39:44] = 0.15  # an eye beside it: dark by its albedo
+    intensity[10:30, 39:43] = 0.15  # an eye beside it: dark by its albedo
     eye = np.zeros(z.shape, bool)
-    eye[10:30, 40:44] = True  # its outline, a pixel inside its dark edge (the feature is grown by one)
+    eye[10:30, 40:42] = True  # its outline, a pixel inside its dark edge (the feature is grown by one)
     none = np.zeros(z.shape, bool)
     normals = np.dstack([np.zeros_like(z), np.zeros_like(z), np.ones_like(z)])
     traced = confirm_with_image(shadow_maps(z, normals, s), intensity, 0.3, none)
@@ -121,11 +122,41 @@ def test_a_narrow_shadow_beside_a_ridge_too_low_to_cast_it_is_found_and_a_dark_f
     maps = near_cast(traced, z, s, intensity, 0.3, none, eye)
     band = np.zeros(z.shape, bool)
     band[10:30, 34:39] = True
-    assert np.array_equal(maps.cast, band)
+    assert np.array_equal(maps.cast, band) and np.array_equal(maps.near, band)
+    beard = intensity.copy()
+    beard[30:70, 34:50] = 0.12  # the band runs on into a dark region of 8 % of the face
+    assert not near_cast(traced, z, s, beard, 0.3, none, eye).cast.any()
     # without the feature the eye is taken for the shadow it touches: the reason features are left out
-    assert near_cast(traced, z, s, intensity, 0.3, none).cast[10:30, 39:44].all()
+    assert near_cast(traced, z, s, intensity, 0.3, none).cast[10:30, 39:43].all()
     # a frontal light casts no shadow, near or not
     assert not near_cast(traced, z, np.array([0.0, 0.0, 1.0]), intensity, 0.3, none, eye).cast.any()
     # nor does a ridge that the ray clears by more than the near miss's travel (0.5 px: 1.07 px of height here)
     z[:, 30:34] = 1.0
     assert not near_cast(traced, z, s, intensity, 0.3, none, eye).cast.any()
+
+
+def test_a_near_miss_is_kept_off_the_eyes_brows_mouth_and_beard_and_hair_of_a_real_face():
+    """The astronaut's landmarks on the model grid: her eyes and brows, her lips and what lies within 0.2 eye
+    distances of them (a moustache's, a goatee's place) are kept out of the near shadows, and so is hair over the
+    face; her cheeks and the nose's side are not."""
+    from skimage import data
+    from shadowflow.nodes.method.nodes import near_cast_kept_out
+    from shadowflow.nodes.model.default_model import default_model
+    from shadowflow.nodes.photo.placement import features_on_grid, place_faces
+
+    model = default_model()
+    placement = place_faces(model, np.ascontiguousarray(data.astronaut()))[0]
+    grid = model.grid
+    covered = np.zeros(grid, bool)
+    covered[5:12, 40:90] = True  # a fringe
+    out = near_cast_kept_out(placement, covered, grid)
+    assert out[features_on_grid(placement, grid, ("eyes", "brows", "lips"))].all() and out[covered].all()
+    lips = features_on_grid(placement, grid, ("lips",))
+    rows, cols = np.nonzero(lips)
+    iod = model.iod
+    below, centre = int(rows.max()), int(round(cols.mean()))
+    assert out[below + int(0.15 * iod), centre] and not out[below + int(0.3 * iod), centre]
+    eye_row = int(round(model.eyes[:, 1].mean()))
+    cheek = (eye_row + int(0.5 * iod), int(round(model.eyes[0, 0])))
+    assert not out[cheek]
+    assert near_cast_kept_out(None, None, grid) is None and near_cast_kept_out(None, covered, grid) is covered
