@@ -293,8 +293,8 @@ def test_yaleb_the_noses_narrow_shadow_at_25_degrees_is_taken_out():
     fitted nose (lower than the real one) does not cast, is found from the rays that nearly meet it
     (``shadow.near_cast``) and comes back at the real frontal photo's level, not as a dark band beside the
     nose; and the side the light reaches less is measured at its mirror's level (``mirror_lift``). Measured:
-    the nose's level 0.80-3.2 (median 0.90; before both, 0.22-3.1, median 0.69: B02 at +25 holds 20-odd cast
-    pixels, where the frontal photo's own nostril is dark), relit 25.40 dB on average (before 24.53; the
+    the nose's level 0.81-3.3 (median 0.92; before both, 0.22-3.1, median 0.69: B02 at +25 holds 20-odd cast
+    pixels, where the frontal photo's own nostril is dark), relit 25.42 dB on average (before 24.53; the
     near shadows alone 25.02, the lift alone 24.98)."""
     from shadowflow.nodes.evaluation.yaleb import build_ground_truth
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
