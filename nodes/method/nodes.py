@@ -490,8 +490,8 @@ def near_cast_kept_out(placement: FacePlacement | None, covered: np.ndarray | No
     eyes = [np.mean(o, axis=0) for o in placement.grid_outline("eyes")]
     if lips is not None and len(eyes) == 2:
         iod = float(np.linalg.norm(eyes[1] - eyes[0]))
-        away = cv2.distanceTransform((~lips).astype(np.uint8), cv2.DIST_L2, 3)
-        features = (away <= NEAR_CAST_MOUTH * iod) if features is None else features | (away <= NEAR_CAST_MOUTH * iod)
+        mouth = cv2.distanceTransform((~lips).astype(np.uint8), cv2.DIST_L2, 3) <= NEAR_CAST_MOUTH * iod
+        features = mouth if features is None else features | mouth
     if features is None:
         return out
     return features if out is None else features | out
