@@ -283,9 +283,12 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
 
 
 def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions = MethodOptions(light="yaleb"),
-                   lights=INPUT_LIGHTS, estimate_light: bool = True, note=print, mapper=local_map) -> dict:
-    """All subject folders under ``data`` (``yaleB*``); returns ``{"rows": [...], "subjects": {...}}``.
-    mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client)."""
+                   lights=INPUT_LIGHTS, estimate_light: bool = True, note=print, mapper=local_map,
+                   skip_unfound: bool = False) -> dict:
+    """All subject folders under ``data`` (``yaleB*``); returns ``{"rows": [...], "skipped": [...], "subjects":
+    {...}}``. mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client);
+    skip_unfound: a photo whose face is not found is left out and noted (``HELD_OUT_LIGHTS`` hold one), else
+    it stops the run."""
     folders = sorted(p for p in Path(data).iterdir() if p.is_dir() and p.name.startswith("yaleB"))
     if not folders:
         raise ValueError(f"{data}: no yaleB* subject folders")
@@ -299,7 +302,8 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
              f"{odd or 'none besides lights behind the face'}; {moved} registered by > 0.5 px")
     items = [(s, _others_mean(subjects, i)) for i, s in enumerate(subjects)]
     rows, frontal = [], []
-    for subject_rows, subject_frontal in mapper(evaluate_one_subject, items, (model, options, lights, estimate_light)):
+    for subject_rows, subject_frontal in mapper(evaluate_one_subject, items,
+                                                (model, options, lights, estimate_light, skip_unfound)):
         rows.extend(subject_rows)
         frontal.append(subject_frontal)
     return {**_left_out(rows, note), "frontal": frontal,
@@ -327,13 +331,11 @@ def _others_mean(subjects: list, i: int) -> np.ndarray | None:
 
 def evaluate_one_subject(shared: tuple, item: tuple) -> tuple[list[dict], dict]:
     """One subject's rows (``evaluate_subject``) and frontal self-relight: a task of
-    ``evaluate_yaleb``. shared: (model, options, lights, estimate_light); item: (subject, the other
-    subjects' mean normals or None)."""
-    model, options, lights, estimate_light = shared
+    ``evaluate_yaleb``. shared: (model, options, lights, estimate_light, skip_unfound); item: (subject, the
+    other subjects' mean normals or None)."""
+    model, options, lights, estimate_light, skip_unfound = shared
     subject, others_mean = item
-    # the default lights must all be found; others (``HELD_OUT_LIGHTS``) include photos the finder misses
-    return (evaluate_subject(subject, model, options, others_mean, lights, estimate_light,
-                             skip_unfound=list(lights) != INPUT_LIGHTS),
+    return (evaluate_subject(subject, model, options, others_mean, lights, estimate_light, skip_unfound=skip_unfound),
             frontal_self_relight(subject, model, options))
 
 

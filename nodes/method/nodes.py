@@ -8,7 +8,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
-import cv2
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
@@ -29,7 +28,7 @@ from .face_relight import FILL_DETAIL, FaceRelight, albedo_on_grid
 from .light import light_on_face
 from .photo_relight import skin
 from .products import photo_channels
-from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, eye_region, unread_weights
+from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, grown_region, unread_weights
 from .relight import FRONTAL, novel_view, relight, resample_surface
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
@@ -453,10 +452,10 @@ class IntegrateNode:
 class ShadowNode:
     name = "shadow"
 
-    def __init__(self, mode: str, dark_threshold: float):
+    def __init__(self, model: ShapeModel, mode: str, dark_threshold: float):
         if mode not in ("confirmed", "geometric"):
             raise ValueError(f"unknown shadow mode {mode!r}: confirmed or geometric")
-        self.mode, self.dark_threshold = mode, dark_threshold
+        self.model, self.mode, self.dark_threshold = model, mode, dark_threshold
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
@@ -469,28 +468,27 @@ class ShadowNode:
         maps = shadow_maps(d["depth"], d["normals"], d["grid_light"], candidates=dark)
         if self.mode == "confirmed":
             maps = confirm_with_image(maps, d["remapped"], self.dark_threshold, far_dark)
-            maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark,
-                             near_cast_kept_out(d.get("placement"), d.get("grid_covered"), d["depth"].shape))
+            kept_out = near_cast_kept_out(d.get("placement"), d.get("grid_covered"), d["depth"].shape,
+                                          face_model(frame, self.model).iod)
+            maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark, kept_out)
         frame.data["shadow"] = maps
         return frame
 
 
-def near_cast_kept_out(placement: FacePlacement | None, covered: np.ndarray | None,
-                       grid: tuple[int, int]) -> np.ndarray | None:
+def near_cast_kept_out(placement: FacePlacement | None, covered: np.ndarray | None, grid: tuple[int, int],
+                       iod: float) -> np.ndarray | None:
     """(Hm, Wm) bool: what a near miss of the ray (``shadow.near_cast``) must not make shadow, being dark by
     its albedo: the face mesh's eyes and brows, its lips and the mouth's surroundings within ``NEAR_CAST_MOUTH``
-    interocular distances (a moustache, a goatee: under a light from above the lower lip nearly shades the chin,
-    and a goatee's middle came back a patch of skin), and hair over the face (``covered``: a fringe lit from the
-    side took patches of skin). None when there is nothing to keep out."""
+    interocular distances (``iod`` model pixels; a moustache, a goatee: under a light from above the lower lip
+    nearly shades the chin, and a goatee's middle came back a patch of skin), and hair over the face (``covered``:
+    a fringe lit from the side took patches of skin). None when there is nothing to keep out."""
     out = None if covered is None else np.asarray(covered, bool)
     if placement is None:
         return out
     features = features_on_grid(placement, grid, ("eyes", "brows"))
     lips = features_on_grid(placement, grid, ("lips",))
-    eyes = [np.mean(o, axis=0) for o in placement.grid_outline("eyes")]
-    if lips is not None and len(eyes) == 2:
-        iod = float(np.linalg.norm(eyes[1] - eyes[0]))
-        mouth = cv2.distanceTransform((~lips).astype(np.uint8), cv2.DIST_L2, 3) <= NEAR_CAST_MOUTH * iod
+    if lips is not None:
+        mouth = grown_region(lips, NEAR_CAST_MOUTH * iod)
         features = mouth if features is None else features | mouth
     if features is None:
         return out
@@ -634,7 +632,7 @@ class QualityNode:
         placement: FacePlacement | None = d.get("placement")
         eyes = None if placement is None else features_on_grid(placement, m.grid, ("eyes",))
         if eyes is not None:  # the eyes and around them are albedo (lashes, sunglasses): no shape explains them
-            use &= ~eye_region(eyes, EYEWEAR_MARGIN * m.iod)[m.mask]
+            use &= ~grown_region(eyes, EYEWEAR_MARGIN * m.iod)[m.mask]
         unread = covered_mask(frame, m)  # the fit left them out; its quality counts them as it would have
         weights = np.where(unread, unread_weights(d["remapped"][m.mask], r.model_normals, d["grid_light"],
                                                   self.huber_k * r.sigma), r.weights)
@@ -664,7 +662,7 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         RobustFitNode(model, options.fit, observer),
         CombineNode(model, options.fit.cone_trust),
         IntegrateNode(model, options.integrator),
-        ShadowNode(options.shadows, options.fit.dark_threshold),
+        ShadowNode(model, options.shadows, options.fit.dark_threshold),
         AlbedoNode(model, options.albedo_fill),
         # before the relighting: a frame with no face fails without paying for it
         QualityNode(model, options.fit.huber_k),

@@ -81,9 +81,10 @@ def core_face(model) -> np.ndarray:
     return box & model.mask
 
 
-def eye_region(eyes: np.ndarray, margin_px: float) -> np.ndarray:
-    """(Hm, Wm) bool: the eyes (Hm, Wm) bool (``placement.features_on_grid``) grown by ``margin_px`` model pixels."""
-    return cv2.distanceTransform((~np.asarray(eyes, bool)).astype(np.uint8), cv2.DIST_L2, 3) <= margin_px
+def grown_region(parts: np.ndarray, margin_px: float) -> np.ndarray:
+    """(Hm, Wm) bool: a face's parts (Hm, Wm) bool (``placement.features_on_grid``: its eyes, its lips) grown by
+    ``margin_px`` model pixels."""
+    return cv2.distanceTransform((~np.asarray(parts, bool)).astype(np.uint8), cv2.DIST_L2, 3) <= margin_px
 
 
 def explained_variance(intensity: np.ndarray, shading: np.ndarray, use: np.ndarray,

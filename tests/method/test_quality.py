@@ -227,7 +227,7 @@ def test_pixels_the_fit_left_out_are_weighed_as_the_fit_would_have():
 
 def test_a_face_in_sunglasses_is_ok_its_lenses_read_as_albedo(tmp_path):
     """The astronaut with dark lenses drawn over her eyes: well placed, so ``ok``; the lenses (and any eye's
-    lashes and socket) are albedo no shape explains, left out of ``explained`` (``eye_region``). Measured: 0.55
+    lashes and socket) are albedo no shape explains, left out of ``explained`` (``grown_region``). Measured: 0.55
     (0.40, doubtful, with them in); the bare photo 0.69 (0.65)."""
     import shadowflow
 
@@ -248,12 +248,12 @@ def test_a_face_in_sunglasses_is_ok_its_lenses_read_as_albedo(tmp_path):
 
 def test_the_eye_region_is_the_eyes_grown_by_its_margin():
     from shadowflow.nodes.geometry.raster import polygon_mask
-    from shadowflow.nodes.method.quality import eye_region
+    from shadowflow.nodes.method.quality import grown_region
 
     eye = np.array([[20.0, 30.0], [30.0, 30.0], [30.0, 34.0], [20.0, 34.0]])
-    region = eye_region(polygon_mask(eye, (64, 64)), 3.0)
+    region = grown_region(polygon_mask(eye, (64, 64)), 3.0)
     assert region[32, 25] and region[32, 17] and region[37, 25] and not region[32, 14] and not region[40, 25]
-    assert not eye_region(np.zeros((64, 64), bool), 3.0).any()
+    assert not grown_region(np.zeros((64, 64), bool), 3.0).any()
 
 
 def test_a_face_both_nets_are_sure_of_is_doubtful_not_none_when_its_fit_explains_little():

@@ -149,7 +149,7 @@ def test_a_near_miss_is_kept_off_the_eyes_brows_mouth_and_beard_and_hair_of_a_re
     grid = model.grid
     covered = np.zeros(grid, bool)
     covered[5:12, 40:90] = True  # a fringe
-    out = near_cast_kept_out(placement, covered, grid)
+    out = near_cast_kept_out(placement, covered, grid, model.iod)
     assert out[features_on_grid(placement, grid, ("eyes", "brows", "lips"))].all() and out[covered].all()
     lips = features_on_grid(placement, grid, ("lips",))
     rows, cols = np.nonzero(lips)
@@ -159,4 +159,4 @@ def test_a_near_miss_is_kept_off_the_eyes_brows_mouth_and_beard_and_hair_of_a_re
     eye_row = int(round(model.eyes[:, 1].mean()))
     cheek = (eye_row + int(0.5 * iod), int(round(model.eyes[0, 0])))
     assert not out[cheek]
-    assert near_cast_kept_out(None, None, grid) is None and near_cast_kept_out(None, covered, grid) is covered
+    assert near_cast_kept_out(None, None, grid, iod) is None and near_cast_kept_out(None, covered, grid, iod) is covered

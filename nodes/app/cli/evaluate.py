@@ -87,7 +87,9 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
           "ground truth: photometric stereo of each subject's exposures")
     lights = yaleb_lights(args.lights)
     with _mapper(args.dask) as mapper:
-        report = evaluate_yaleb(args.data, model, options, lights=lights, mapper=mapper)
+        # the lights the method was tuned on must all be found; others include photos the finder misses
+        report = evaluate_yaleb(args.data, model, options, lights=lights, mapper=mapper,
+                                skip_unfound=args.lights != "default")
     summary = summarise(report["rows"])
     print(format_report(report, summary))
     report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
