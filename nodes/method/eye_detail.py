@@ -45,6 +45,20 @@ def _quadratic_fit(values: np.ndarray, where: np.ndarray, u: np.ndarray, v: np.n
     return out
 
 
+def _ring_level(values: np.ndarray, ring: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(h, w, C) the level a ring of skin (``ring`` (h, w) bool) gives the eye inside it: a quadratic in (u, v)
+    fitted to the values' brightness (their mean over channels; ``_quadratic_fit``), held within the ring's own
+    brightness (5th to 95th percentile), in the ring's median colour. Fitted channel by channel, a ring half
+    skin and half hair or a red eye corner extrapolated each channel its own way, and the eye came back a
+    red blot (a held-out portrait's eye in the shade)."""
+    brightness = values.mean(axis=-1, keepdims=True)
+    fitted = _quadratic_fit(brightness, ring, u, v)
+    lo, hi = np.percentile(brightness[ring], [5, 95])
+    fitted = np.clip(fitted, lo, hi)
+    colour = np.median(values[ring] / np.maximum(brightness[ring], 1e-6), axis=0)
+    return fitted * colour
+
+
 class EyeDetail:
     """The lit eye's pattern in a photo, found once: ``apply`` puts it into an albedo, as often as
     there are trust maps (the output albedo's and each relit light's).
@@ -119,7 +133,7 @@ class EyeDetail:
             known = r["ring"] & np.isfinite(out[box][..., 0])
             if known.sum() < 30:
                 continue
-            level = _quadratic_fit(np.nan_to_num(out[box]).astype(np.float64), known, r["u"], r["v"])
+            level = _ring_level(np.nan_to_num(out[box]).astype(np.float64), known, r["u"], r["v"])
             blend = (smoothstep(1.0 - r["e"], 0.0, 0.35) * (1.0 - trust[box]))[..., None]
             region = out[box]
             detail = blend * level * r["ratio"] + (1.0 - blend) * region

@@ -86,3 +86,22 @@ def test_a_colour_photos_eye_comes_back_in_its_own_colour():
     # the iris over the skin around it, per channel, as the lit eye shows it: 0.3 x iris / skin colour
     assert np.allclose(out[50, 66], 0.3 * SKIN * iris_tint, rtol=0.15), (out[50, 66], 0.3 * SKIN * iris_tint)
     assert np.allclose(out[50, 54], SKIN * skin_tint, rtol=0.1), out[50, 54]
+
+
+def test_a_ring_half_hair_gives_the_filled_eye_the_skins_colour_not_a_blend_of_channels():
+    """Dark brown hair over the lower outer part of the filled eye's ring of skin (a held-out portrait): the eye's
+    skin comes back in the ring's skin colour. Fitted channel by channel, each channel's level bent its own way
+    toward the hair and the eye came back red (chromaticity r 0.47-0.50 here, 0.41 the skin's)."""
+    photo, true_albedo, shading = _photo()
+    skin_tint = np.array([1.0, 0.8, 0.65])
+    iris = true_albedo < SKIN
+    photo3 = photo * np.where(iris[..., None], np.array([0.5, 0.7, 1.0]), skin_tint)
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    left = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1.6**2
+    filled = np.where(left[..., None], SKIN * skin_tint, photo3 / shading[..., None]).astype(np.float32)
+    filled[(xx < 56) & (yy > 40)] = (0.30, 0.16, 0.07)  # hair
+    out = EyeDetail(photo3, shading, ~left, EYES, 1.0).apply(filled, np.where(left, 0.0, 1.0))
+    for x in (48, 54):  # the eye's skin, off the iris
+        chroma = out[50, x] / out[50, x].sum()
+        assert np.abs(chroma - skin_tint / skin_tint.sum()).max() < 0.01, (x, chroma)
+        assert 0.3 * SKIN < out[50, x].mean() < SKIN, out[50, x]  # within the ring's own brightness
