@@ -69,6 +69,9 @@ FILL_DETAIL_AXIS = (0.05, 0.2)
 # everything but the feather is computed in the face's own box, grown by this many photo pixels (the feather's
 # ring, two thirds of the layer's box at a portrait's size, needs only the photo and the relit face's border)
 INNER_MARGIN = 4
+# the photo's shadows smaller than this many model pixels' area are dropped (``photo_shadows``' min_area)
+SHADOW_SPECK = 1.0
+
 # the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints; nor is
 # anything this near the face's edge; and a glint is this near a pixel with the skin's colour under its white
 GLINT_FEATURE_MARGIN = 0.05
@@ -188,7 +191,9 @@ class FaceRelight:
         if near is not None and near.any():
             near_px = np.nan_to_num(scalar_to_input(near.astype(np.float32), mask, self.al, self.shape)) >= 0.5
             coarse_lit = coarse_lit | near_px
-        return photo_shadows(grey, self.shading, self.face & ~coarse_lit, face_skin, near=near_px)
+        px = max(self.al.scale, 1.0)
+        return photo_shadows(grey, self.shading, self.face & ~coarse_lit, face_skin, near=near_px,
+                             min_area=SHADOW_SPECK * px * px)
 
     def _glints(self, features: list[np.ndarray] | None, face_lit: np.ndarray, iod_px: float) -> np.ndarray:
         """(h, w) bool: the box's highlights too white to pass as skin (``glints``), off the face mesh's eyes, brows,

@@ -218,16 +218,26 @@ PHOTO_SHADOW_FLOOR = 0.3
 
 
 def photo_shadows(intensity: np.ndarray, shading: np.ndarray, coarse: np.ndarray, face: np.ndarray,
-                  relative: float = 0.45, near: np.ndarray | None = None) -> np.ndarray:
+                  relative: float = 0.45, near: np.ndarray | None = None, min_area: float = 0.0) -> np.ndarray:
     """(H, W) bool: the shadows at the photo's resolution. The model grid's shadows (``coarse``,
     mapped to the photo) say where; the photo says exactly which pixels: those far darker than
     predicted (``far_darker``) in regions that meet the coarse shadows. A coarse shadow pixel the
     photo shows lit is lit. intensity, shading (H, W) on the photo grid; coarse, face (H, W) bool.
     near (H, W) bool: the coarse shadows found from rays the surface nearly blocks (``near_cast``), taken
     where the photo is dark but not grown across it: grown, a near shadow in an eye socket took the brow
-    beside it, and one on an upper lip the beard around it (a portrait lit from above)."""
+    beside it, and one on an upper lip the beard around it (a portrait lit from above).
+    min_area: shadows (8-connected) of fewer pixels are dropped: finer than the model grid (a model pixel's
+    area, at the caller's scale), no shadow the fit can place; a nostril's dark speck, grown by the shadows'
+    penumbra margin downstream, came back a grey disc of fill."""
     dark = far_darker(intensity, shading, face, relative, floor=PHOTO_SHADOW_FLOOR)
     labels, _ = ndimage.label(dark, structure=np.ones((3, 3), bool))
     seeds = np.unique(labels[ndimage.binary_dilation(coarse) & dark])
     found = np.isin(labels, seeds[seeds > 0]) & face
-    return found if near is None else found | (near & dark & face)
+    found = found if near is None else found | (near & dark & face)
+    if min_area > 1.0 and found.any():
+        labels, n = ndimage.label(found, structure=np.ones((3, 3), bool))
+        area = np.bincount(labels.ravel(), minlength=n + 1)
+        small = area < min_area
+        small[0] = False
+        found = found & ~small[labels]
+    return found

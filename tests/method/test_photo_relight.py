@@ -155,6 +155,25 @@ def test_shadows_on_the_photo_are_the_far_darker_regions_that_meet_the_shapes_sh
     assert photo_shadows(lit_photo, shading, near, face)[30:36, 50:60].all()
 
 
+def test_a_shadow_finer_than_the_model_grid_is_dropped_and_a_real_one_kept():
+    """A dark speck of 3 x 3 photo pixels (a nostril) beside the model's shadow is no shadow the fit can place:
+    with a model pixel of 4 x 4 photo pixels it goes; the cast shadow it sits by stays whole."""
+    n, face = _sphere()
+    s = np.array([-0.6, 0.0, 0.8])
+    shading = np.clip(n @ s, 0, None)
+    cast = face & (np.abs(np.mgrid[0:120, 0:120][0] - 75) < 4) & (shading > 0.3)
+    photo = 0.7 * (np.where(cast, 0.0, shading) + 0.08)
+    speck = np.zeros_like(face)
+    speck[60:63, 60:63] = True
+    photo[speck] *= 0.1
+    coarse = cast | speck  # the model grid's shadows reach both
+    assert photo_shadows(photo, shading, coarse, face)[speck].all()
+    found = photo_shadows(photo, shading, coarse, face, min_area=16.0)
+    assert not found[speck].any()
+    assert np.array_equal(found & cast, photo_shadows(photo, shading, coarse, face) & cast)
+    assert (found & cast).sum() > 0.9 * cast.sum()
+
+
 def test_low_shading_is_trusted_when_the_new_light_does_not_amplify_it():
     """I / S at a grazing pixel carries the normals' errors divided by a small S; relit by a light
     that leaves S' no larger, the error is not amplified, so the photo's own detail is kept there:
