@@ -29,6 +29,7 @@ from .photo_relight import (
     SHEEN_SCALE,
     FaceLayer,
     axis_distance,
+    brightened_as_around,
     clipped_floor,
     exposure_target,
     glints,
@@ -250,6 +251,9 @@ class FaceRelight:
             # the level is the trusted skin's: in shadow, the fill is already the mirror's or the fit's map
             a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.axis, self.lighting,
                                 self.lift_sigma, self.lift_reach, amplification)
+        if new is not None and self.photo.shape[-1] == 3:  # what is not skin: no brighter than the skin around it
+            a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only,
+                                     np.where(self.not_skin, self.measured, np.float32(0.0)), self.match_px)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 
     def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:

@@ -11,7 +11,7 @@ from shadowflow.nodes.method.photo_relight import (
     photo_albedo,
     smooth_coarse,
 )
-from shadowflow.nodes.method.photo_relight import lit_weight, shading_trust
+from shadowflow.nodes.method.photo_relight import brightened_as_around, lit_weight, shading_trust
 from shadowflow.nodes.method.shadow import far_darker, photo_shadows
 
 
@@ -645,3 +645,28 @@ def test_the_lift_on_a_large_face_is_computed_coarse_and_matches_the_full_grids(
     assert full[inner & (side > 0)].mean() > 1.15  # the side lit less is lifted
     np.testing.assert_allclose(coarse[inner], full[inner], rtol=0.01)
     assert np.abs(coarse[side < -242.0 * 16] - 1.0).max() < 1e-6
+
+
+def test_what_is_not_skin_is_brightened_no_more_than_the_skin_around_it():
+    """A red patch (a nose's wing) whose fitted shading is 0.1 where the skin around it has 0.5: a frontal light
+    doubles the skin and would have made the patch 9x brighter (an orange glow, clipped); it takes the skin's 2x.
+    Relit by the photo's own light it stays as it is; a new cast shadow over it still darkens it as its own."""
+    h, w = 60, 60
+    skin_rgb, red = np.array([0.6, 0.45, 0.35], np.float32), np.array([0.5, 0.2, 0.15], np.float32)
+    lighting = np.full((h, w), 0.5, np.float32)
+    patch = np.zeros((h, w), bool)
+    patch[25:35, 25:35] = True
+    lighting[patch] = 0.1  # the fitted normals lean away there; the photo shows it lit as the skin is
+    photo = np.where(patch[..., None], red * 0.5, skin_rgb * 0.5).astype(np.float32)
+    albedo = (photo / lighting[..., None]).astype(np.float32)  # I / S: the patch's albedo is 5x too bright
+    skin = ~patch
+    new = np.where(patch, 0.9, 1.0).astype(np.float32)
+    out = brightened_as_around(albedo, photo, lighting, new, skin, patch.astype(np.float32), 4.0)
+    relit = out * new[..., None]
+    assert np.allclose(relit[30, 30], 2.0 * photo[30, 30], rtol=0.02), (relit[30, 30], photo[30, 30])
+    assert np.array_equal(out[skin], albedo[skin])
+    own = brightened_as_around(albedo, photo, lighting, lighting, skin, patch.astype(np.float32), 4.0)
+    assert np.allclose(own * lighting[..., None], photo, rtol=1e-5)
+    shadowed = np.where(patch, 0.02, 1.0).astype(np.float32)  # the new light's cast shadow falls on the patch
+    dark = brightened_as_around(albedo, photo, lighting, shadowed, skin, patch.astype(np.float32), 4.0)
+    assert np.allclose(dark[30, 30] * shadowed[30, 30], 0.2 * photo[30, 30], rtol=0.02)
