@@ -72,6 +72,11 @@ FILL_DETAIL_AXIS = (0.05, 0.2)
 INNER_MARGIN = 4
 # the photo's shadows smaller than this many model pixels' area are dropped (``photo_shadows``' min_area)
 SHADOW_SPECK = 1.0
+# the face mesh's brows grown by this many interocular distances are dark by their albedo, never shadow on the
+# photo; a brow keeps its own pixels (as what is not skin does) where the lighting is above this ramp, and follows
+# the skin's trust below it, where the light grazes it (docs/relighting.md, "Brows")
+BROW_MARGIN = 0.02
+BROW_KEPT = (0.25, 0.4)
 
 # the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints; nor is
 # anything this near the face's edge; and a glint is this near a pixel with the skin's colour under its white
@@ -101,6 +106,8 @@ class FaceRelight:
     covering the face's upper part (``photo.cover``: hair over it), or None; a grey photo tells hair from skin by it.
     near: (Hm, Wm) bool, the part of the fit's shadows found from rays the surface nearly blocks (``ShadowMaps.near``),
     or None: dark pixels there are shadow, but no shadow grows from them across the photo's dark pixels.
+    brows: the brows' outlines (n, 2) in photo pixels where a face mesh drew them, or None: dark by their albedo,
+    they are no shadow, and keep their own pixels where lit (``BROW_MARGIN``, ``BROW_KEPT``).
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -109,7 +116,7 @@ class FaceRelight:
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
                  fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, features: list[np.ndarray] | None = None,
                  segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None,
-                 near: np.ndarray | None = None):
+                 near: np.ndarray | None = None, brows: list[np.ndarray] | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -145,12 +152,10 @@ class FaceRelight:
         # ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of skin).
         # Not in colour, where the skin's colour tells: there it also took the darkness drawn around a composite's
         # crop (0.1-0.5 dB lost)
-        hair_px = np.zeros_like(face)
-        if hair is not None and photo.shape[-1] == 1:
-            hair_px = face & grow(np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, al, shape)) >= 0.5,
-                                     max(al.scale, 1.0))  # and its edge, a model pixel wide
+        hair_px = self._hair(hair, mask) if photo.shape[-1] == 1 else np.zeros_like(face)
         face_skin = skin(photo, face) & ~hair_px
-        self.shadow = self._shadows(box_grey, mask, lit, near, face_skin)
+        brow = self._features(brows, BROW_MARGIN * iod_px)
+        self.shadow = self._shadows(box_grey, mask, lit, near, face_skin & ~brow)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
@@ -170,6 +175,8 @@ class FaceRelight:
         # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
         self.glints = self._glints(features, face_lit, iod_px)
         self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
+        # how far each pixel keeps its own I / lighting whatever the new light: what is not skin, and a lit brow
+        self.kept = np.maximum(self.not_skin, (face_lit & brow) * smoothstep(self.lighting, *BROW_KEPT))
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the face seen across its midline: its detail for the fill, its level for the side lit less
         self.lift_sigma = LIFT_SIGMA * iod_px
@@ -181,6 +188,23 @@ class FaceRelight:
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _hair(self, hair: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
+        """(h, w) bool: the face's pixels under ``hair`` (Hm, Wm) bool on the model grid (``mask``; None: none),
+        and its edge, a model pixel wide."""
+        if hair is None:
+            return np.zeros_like(self.face)
+        on_photo = np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+        return self.face & grow(on_photo, max(self.al.scale, 1.0))
+
+    def _features(self, outlines: list[np.ndarray] | None, margin_px: float) -> np.ndarray:
+        """(h, w) bool: the box's pixels inside the ``outlines`` (n, 2) photo pixels (None: none), grown by
+        ``margin_px`` (``grow``: at least a pixel)."""
+        if not outlines:
+            return np.zeros(self.shape, bool)
+        y0, _, x0, _ = self.box
+        return grow(np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], self.shape) for o in outlines]),
+                    margin_px)
 
     def _shadows(self, grey: np.ndarray, mask: np.ndarray, lit: np.ndarray, near: np.ndarray | None,
                  face_skin: np.ndarray) -> np.ndarray:
@@ -202,11 +226,9 @@ class FaceRelight:
         into a bright wall or white hair as skin and white do."""
         if not features:
             return np.zeros_like(face_lit)
-        y0, _, x0, _ = self.box
-        parts = np.logical_or.reduce([polygon_mask(np.asarray(o) - [x0, y0], self.shape) for o in features])
         inside = cv2.distanceTransform(self.face.astype(np.uint8), cv2.DIST_L2, 3) > GLINT_EDGE * iod_px
         return glints(self.photo, self.skin_only, face_lit & inside, SHEEN_SCALE * iod_px,
-                      grow(parts, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
+                      self._features(features, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
 
     def _across(self, midline: np.ndarray | None, iod_px: float, lift: float):
         """The face seen across its ``midline`` (2, 2) photo pixels: that line in the box's pixels, its
@@ -251,14 +273,14 @@ class FaceRelight:
             # the level is the trusted skin's: in shadow, the fill is already the mirror's or the fit's map
             a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.axis, self.lighting,
                                 self.lift_sigma, self.lift_reach, amplification)
-        if new is not None and self.photo.shape[-1] == 3:  # what is not skin: no brighter than the skin around it
+        if new is not None:  # what is not skin: no brighter than the skin around it
             a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only,
-                                     np.where(self.not_skin, self.measured, np.float32(0.0)), self.match_px)
+                                     self.kept * self.measured, self.match_px)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 
     def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:
         """(h, w) how far I / lighting is trusted, for a new lighting ``new`` (h, w) (None: any)."""
-        return self.measured * np.where(self.not_skin, np.float32(1.0), shading_trust(self.lighting, new))
+        return self.measured * (self.kept + (np.float32(1.0) - self.kept) * shading_trust(self.lighting, new))
 
     def layer(self, light) -> FaceLayer:
         """The face relit by ``light`` (3,), camera frame: its cast shadow traced on the fit's surface."""

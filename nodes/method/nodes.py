@@ -603,7 +603,8 @@ class PhotoRelightNode:
             features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
             if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")),
-            hair=covered_above_eyes(frame, m), near=d["shadow"].near)
+            hair=covered_above_eyes(frame, m), near=d["shadow"].near,
+            brows=placement.outlines.get("brows") if meshed else None)
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

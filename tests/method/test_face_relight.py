@@ -151,3 +151,33 @@ def test_a_clipped_highlight_leaves_with_its_light_as_its_unclipped_rim_does():
     assert core < 1.3 * np.median(shiny[rim]) / np.median(plain[rim]), core
     own, _, _ = relit(0.9, PHOTO_LIGHT)
     assert np.median(own[clipped]) > 0.99
+
+
+def test_a_brow_dark_into_the_shadow_is_kept_not_filled_as_shadow():
+    """A brow (a band of a quarter of the skin's albedo, in the skin's colour, as a colour-graded film still's)
+    runs from the lit side into the sphere's attached shadow: dark and joined to the shape's shadow, it was taken
+    for shadow and filled with skin. Given the mesh's brow outline, its lit part keeps its own pixels, relit
+    frontally as dark against the skin around it as the photo shows it, also where the light begins to graze it
+    (shading 0.36-0.48), where skin's own pixels are not trusted under a frontal light."""
+    mask, normals, depth = _sphere()
+    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
+    shape = (260, 260)
+    face = mask_to_input(mask, al, shape)
+    shading = np.clip(np.nan_to_num(normals_to_input(normals, mask, al, shape)) @ PHOTO_LIGHT, 0.0, None)
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    brow = face & (np.abs(rows - 80) < 4) & (cols > 60) & (cols < 200)  # photo pixels
+    albedo = np.where(brow, 0.25, 1.0)[..., None] * np.array([0.62, 0.48, 0.38])
+    photo = np.where(face[..., None], albedo * (0.05 + 0.95 * shading)[..., None], 0.3).astype(np.float32)
+    lit = mask & (np.nan_to_num(normals) @ PHOTO_LIGHT > 0.05)
+    outline = np.array([[60.0, 76.0], [200.0, 76.0], [200.0, 84.0], [60.0, 84.0]])
+
+    def relit_level(brows, x0, x1):  # the brow over the skin above it, relit frontally, photo columns x0:x1
+        r = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
+                        albedo=np.where(mask, 0.5, np.nan).astype(np.float32), depth=depth, light=PHOTO_LIGHT,
+                        iod_px=0.9 * R * SCALE, brows=brows)
+        out = compose(photo, [r.layer(np.array([0.0, 0.0, 1.0]))]).mean(-1)
+        return np.median(out[78:83, x0:x1]) / np.median(out[66:72, x0:x1])
+
+    assert relit_level(None, 80, 110) > 0.7  # filled with skin
+    assert 0.15 < relit_level([outline], 80, 110) < 0.4, relit_level([outline], 80, 110)
+    assert relit_level([outline], 148, 162) < 0.6, relit_level([outline], 148, 162)  # skin's trust: 0.8-1.1
