@@ -263,6 +263,9 @@ class FaceRelight:
         the photo's light reaches less raised toward its mirror's level as far as the new lighting ``new`` (h, w)
         brightens it (``mirror_lift``; None: any light)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
+        if new is not None:  # what is not skin: relit no brighter than the skin around it (before the fill's detail)
+            a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only, self.kept * self.measured,
+                                     self.match_px)
         if self.detail is not None:
             detail, seen = self.detail
             weight = np.where(self.face, trust, np.float32(0.0))
@@ -273,9 +276,6 @@ class FaceRelight:
             # the level is the trusted skin's: in shadow, the fill is already the mirror's or the fit's map
             a = a * mirror_lift(a, self.skin_only.astype(np.float32), self.axis, self.lighting,
                                 self.lift_sigma, self.lift_reach, amplification)
-        if new is not None:  # what is not skin: no brighter than the skin around it
-            a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only,
-                                     self.kept * self.measured, self.match_px)
         return a if self.eyes is None else self.eyes.apply(a, trust)
 
     def trust_for(self, new: np.ndarray | None = None) -> np.ndarray:

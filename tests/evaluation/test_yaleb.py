@@ -252,12 +252,15 @@ def test_yaleb_the_fill_takes_no_detail_from_across_the_face_beside_its_axis(yal
         centre = np.mean(m.eyes, axis=0)
         axis = al.points_to_input(np.array([centre, centre + [0.0, iod]]))
         dist = axis_distance(relit[0.0].shape[:2], axis) / (iod * al.scale)
-        change = np.abs(relit[1.0] - relit[0.0]) / np.maximum(relit[0.0], 1e-3)
+        ratio = relit[1.0] / np.maximum(relit[0.0], 1e-3)
+        # the face's exposure is matched on its relit skin, detail and all: it moves the whole face by up to 0.2 %
+        change = np.abs(ratio / np.median(ratio[r.mask]) - 1.0)
         far = r.mask & (change > 1e-3) & (dist > 0.25) & (dist < 0.6)  # where the detail reached, out on the fill
         near = r.mask & (dist < 0.04)
         assert far.sum() > 200, (az, far.sum())
         # a few per cent of the band is filled at all on this subject (measured: its 99th percentile moved 4-6 %
-        # by the detail without the fade, against 2-3 % on average out on the fill; 5e-5 with it)
+        # by the detail without the fade, against 2-3 % on average out on the fill; 5e-5 with it, 1e-5 once the
+        # exposure's move is taken out)
         assert np.percentile(change[near], 99) < 0.1 * np.mean(change[far]), (az, np.percentile(change[near], 99),
                                                                                np.mean(change[far]))
 
