@@ -201,6 +201,14 @@ def local_average(values: np.ndarray, weight: np.ndarray, sigma_px: float, fallb
     return out.astype(np.float32)
 
 
+def _channel_sum(values: np.ndarray) -> np.ndarray:
+    """(H, W) float32 the sum over the channels of (H, W, C) values."""
+    out = np.array(values[..., 0], np.float32, copy=True)
+    for c in range(1, values.shape[-1]):
+        out += values[..., c]
+    return out
+
+
 def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.ndarray, new_lighting: np.ndarray,
                          skin: np.ndarray, kept: np.ndarray, sigma_px: float) -> np.ndarray:
     """(H, W, C) float32 ``albedo`` with the pixels ``kept`` (H, W) in [0, 1] (not skin, their own pixels kept:
@@ -214,15 +222,24 @@ def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.nda
     light keeps them as they are, and a new light's cast shadow stays sharp on them.
     albedo (H, W, C); photo (H, W, C) linear; lighting, new_lighting (H, W): ``S``, ``S'`` with the room's
     light (``with_ambient``)."""
+    w = np.asarray(kept, np.float32)
+    ys, xs = np.nonzero(w > 0)
+    if not ys.size:
+        return np.asarray(albedo, np.float32)
     img = np.atleast_3d(np.asarray(photo, np.float32))
-    grey = img.mean(axis=-1)
-    use = np.asarray(skin, bool) & (grey > 1e-3)
-    relit_ratio = np.where(use, np.nan_to_num(albedo).mean(axis=-1) * new_lighting / np.maximum(grey, 1e-3), 0.0)
-    own = np.asarray(new_lighting, np.float32) / np.maximum(np.asarray(lighting, np.float32), np.float32(1e-3))
-    ratio = np.minimum(local_average(relit_ratio.astype(np.float32), use.astype(np.float32), sigma_px, own), own)
-    capped = img * (ratio / np.maximum(np.asarray(new_lighting, np.float32), np.float32(1e-3)))[..., None]
-    w = np.asarray(kept, np.float32)[..., None]
-    return np.where(w > 0, w * capped + (1.0 - w) * albedo, albedo).astype(np.float32)
+    new = np.asarray(new_lighting, np.float32)
+    grey = _channel_sum(img)  # (sums: the ratio is the same, and numpy's mean over 3 channels is slow)
+    use = np.asarray(skin, bool) & (grey > 3e-3)
+    relit_ratio = np.where(use, np.nan_to_num(_channel_sum(np.atleast_3d(albedo))) * new / np.maximum(grey, 3e-3),
+                           np.float32(0.0)).astype(np.float32)
+    own = new / np.maximum(np.asarray(lighting, np.float32), np.float32(1e-3))
+    around = local_average(relit_ratio, use.astype(np.float32), sigma_px, own)
+    # only the kept pixels change: a colour portrait's box is megapixels, they a fifth of it
+    ratio = np.minimum(around[ys, xs], own[ys, xs]) / np.maximum(new[ys, xs], np.float32(1e-3))
+    out = np.array(albedo, np.float32, copy=True)
+    wk = w[ys, xs][:, None]
+    out[ys, xs] = wk * img[ys, xs] * ratio[:, None] + (np.float32(1.0) - wk) * out[ys, xs]
+    return out
 
 
 def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coarse: np.ndarray,
