@@ -74,7 +74,7 @@ INNER_MARGIN = 4
 SHADOW_SPECK = 1.0
 # the face mesh's brows grown by this many interocular distances are dark by their albedo, never shadow on the
 # photo; a brow keeps its own pixels (as what is not skin does) where the lighting is above this ramp, and follows
-# the skin's trust below it, where the light grazes it (docs/relighting.md, "Brows")
+# the skin's trust below it, where the light grazes it (docs/relighting.md, "Held-out photos")
 BROW_MARGIN = 0.02
 BROW_KEPT = (0.25, 0.4)
 
@@ -261,7 +261,8 @@ class FaceRelight:
         """(h, w, C) the box's albedo where I / lighting is trusted by ``trust`` (h, w), the fit's elsewhere, with
         the detail the face shows across its midline where it is the fit's (``mirrored_detail``), and the side
         the photo's light reaches less raised toward its mirror's level as far as the new lighting ``new`` (h, w)
-        brightens it (``mirror_lift``; None: any light)."""
+        brightens it (``mirror_lift``; None: any light), and what keeps its own pixels (``kept``: what is not skin,
+        a lit brow) relit by ``new`` no brighter than the skin around it (``brightened_as_around``)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
         if new is not None:  # what is not skin: relit no brighter than the skin around it (before the fill's detail)
             a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only, self.kept * self.measured,
