@@ -15,6 +15,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from ..geometry.integrate import harmonic_fill
 from ..geometry.raster import polygon_mask
 from ..photo.align import Alignment, face_box, mask_to_input, normals_to_input, scalar_to_input, to_model_grid
 from .eye_detail import CONTRAST as EYE_CONTRAST
@@ -77,6 +78,10 @@ SHADOW_SPECK = 1.0
 # the skin's trust below it, where the light grazes it (docs/relighting.md, "Held-out photos")
 BROW_MARGIN = 0.02
 BROW_KEPT = (0.25, 0.4)
+# the fit's albedo map is filled again (harmonic) where the grid measured it lit but the photo finds shadow over
+# more than this share of a model pixel: its value there holds that shadow (an eye socket under a light from above,
+# deeper than the model's, came back a dark patch of fill)
+SHADOWED_ON_PHOTO = 0.5
 
 # the face mesh's eyes, brows, lips and mouth grown by this many interocular distances are theirs, not glints; nor is
 # anything this near the face's edge; and a glint is this near a pixel with the skin's colour under its white
@@ -158,7 +163,7 @@ class FaceRelight:
         self.shadow = self._shadows(box_grey, mask, lit, near, face_skin & ~brow)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
-        self.coarse = coarse = smooth_coarse(scalar_to_input(albedo, mask, al, shape), face, COARSE_SMOOTH * px)
+        self.coarse = coarse = self._coarse(albedo, mask, lit, px)
         self.measured = lit_weight(photo, face_lit, face, 1.5 * px)  # the light-independent part of the trust
         self.skin_only = skin(photo, face & face_lit) & ~hair_px
         self.lit_skin = self.skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
@@ -188,6 +193,15 @@ class FaceRelight:
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _coarse(self, albedo: np.ndarray, mask: np.ndarray, lit: np.ndarray, px: float) -> np.ndarray:
+        """(h, w) the fit's albedo map (Hm, Wm) on the box's pixels, smoothed (``smooth_coarse``), filled again first
+        where the grid took it for lit (``lit``) and the photo's shadows cover it (``SHADOWED_ON_PHOTO``)."""
+        shadowed = to_model_grid(self.shadow.astype(np.float32), self.al, mask.shape) > SHADOWED_ON_PHOTO
+        held = mask & lit & shadowed
+        if held.any() and (mask & ~held).sum() > 20:
+            albedo = harmonic_fill(np.where(mask, albedo, np.nan), held).astype(np.float32)
+        return smooth_coarse(scalar_to_input(albedo, mask, self.al, self.shape), self.face, COARSE_SMOOTH * px)
 
     def _hair(self, hair: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
         """(h, w) bool: the face's pixels under ``hair`` (Hm, Wm) bool on the model grid (``mask``; None: none),

@@ -181,3 +181,32 @@ def test_a_brow_dark_into_the_shadow_is_kept_not_filled_as_shadow():
     assert relit_level(None, 80, 110) > 0.7  # filled with skin
     assert 0.15 < relit_level([outline], 80, 110) < 0.4, relit_level([outline], 80, 110)
     assert relit_level([outline], 148, 162) < 0.6, relit_level([outline], 148, 162)  # skin's trust: 0.8-1.1
+
+
+def test_the_fits_map_is_filled_again_where_the_photo_finds_a_shadow_the_grid_measured_as_lit():
+    """A shadow deeper than the model's (an eye socket under a light from above): the photo is dark over a disc,
+    the grid took only its core for shadow and measured the rest as lit, so the fit's albedo map holds the shadow
+    there (0.1 against the skin's 0.5). Relit frontally, the disc is filled at the skin's level, not the map's
+    (0.71 of it; 0.42 before)."""
+    mask, normals, depth = _sphere()
+    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
+    shape = (260, 260)
+    face = mask_to_input(mask, al, shape)
+    light = np.array([0.0, 0.0, 1.0])
+    shading = np.clip(np.nan_to_num(normals_to_input(normals, mask, al, shape)) @ light, 0.0, None)
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    centre = al.points_to_input(np.array([[18.0, 20.0]]))[0]  # model pixel (x, y) -> photo
+    r_px = np.hypot(cols - centre[0], rows - centre[1])
+    skin_rgb = np.array([0.62, 0.48, 0.38])
+    photo = np.where(face[..., None], skin_rgb * np.where(r_px < 24, 0.15, 1.0)[..., None] * shading[..., None],
+                     0.3).astype(np.float32)
+    grid_r = np.hypot(*(np.mgrid[0:GRID, 0:GRID] - np.array([20.0, 18.0])[:, None, None]))
+    lit = mask & (grid_r >= 2.5)  # the grid's shadow: the disc's core only
+    # measured where the grid took it for lit: 0.1 over the disc's rim; its core the fit filled, as the skin's
+    albedo = np.where(mask, np.where((grid_r < 6.5) & lit, 0.1, 0.5), np.nan).astype(np.float32)
+    r = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
+                    albedo=albedo, depth=depth, light=light, iod_px=0.9 * R * SCALE)
+    out = compose(photo, [r.layer(light)]).mean(-1)
+    ring, skin_near = (r_px > 12) & (r_px < 20), (r_px > 32) & (r_px < 44) & face
+    level = np.median(out[ring]) / np.median(out[skin_near])
+    assert level > 0.6, level
