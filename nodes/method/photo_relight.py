@@ -197,7 +197,9 @@ def local_average(values: np.ndarray, weight: np.ndarray, sigma_px: float, fallb
     for s in (4.0 * sigma_px, sigma_px):
         average, support = weighted_blur(values, weight, s)
         k = smoothstep(support, 0.02, 0.1)
-        out = (k[..., None] if out.ndim == 3 else k) * average + (1.0 - (k[..., None] if out.ndim == 3 else k)) * out
+        if out.ndim == 3:
+            k = k[..., None]
+        out = k * average + (1.0 - k) * out
     return out.astype(np.float32)
 
 
