@@ -179,9 +179,10 @@ class FaceRelight:
         # says: the fill is skin, and a fitted normal gone wrong under hair made a skin patch there
         # ... but a highlight too white to pass as skin is skin and its shine (``glints``), which a new light moves
         self.glints = self._glints(features, face_lit, iod_px)
-        self.not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
+        not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
         # how far each pixel keeps its own I / lighting whatever the new light: what is not skin, and a lit brow
-        self.kept = np.maximum(self.not_skin, (face_lit & brow) * smoothstep(self.lighting, *BROW_KEPT))
+        self.kept = np.maximum(not_skin, (face_lit & brow) * smoothstep(self.lighting, *BROW_KEPT))
+        self.kept_measured = self.kept * self.measured  # the weight each light's ``brightened_as_around`` takes
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the face seen across its midline: its detail for the fill, its level for the side lit less
         self.lift_sigma = LIFT_SIGMA * iod_px
@@ -203,13 +204,16 @@ class FaceRelight:
             albedo = harmonic_fill(np.where(mask, albedo, np.nan), held).astype(np.float32)
         return smooth_coarse(scalar_to_input(albedo, mask, self.al, self.shape), self.face, COARSE_SMOOTH * px)
 
+    def _on_photo(self, grid: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """(h, w) bool: a (Hm, Wm) bool map on the model grid (``mask``) brought to the box's pixels."""
+        return np.nan_to_num(scalar_to_input(grid.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+
     def _hair(self, hair: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
         """(h, w) bool: the face's pixels under ``hair`` (Hm, Wm) bool on the model grid (``mask``; None: none),
         and its edge, a model pixel wide."""
         if hair is None:
             return np.zeros_like(self.face)
-        on_photo = np.nan_to_num(scalar_to_input(hair.astype(np.float32), mask, self.al, self.shape)) >= 0.5
-        return self.face & grow(on_photo, max(self.al.scale, 1.0))
+        return self.face & grow(self._on_photo(hair, mask), max(self.al.scale, 1.0))
 
     def _features(self, outlines: list[np.ndarray] | None, margin_px: float) -> np.ndarray:
         """(h, w) bool: the box's pixels inside the ``outlines`` (n, 2) photo pixels (None: none), grown by
@@ -225,10 +229,10 @@ class FaceRelight:
         """(h, w) bool: the box's shadows at the photo's resolution (``photo_shadows``) from the fit's, ``lit``
         (Hm, Wm) bool, on the model grid (``mask``); those found from rays nearly blocked (``near``, or None) are
         taken where the box's ``grey`` (h, w) is dark, not grown across it."""
-        coarse_lit = np.nan_to_num(scalar_to_input(lit.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+        coarse_lit = self._on_photo(lit, mask)
         near_px = None
         if near is not None and near.any():
-            near_px = np.nan_to_num(scalar_to_input(near.astype(np.float32), mask, self.al, self.shape)) >= 0.5
+            near_px = self._on_photo(near, mask)
             coarse_lit = coarse_lit | near_px
         px = max(self.al.scale, 1.0)
         return photo_shadows(grey, self.shading, self.face & ~coarse_lit, face_skin, near=near_px,
@@ -279,7 +283,7 @@ class FaceRelight:
         a lit brow) relit by ``new`` no brighter than the skin around it (``brightened_as_around``)."""
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
         if new is not None:  # what is not skin: relit no brighter than the skin around it (before the fill's detail)
-            a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only, self.kept * self.measured,
+            a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only, self.kept_measured,
                                      self.match_px)
         if self.detail is not None:
             detail, seen = self.detail

@@ -205,10 +205,8 @@ def near_cast(maps: ShadowMaps, depth: np.ndarray, light: np.ndarray, intensity:
     near = cast_shadow(depth, s, bias=-travel * s[2] / horiz, sources=dark & np.isfinite(depth))
     seeded = confirm_with_image(ShadowMaps(near, maps.attached), np.where(off, np.inf, intensity), dark_threshold,
                                 far_dark & ~off).cast & ~off & ~maps.attached
-    labels, n = ndimage.label(seeded, structure=np.ones((3, 3), bool))
-    if n:
-        size = np.asarray(ndimage.sum(seeded, labels, np.arange(1, n + 1)))
-        seeded = np.isin(labels, np.flatnonzero(size <= largest * np.isfinite(depth).sum()) + 1)
+    labels, area = _component_areas(seeded)
+    seeded &= (area <= largest * np.isfinite(depth).sum())[labels]
     return ShadowMaps(cast=maps.cast | seeded, attached=maps.attached, near=seeded)
 
 
@@ -235,9 +233,12 @@ def photo_shadows(intensity: np.ndarray, shading: np.ndarray, coarse: np.ndarray
     found = np.isin(labels, seeds[seeds > 0]) & face
     found = found if near is None else found | (near & dark & face)
     if min_area > 1.0 and found.any():
-        labels, n = ndimage.label(found, structure=np.ones((3, 3), bool))
-        area = np.bincount(labels.ravel(), minlength=n + 1)
-        small = area < min_area
-        small[0] = False
-        found = found & ~small[labels]
+        labels, area = _component_areas(found)
+        found &= (area >= min_area)[labels]
     return found
+
+
+def _component_areas(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``mask``'s 8-connected regions: (labels (H, W) int, 0 off the mask; each label's area in pixels)."""
+    labels, n = ndimage.label(mask, structure=np.ones((3, 3), bool))
+    return labels, np.bincount(labels.ravel(), minlength=n + 1)
