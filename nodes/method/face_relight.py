@@ -27,12 +27,14 @@ from .photo_relight import (
     LIFT_AXIS,
     LIFT_SIGMA,
     LIT_SHADING,
+    MAX_CHROMA_DISTANCE,
     SHEEN_SCALE,
     FaceLayer,
     axis_distance,
     brightened_as_around,
     clipped_floor,
     exposure_target,
+    fine_texture,
     glints,
     grow,
     inner_alpha,
@@ -48,6 +50,7 @@ from .photo_relight import (
     shine_kept,
     shine_lobe,
     skin,
+    skin_distance,
     skin_exposure,
     smooth_coarse,
     smoothstep,
@@ -78,6 +81,12 @@ SHADOW_SPECK = 1.0
 # the skin's trust below it, where the light grazes it (docs/relighting.md, "Held-out photos")
 BROW_MARGIN = 0.02
 BROW_KEPT = (0.25, 0.4)
+# skin in its shade (``_skin``): off the eyes, brows and lips grown by this many interocular distances, and no
+# rougher than this many times the lit skin's median texture at this scale (interocular distances)
+SHADE_FEATURE_MARGIN = 0.02
+SHADE_EYE_MARGIN = 0.1
+SHADE_TEXTURE = 2.5
+SHADE_TEXTURE_SCALE = 0.01
 # the fit's albedo map is filled again (harmonic) where the grid measured it lit but the photo finds shadow over
 # more than this share of a model pixel: its value there holds that shadow (an eye socket under a light from above,
 # deeper than the model's, came back a dark patch of fill)
@@ -113,6 +122,8 @@ class FaceRelight:
     or None: dark pixels there are shadow, but no shadow grows from them across the photo's dark pixels.
     brows: the brows' outlines (n, 2) in photo pixels where a face mesh drew them, or None: dark by their albedo,
     they are no shadow, and keep their own pixels where lit (``BROW_MARGIN``, ``BROW_KEPT``).
+    eye_outlines: the eyes' outlines (n, 2) in photo pixels where a face mesh drew them, or None: the skin around them
+    is never taken for skin in shade (``SHADE_EYE_MARGIN``).
     """
 
     def __init__(self, *, photo: np.ndarray, grey: np.ndarray, alignment: Alignment, mask: np.ndarray,
@@ -121,7 +132,8 @@ class FaceRelight:
                  eye_contrast: float = EYE_CONTRAST, midline: np.ndarray | None = None,
                  fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, features: list[np.ndarray] | None = None,
                  segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None,
-                 near: np.ndarray | None = None, brows: list[np.ndarray] | None = None):
+                 near: np.ndarray | None = None, brows: list[np.ndarray] | None = None,
+                 eye_outlines: list[np.ndarray] | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
         # the layer's box: the face and its feather
@@ -153,14 +165,14 @@ class FaceRelight:
         self.normals = np.nan_to_num(normals_to_input(normals, mask, al, shape)).astype(np.float32)
         self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         box_grey = grey[y0:y1, x0:x1]
-        # in colour, a shadow on skin keeps the skin's colour: dark hair, brows and eyes are not shadow; in grey,
-        # ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of skin).
-        # Not in colour, where the skin's colour tells: there it also took the darkness drawn around a composite's
-        # crop (0.1-0.5 dB lost)
+        # in colour, a shadow is on skin (in its shade too, ``_shaded_skin``): dark hair, brows and eyes are not shadow;
+        # in grey, ``hair`` is told from skin by that alone (taken for shadow, a fringe was filled with a flat patch of
+        # skin; not in colour: there it took the darkness drawn around a composite's crop, 0.1-0.5 dB lost)
         hair_px = self._hair(hair, mask) if photo.shape[-1] == 1 else np.zeros_like(face)
-        face_skin = skin(photo, face) & ~hair_px
         brow = self._features(brows, BROW_MARGIN * iod_px)
-        self.shadow = self._shadows(box_grey, mask, lit, near, face_skin & ~brow)
+        face_skin = skin(photo, face) & ~hair_px
+        self.shadow = self._shadows(box_grey, mask, lit, near, (face_skin | self._shaded_skin(
+            photo, face_skin, features, (eye_outlines or []) + (brows or []), iod_px)) & ~brow)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = self._coarse(albedo, mask, lit, px)
@@ -194,6 +206,29 @@ class FaceRelight:
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
         self.alpha = inner_alpha(face, self.feather)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _shaded_skin(self, photo: np.ndarray, lit: np.ndarray, features: list[np.ndarray] | None,
+                     eyes_and_brows: list[np.ndarray], iod_px: float) -> np.ndarray:
+        """(h, w) bool: in colour, the face's skin in its shade beside ``lit`` (h, w) bool, its skin by its colour
+        (``skin``): redder than lit skin as it darkens (``skin_distance``), smooth as skin is (``fine_texture`` under
+        ``SHADE_TEXTURE`` times the lit skin's median: hair and a beard are strands), and off the eyes, brows and lips
+        (``SHADE_FEATURE_MARGIN``; ``SHADE_EYE_MARGIN`` around the eyes and brows, whose ring of lids and lashes was
+        taken for a shadow and filled, the eyes with it), which are dark and red too. None in grey.
+
+        Only the photo's shadows are found on it (a shadow under a nose, redder than the skin, was neither skin nor
+        shadow, kept as it was: a brown patch on a face relit from the front); skin the fit already shades dark keeps
+        its own pixels as what is not skin does (filled, a film still's shaded cheek came back flat)."""
+        face = self.face
+        if photo.shape[-1] != 3 or lit.sum() <= 50:
+            return np.zeros_like(lit)
+        keep_out = (self._features(features, SHADE_FEATURE_MARGIN * iod_px)
+                    | self._features(eyes_and_brows, SHADE_EYE_MARGIN * iod_px))
+        scale = max(SHADE_TEXTURE_SCALE * iod_px, 1.0)
+        # the colour of a dark pixel is noisy: told over a few pixels, or a shadow came back as speckles of both
+        blurred = cv2.GaussianBlur(photo, (0, 0), 2.0 * scale)
+        shaded = skin_distance(blurred, face, shade=True, keep_out=keep_out) < MAX_CHROMA_DISTANCE
+        texture = fine_texture(photo.sum(axis=-1), scale)
+        return shaded & (texture < SHADE_TEXTURE * float(np.median(texture[lit]))) & ~keep_out & ~lit
 
     def _coarse(self, albedo: np.ndarray, mask: np.ndarray, lit: np.ndarray, px: float) -> np.ndarray:
         """(h, w) the fit's albedo map (Hm, Wm) on the box's pixels, smoothed (``smooth_coarse``), filled again first

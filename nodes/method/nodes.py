@@ -604,7 +604,8 @@ class PhotoRelightNode:
             if meshed else None,
             segment=person_segmenter(frame.meta.get("encoding", "linear")),
             hair=covered_above_eyes(frame, m), near=d["shadow"].near,
-            brows=placement.outlines.get("brows") if meshed else None)
+            brows=placement.outlines.get("brows") if meshed else None,
+            eye_outlines=placement.outlines.get("eyes") if meshed else None)
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

@@ -30,6 +30,11 @@ CLIPPED = 0.995  # brightness at or above this in any channel: the skin's value 
 CLIP_RATIO_FLOOR = 0.05
 LIT_SHADING = 0.3  # skin with at least this shading (n . s) is lit: the relit face's exposure is matched on it
 MAX_CHROMA_DISTANCE = 0.08  # chromaticity (r, g, b) / (r + g + b) this far from the face's median: not skin
+# the skin's colour followed into its shade (``skin_locus``): fitted at this share of the lit skin's brightness,
+# its slope (chromaticity per e-fold of brightness) held to this, and followed down to this share
+SHADE_FIT = (0.3, 0.6)
+SHADE_MAX_SLOPE = 0.12
+SHADE_FLOOR = 0.1
 # the share of the light a face's shadowed side keeps (ambient, fill): a face relit from the side has its shadowed
 # side this bright, as a photo's is, not black. Measured from the photo's attached shadow when it shows one
 # (a dark room: a few per cent), else the default, a room's fill light (docs/tuning.md, "Relighting the photo")
@@ -147,14 +152,62 @@ def skin(photo: np.ndarray, where: np.ndarray) -> np.ndarray:
     ``MAX_CHROMA_DISTANCE`` of the median over the inner half of ``where``: its border may be hair or
     background); all of ``where`` for a grey photo. The fill's level and colour are matched on skin
     only: eyes, lips, brows and hair would tint it."""
+    return skin_distance(photo, where) < MAX_CHROMA_DISTANCE
+
+
+def skin_distance(photo: np.ndarray, where: np.ndarray, shade: bool = False,
+                  keep_out: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float32: how far each pixel's chromaticity is from the face's skin colour (the median over the inner
+    half of ``where`` (H, W) bool); inf off ``where``, 0 on it for a grey photo (or too few pixels to tell).
+
+    shade: from the skin's colour at the pixel's brightness instead where that is nearer (``skin_locus``: darker
+    skin is redder in an ordinary photo; a shadow under the nose was taken for something else and kept as it was,
+    a brown patch on a face relit from the front); not on ``keep_out`` (H, W) bool, e.g. the eyes and lips."""
     img = np.atleast_3d(photo)
+    where = np.asarray(where, bool)
     if img.shape[-1] != 3 or where.sum() <= 50:
-        return where
-    chroma = img / np.maximum(img.sum(axis=-1, keepdims=True), 1e-6)
+        return np.where(where, np.float32(0.0), np.float32(np.inf))
+    brightness = _channel_sum(img)
+    chroma = img / np.maximum(brightness, 1e-6)[..., None]
     depth = cv2.distanceTransform(where.astype(np.uint8), cv2.DIST_L2, 3)
     inner = where & (depth >= 0.5 * depth.max())
-    median = np.median(chroma[inner if inner.sum() > 50 else where], axis=0)
-    return where & (np.linalg.norm(chroma - median, axis=-1) < MAX_CHROMA_DISTANCE)
+    inner = inner if inner.sum() > 50 else where
+    median = np.median(chroma[inner], axis=0)
+    distance = np.linalg.norm(chroma - median, axis=-1)
+    if shade:
+        use = where if keep_out is None else where & ~keep_out
+        locus = skin_locus(chroma, brightness, use & inner & (distance < MAX_CHROMA_DISTANCE), use, median)
+        distance = np.where(use, np.minimum(distance, np.linalg.norm(chroma - locus, axis=-1)), distance)
+    return np.where(where, distance, np.inf).astype(np.float32)
+
+
+def skin_locus(chroma: np.ndarray, brightness: np.ndarray, lit_skin: np.ndarray, where: np.ndarray,
+               median: np.ndarray) -> np.ndarray:
+    """(H, W, 3) the chromaticity skin has at each pixel's brightness: ``median`` (3,) at and above the lit skin's
+    level (the median ``brightness`` (H, W) of ``lit_skin`` (H, W) bool), moving by ``k ln(b / level)`` below it
+    (down to ``SHADE_FLOOR`` of the level). ``k`` (3,) is the median chromaticity of the pixels of ``where`` at
+    ``SHADE_FIT`` of the level (where skin is most of a face), less ``median``, over their median ``ln(b / level)``,
+    held to ``SHADE_MAX_SLOPE``. In held-out photos skin at a quarter of its lit level is 0.06-0.13 redder in
+    chromaticity than lit skin (docs/relighting.md)."""
+    if lit_skin.sum() < 50:
+        return np.broadcast_to(median, chroma.shape)
+    level = float(np.median(brightness[lit_skin]))
+    x = np.log(np.maximum(brightness, 1e-6) / max(level, 1e-6)).astype(np.float32)
+    fit = where & (x > np.log(SHADE_FIT[0])) & (x < np.log(SHADE_FIT[1]))
+    if fit.sum() < 50:
+        return np.broadcast_to(median, chroma.shape)
+    k = (np.median(chroma[fit], axis=0) - median) / float(np.median(x[fit]))
+    k *= min(1.0, SHADE_MAX_SLOPE / max(float(np.linalg.norm(k)), 1e-9))
+    return (median + np.clip(x, np.log(SHADE_FLOOR), 0.0)[..., None] * k.astype(np.float32)).astype(np.float32)
+
+
+def fine_texture(brightness: np.ndarray, sigma_px: float) -> np.ndarray:
+    """(H, W) float32: the photo's local contrast finer than ``sigma_px`` photo pixels, the RMS of ``log I`` less its
+    Gaussian blur over ``2 sigma_px`` around each pixel. brightness (H, W) linear. Hair and a beard are strands
+    (0.15-0.3 at a tenth of the eyes' distance over 14 px), skin in its shade is smooth (as lit skin: 0.02-0.08)."""
+    log = np.log(np.maximum(np.asarray(brightness, np.float32), np.float32(1e-3)))
+    fine = log - cv2.GaussianBlur(log, (0, 0), sigma_px)
+    return np.sqrt(cv2.GaussianBlur(fine * fine, (0, 0), 2.0 * sigma_px)).astype(np.float32)
 
 
 def shading_trust(shading: np.ndarray, new_shading: np.ndarray | None = None) -> np.ndarray:

@@ -19,8 +19,9 @@ from shadowflow.nodes.method.products import relit_photos
 
 LIGHTS = {"frontal": np.array([0.0, 0.0, 1.0]), "30,10": light_from_angles(30, 10),
           "-45,0": light_from_angles(-45, 0)}
-# grey levels: the live face against the product's relit photo, mean over the face's inside (measured: under 0.5
-# on the astronaut at these lights, 1.1 at most on Yale B and its composites)
+# grey levels: the live face against the product's relit photo, mean over the face's inside, the ring around it and
+# its own skin past the model (measured on the astronaut at these lights: 0.8-2.2, 0.4-0.7 and 0.2-2.7: the live face
+# has one albedo for every light, the product each light's; 1.1 at most on Yale B and its composites)
 MAX_MEAN_LEVELS = 3.0
 
 

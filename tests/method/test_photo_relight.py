@@ -670,3 +670,29 @@ def test_what_is_not_skin_is_brightened_no_more_than_the_skin_around_it():
     shadowed = np.where(patch, 0.02, 1.0).astype(np.float32)  # the new light's cast shadow falls on the patch
     dark = brightened_as_around(albedo, photo, lighting, shadowed, skin, patch.astype(np.float32), 4.0)
     assert np.allclose(dark[30, 30] * shadowed[30, 30], 0.2 * photo[30, 30], rtol=0.02)
+
+
+def test_skin_is_followed_into_its_shade_and_only_there():
+    """A face whose skin reddens as it darkens (channels as the light to the power 0.8 / 1 / 1.3, lit from its
+    left): its dark side is over 0.08 from the lit skin's chromaticity, so not skin, and within 0.02 of the locus
+    ``skin_distance`` follows into the shade; lips as red at the lit skin's brightness stay far from it, and what ``keep_out`` covers
+    is measured from the lit skin's colour alone. A grey photo is all skin."""
+    from shadowflow.nodes.method.photo_relight import skin, skin_distance
+
+    rows, cols = np.mgrid[0:120, 0:120]
+    where = np.hypot(rows - 60, cols - 60) < 55
+    light = np.clip(0.15 + 0.85 * cols / 119.0, 0, 1)  # a quarter of the face under half the lit level
+    photo = np.array([0.62, 0.48, 0.38]) * light[..., None] ** np.array([0.8, 1.0, 1.3])
+    lips = where & (np.abs(rows - 90) < 4) & (np.abs(cols - 95) < 12)
+    photo[lips] = np.array([0.7, 0.25, 0.25]) * light[lips][:, None]
+    photo = photo.astype(np.float32)
+    dark = where & (cols < 15) & ~lips
+    plain = skin_distance(photo, where)
+    shaded = skin_distance(photo, where, shade=True)
+    assert np.percentile(plain[dark], 5) > 0.08 and not skin(photo, where)[dark].any()
+    assert np.percentile(shaded[dark], 95) < 0.02, np.percentile(shaded[dark], 95)
+    assert shaded[lips].min() > 0.15
+    assert np.array_equal(skin_distance(photo, where, shade=True, keep_out=dark)[dark], plain[dark])
+    assert np.isinf(shaded[~where]).all()
+    grey = skin_distance(photo.mean(-1, keepdims=True), where)
+    assert (grey[where] == 0).all() and np.isinf(grey[~where]).all()
