@@ -172,33 +172,50 @@ def skin_distance(photo: np.ndarray, where: np.ndarray, shade: bool = False,
     depth = cv2.distanceTransform(where.astype(np.uint8), cv2.DIST_L2, 3)
     inner = where & (depth >= 0.5 * depth.max())
     inner = inner if inner.sum() > 50 else where
-    median = np.median(chroma[inner], axis=0)
-    distance = np.linalg.norm(chroma - median, axis=-1)
+    median = np.median(chroma[inner], axis=0).astype(np.float32)
+    distance = _chroma_distance(chroma, median)
     if shade:
         use = where if keep_out is None else where & ~keep_out
-        locus = skin_locus(chroma, brightness, use & inner & (distance < MAX_CHROMA_DISTANCE), use, median)
-        distance = np.where(use, np.minimum(distance, np.linalg.norm(chroma - locus, axis=-1)), distance)
-    return np.where(where, distance, np.inf).astype(np.float32)
+        slope, log_level = skin_locus(chroma, brightness, use & inner & (distance < MAX_CHROMA_DISTANCE), use, median)
+        if slope is not None:
+            # below the lit level, the locus: median + slope ln(b / level), down to SHADE_FLOOR
+            depth_below = np.clip(np.log(np.maximum(brightness, 1e-6)) - log_level, np.log(SHADE_FLOOR), 0.0)
+            along = _chroma_distance(chroma, median, slope, depth_below.astype(np.float32))
+            distance = np.where(use, np.minimum(distance, along), distance)
+    return np.where(where, distance, np.float32(np.inf)).astype(np.float32)
+
+
+def _chroma_distance(chroma: np.ndarray, median: np.ndarray, slope: np.ndarray | None = None,
+                     depth: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) float32 the distance of ``chroma`` (H, W, 3) from ``median`` (3,), or from ``median + slope depth``
+    (slope (3,), depth (H, W)), channel by channel (``np.linalg.norm`` over the last axis is slow)."""
+    out = np.zeros(chroma.shape[:2], np.float32)
+    for c in range(chroma.shape[-1]):
+        ref = median[c] if slope is None else median[c] + slope[c] * depth
+        out += np.square(chroma[..., c] - ref)
+    return np.sqrt(out)
 
 
 def skin_locus(chroma: np.ndarray, brightness: np.ndarray, lit_skin: np.ndarray, where: np.ndarray,
-               median: np.ndarray) -> np.ndarray:
-    """(H, W, 3) the chromaticity skin has at each pixel's brightness: ``median`` (3,) at and above the lit skin's
-    level (the median ``brightness`` (H, W) of ``lit_skin`` (H, W) bool), moving by ``k ln(b / level)`` below it
-    (down to ``SHADE_FLOOR`` of the level). ``k`` (3,) is the median chromaticity of the pixels of ``where`` at
-    ``SHADE_FIT`` of the level (where skin is most of a face), less ``median``, over their median ``ln(b / level)``,
-    held to ``SHADE_MAX_SLOPE``. In held-out photos skin at a quarter of its lit level is 0.06-0.13 redder in
-    chromaticity than lit skin (docs/relighting.md)."""
+               median: np.ndarray) -> tuple[np.ndarray | None, float]:
+    """The chromaticity skin has below the lit skin's level: ``(k, ln level)``, skin at brightness ``b`` under the
+    level having ``median + k ln(b / level)`` (``median`` (3,) at and above it; ``skin_distance`` follows it down to
+    ``SHADE_FLOOR`` of the level). ``level``: the median ``brightness`` (H, W) of ``lit_skin`` (H, W) bool; ``k`` (3,):
+    the median chromaticity of the pixels of ``where`` at ``SHADE_FIT`` of the level (where skin is most of a face),
+    less ``median``, over their median ``ln(b / level)``, held to ``SHADE_MAX_SLOPE``; None when too few pixels tell.
+    In held-out photos skin at a fifth to a third of its lit level is 0.09-0.14 from the lit skin's chromaticity,
+    redder (docs/relighting.md, "Skin in its shade")."""
     if lit_skin.sum() < 50:
-        return np.broadcast_to(median, chroma.shape)
-    level = float(np.median(brightness[lit_skin]))
-    x = np.log(np.maximum(brightness, 1e-6) / max(level, 1e-6)).astype(np.float32)
-    fit = where & (x > np.log(SHADE_FIT[0])) & (x < np.log(SHADE_FIT[1]))
+        return None, 0.0
+    log_level = float(np.log(max(float(np.median(brightness[lit_skin])), 1e-6)))
+    band = (brightness > SHADE_FIT[0] * np.exp(log_level)) & (brightness < SHADE_FIT[1] * np.exp(log_level))
+    fit = where & band
     if fit.sum() < 50:
-        return np.broadcast_to(median, chroma.shape)
-    k = (np.median(chroma[fit], axis=0) - median) / float(np.median(x[fit]))
+        return None, log_level
+    x = np.log(np.maximum(brightness[fit], 1e-6)) - log_level
+    k = (np.median(chroma[fit], axis=0) - median) / float(np.median(x))
     k *= min(1.0, SHADE_MAX_SLOPE / max(float(np.linalg.norm(k)), 1e-9))
-    return (median + np.clip(x, np.log(SHADE_FLOOR), 0.0)[..., None] * k.astype(np.float32)).astype(np.float32)
+    return k.astype(np.float32), log_level
 
 
 def fine_texture(brightness: np.ndarray, sigma_px: float) -> np.ndarray:
