@@ -28,3 +28,6 @@ NOVEL_VIEW = "relight/novel_view"
 CONVERGENCE_LABELS = {"sigma": "robust scale σ (radians)", "change_deg": "mean change of the normals (degrees)",
                       "residual_mean": "mean residual (radians)"}
 CONVERGENCE_PLOTS = tuple(CONVERGENCE_LABELS)
+# scalars that flag an iteration, marked on the convergence plots: the fit's albedo measured again (its smooth-albedo
+# round) moves the cones, and the change of the normals and the residuals jump there
+CONVERGENCE_MARKS = {"albedo_round": "albedo measured again"}

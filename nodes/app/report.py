@@ -28,7 +28,7 @@ import numpy as np
 from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
 from ..photo.loader import InputError, read_photo
-from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS
+from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
 from .view import SLIDER_SCRIPT, SLIDER_STYLE, VIEW_NAME, face_marks, faces_crop
 
@@ -322,12 +322,12 @@ def _recorded_series(recording: Path) -> list[tuple[str, dict]] | None:
 
 def _convergence_png(series: list[tuple[str, dict]], highlight: set[str]) -> str:
     """The convergence plot of ``series`` (at most PLOT_FRAMES of them; those named in ``highlight``
-    in colour when there are many), base64 PNG."""
+    in colour when there are many; the albedo's round marked, ``CONVERGENCE_MARKS``), base64 PNG."""
     from ...flow.replay import convergence_figure
 
     buf = io.BytesIO()
     convergence_figure(series[:PLOT_FRAMES], CONVERGENCE_PLOTS, CONVERGENCE_LABELS,
-                       highlight=highlight).savefig(buf, format="png")
+                       highlight=highlight, marks=CONVERGENCE_MARKS).savefig(buf, format="png")
     return base64.b64encode(buf.getvalue()).decode()
 
 

@@ -284,14 +284,22 @@ def test_an_older_releases_dense_recording_still_reads_and_diffs_equal():
     """``golden-64-dense.mcap``: the golden run as an earlier release recorded it, every array dense
     (before masked messages) and its albedo filled as the paper fills it. It reads, and equals today's
     golden on every channel of its second face but the four the albedo changed (its fill ceiling, then
-    its measurement only where the photo shows the face). Its first face's fit moved since: the render's
-    black beyond the face, inside the model's edge, is left out as what covers the face (``cover.py``)."""
+    its measurement only where the photo shows the face), and the names of its fit's scalars: each iteration's
+    record says since whether the albedo was measured again before it (``albedo_round``), the others equal.
+    Its first face's fit moved since: the render's black beyond the face, inside the model's edge, is left out as
+    what covers the face (``cover.py``)."""
     old, new = read_mcap(GOLDEN.with_name("golden-64-dense.mcap")), read_mcap(GOLDEN)
     diffs = diff_recordings(old, new, atol=1e-6, rtol=1e-5)
     second = [d for d in diffs if d.frame == 1]
-    assert {d.channel for d in second} == {"albedo/albedo", "integrate/mesh/colours", "relight/relit",
-                                           "relight/novel_view"}, second
-    assert all(d.iteration is None for d in second)  # no fit iteration differs
+    fit = [d for d in second if d.iteration is not None]  # no fit iteration differs but by its new scalar
+    assert {d.channel for d in second if d.iteration is None} == {
+        "albedo/albedo", "integrate/mesh/colours", "relight/relit", "relight/novel_view"}, second
+    assert fit and all(d.channel == "robust_fit/convergence" and d.what == "different scalar names" for d in fit)
+    then, now = (r.finished_frames()[1].scalars["robust_fit/convergence"] for r in (old, new))
+    assert sorted(then) == sorted(now)
+    for it in now:
+        assert set(now[it]) - set(then[it]) == {"albedo_round"} and now[it]["albedo_round"] == 0.0
+        assert all(now[it][k] == pytest.approx(v, rel=1e-5, abs=1e-6) for k, v in then[it].items())
     assert {d.channel for d in diffs if d.frame == 0 and d.iteration is not None} >= {"robust_fit/normals"}
     assert len(old.finished_frames()) == 2
 

@@ -147,3 +147,25 @@ def test_the_convergence_plot_has_units_a_legend_and_the_recorded_values():
     odd = convergence_figure(crowd, ("sigma",), legend_max=12, highlight={"f3", "f17"})
     # the odd frames in colour and named, beside the crowd's median
     assert [t.get_text() for t in odd.axes[0].get_legend().get_texts()] == ["f3", "f17", "median of 20"]
+
+
+def test_the_convergence_plot_marks_the_flagged_iterations_on_every_panel():
+    """A scalar that flags an iteration (``marks``) draws an open circle on each frame's line there, on every
+    panel, and names it once in the legend; in a crowd, on the grey lines too, the legend the median's and the
+    mark's. Frames that never flag it get none."""
+    from shadowflow.flow.replay import convergence_figure
+
+    a = {i: {"sigma": 1.0 / i, "change": 5.0 if i == 3 else 0.1, "round": float(i == 3)} for i in range(1, 6)}
+    b = {i: {"sigma": 2.0 / i, "change": 0.2, "round": 0.0} for i in range(1, 4)}
+    fig = convergence_figure([("a.png", a), ("b.png", b)], ("sigma", "change"), marks={"round": "albedo again"})
+    for ax in fig.axes[:2]:
+        circles = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        assert len(circles) == 1 and list(circles[0].get_xdata()) == [3]
+    assert list(fig.axes[1].get_lines()[-1].get_ydata()) == [5.0]
+    assert [t.get_text() for t in fig.axes[1].get_legend().get_texts()] == ["a.png", "b.png", "albedo again"]
+    plain = convergence_figure([("b.png", b)], ("sigma",), marks={"round": "albedo again"})
+    assert [t.get_text() for t in plain.axes[0].get_legend().get_texts()] == ["b.png"]
+    crowd = [(f"f{k}", a) for k in range(20)]
+    many = convergence_figure(crowd, ("sigma",), legend_max=12, marks={"round": "albedo again"})
+    assert sum(ln.get_marker() == "o" for ln in many.axes[0].get_lines()) == 20
+    assert [t.get_text() for t in many.axes[0].get_legend().get_texts()] == ["median of 20", "albedo again"]

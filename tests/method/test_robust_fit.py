@@ -183,3 +183,23 @@ def test_a_diverging_gauss_newton_step_falls_back_to_the_alternation(procedural_
     res = {**irls, **_fit_errors(procedural_model, depths, light_from_angles(45), {"broken": FitConfig()})}
     assert np.mean(res["broken"]["err"]) < np.mean(res["irls"]["err"]) + 0.25, res
     assert min(res["broken"]["iterations"]) > 20, res  # it went on by the alternation
+
+
+def test_the_pass_after_the_albedo_round_is_flagged_and_only_it(procedural_model):
+    """The smooth-albedo round runs once the fit has converged and moves the cones, so the next pass's change
+    jumps; that pass, and no other, says so (``albedo_round``: the convergence plots mark it). Without the round
+    none does."""
+    m = procedural_model
+    rng = np.random.default_rng(2)
+    n_true = m.synthesize(rng.standard_normal(m.n_modes) * np.sqrt(m.eigenvalues) * 0.8)
+    s = light_from_angles(40)
+    shading = lambertian(n_true, s)
+    albedo = 0.8 + 0.2 * np.sin(np.arange(m.n_pixels) / 300.0)  # a smooth albedo for the round to measure
+    res = fit(m, shading * albedo, s, FitConfig(albedo_rounds=1))
+    flags = [h["albedo_round"] for h in res.history]
+    assert flags.count(1.0) == 1 and set(flags) == {0.0, 1.0}
+    k = flags.index(1.0)
+    assert 0 < k < len(flags) - 1
+    assert res.history[k - 1]["change_deg"] < FitConfig().stop_tolerance_deg < res.history[k]["change_deg"]
+    none = fit(m, shading * albedo, s, FitConfig(albedo_rounds=0))
+    assert all(h["albedo_round"] == 0.0 for h in none.history)

@@ -13,7 +13,7 @@ from ....flow.replay import (
     relog_to_rerun,
 )
 from ..blueprint import default_blueprint
-from ..channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_PLOTS
+from ..channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from ..outputs import real_path
 from ..record import (
     CONVERGENCE_TABLE,
@@ -59,7 +59,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if stream.truncated:
         print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
     if args.plot:
-        print(f"plot: {plot_convergence(series, args.plot, CONVERGENCE_PLOTS, CONVERGENCE_LABELS)}")
+        plot = plot_convergence(series, args.plot, CONVERGENCE_PLOTS, CONVERGENCE_LABELS, marks=CONVERGENCE_MARKS)
+        print(f"plot: {plot}")
     if args.rrd:
         print(f"rerun: {args.rrd}")
     return 0

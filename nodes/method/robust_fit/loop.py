@@ -46,7 +46,9 @@ class FitIteration:
     weights: (N,) Huber weights of this pass; residuals: (N,) radians, the offsets they came from
     (gauss-newton: the previous model's distance to its cones, before this pass's step; irls:
     this pass's fit to the previous on-cone normals);
-    sigma: scale (radians); b: (K,) coefficients; change_deg: mean angle n -> n''.
+    sigma: scale (radians); b: (K,) coefficients; change_deg: mean angle n -> n''; albedo_round: the
+    smooth-albedo round measured the albedo again just before this pass, so its cones moved (its change and
+    residuals jump: the convergence plots mark it).
     """
 
     iteration: int
@@ -57,6 +59,7 @@ class FitIteration:
     sigma: float
     b: np.ndarray
     change_deg: float
+    albedo_round: bool = False
 
     def scalars(self) -> dict[str, float]:
         r = self.residuals
@@ -66,6 +69,7 @@ class FitIteration:
             "residual_median": median(r),
             "downweighted_fraction": float(np.mean(self.weights < 1.0)),
             "change_deg": float(self.change_deg),
+            "albedo_round": float(self.albedo_round),
         }
 
 
@@ -153,6 +157,7 @@ class FitState:
     residuals: np.ndarray | None = None
     sigma: float = 0.0
     sigma_prev: float = 0.0  # no residuals before the first pass
+    albedo_measured: bool = False  # a smooth-albedo round ran since the last pass
 
 
 def _constrained(released: np.ndarray, dark: np.ndarray | None, model_normals: np.ndarray,
@@ -281,12 +286,14 @@ def fit(
     for it in range(1, config.max_iterations + 1):
         step(p, st, model.project(st.normals), it)
         record = _onto_cones(p, st, it)
+        record.albedo_round, st.albedo_measured = st.albedo_measured, False
         history.append({"iteration": it, **record.scalars()})
         if on_iteration is not None:
             on_iteration(record)
         st.normals = record.normals
         if record.change_deg < st.tolerance and st.albedo_rounds > 0:
             st.albedo_rounds -= 1
+            st.albedo_measured = True
             st.intensity = _without_smooth_albedo(p, st)
             st.normals = irradiance_constraint(st.model_normals, p.light, st.intensity, p.dark,
                                                fallback=model.mean_normals)
