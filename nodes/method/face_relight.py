@@ -87,6 +87,10 @@ SHADE_FEATURE_MARGIN = 0.02
 SHADE_EYE_MARGIN = 0.1
 SHADE_TEXTURE = 2.5
 SHADE_TEXTURE_SCALE = 0.01
+# ... and only on a face this many photo pixels between the eyes or more: on smaller ones a photo's colour (a JPEG's
+# at half resolution) and hair's strands are not resolved, and the shadows so found took hairlines, a cartoon's
+# cheek and annotated faces' skin (opencv-doc's faces 19-37 px between the eyes; docs/relighting.md)
+SHADE_MIN_IOD = 60.0
 # the fit's albedo map is filled again (harmonic) where the grid measured it lit but the photo finds shadow over
 # more than this share of a model pixel: its value there holds that shadow (an eye socket under a light from above,
 # deeper than the model's, came back a dark patch of fill)
@@ -217,9 +221,10 @@ class FaceRelight:
 
         Only the photo's shadows are found on it (a shadow under a nose, redder than the skin, was neither skin nor
         shadow, kept as it was: a brown patch on a face relit from the front); skin the fit already shades dark keeps
-        its own pixels as what is not skin does (filled, a film still's shaded cheek came back flat)."""
+        its own pixels as what is not skin does (filled, a film still's shaded cheek came back flat). None on a face
+        under ``SHADE_MIN_IOD`` between the eyes."""
         face = self.face
-        if photo.shape[-1] != 3 or lit.sum() <= 50:
+        if photo.shape[-1] != 3 or lit.sum() <= 50 or iod_px < SHADE_MIN_IOD:
             return np.zeros_like(lit)
         keep_out = (self._features(features, SHADE_FEATURE_MARGIN * iod_px)
                     | self._features(eyes_and_brows, SHADE_EYE_MARGIN * iod_px))

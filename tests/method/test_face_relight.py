@@ -217,7 +217,8 @@ def test_a_shadow_redder_than_the_skin_is_found_and_filled_and_hair_across_it_is
     1.3): a shadow deeper than the model's, at a fifth of the light, is 0.17 from the lit skin's chromaticity, so it
     was not taken for skin, nor for shadow: kept as it was, it came back from a frontal light as a dark brown patch
     (0.24 of the skin's level). Now skin in its shade is found as shadow and filled at the skin's level. A band of
-    hair strands across it, as dark and as red, is not smooth as skin is: it keeps its own pixels, dark in the fill."""
+    hair strands across it, as dark and as red, is not smooth as skin is: it keeps its own pixels, dark in the fill.
+    On a face under 60 px between the eyes the shadow is kept as before."""
     mask, normals, depth = _sphere()
     al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
     shape = (260, 260)
@@ -242,3 +243,8 @@ def test_a_shadow_redder_than_the_skin_is_found_and_filled_and_hair_across_it_is
     assert 0.7 < level < 1.3, level
     hair = np.median(out[strands & (r_px < 18)]) / np.median(out[disc])
     assert hair < 0.5, hair
+    # a face under SHADE_MIN_IOD between the eyes: its colour too coarse to follow, the shadow is kept as it was
+    small = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
+                        albedo=np.where(mask, 0.5, np.nan).astype(np.float32), depth=depth, light=light, iod_px=50.0)
+    out = compose(photo, [small.layer(light)]).mean(-1)
+    assert np.median(out[disc]) / np.median(out[skin_near]) < 0.5
