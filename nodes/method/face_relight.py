@@ -81,8 +81,8 @@ SHADOW_SPECK = 1.0
 # the skin's trust below it, where the light grazes it (docs/relighting.md, "Held-out photos")
 BROW_MARGIN = 0.02
 BROW_KEPT = (0.25, 0.4)
-# skin in its shade (``_skin``): off the eyes, brows and lips grown by this many interocular distances, and no
-# rougher than this many times the lit skin's median texture at this scale (interocular distances)
+# skin in its shade (``_shaded_skin``): off the lips, and the eyes and brows, grown by these many interocular
+# distances, and no rougher than this many times the lit skin's median texture at this scale (interocular distances)
 SHADE_FEATURE_MARGIN = 0.02
 SHADE_EYE_MARGIN = 0.1
 SHADE_TEXTURE = 2.5
