@@ -219,8 +219,8 @@ def skin_locus(chroma: np.ndarray, brightness: np.ndarray, lit_skin: np.ndarray,
 
 
 def fine_texture(brightness: np.ndarray, sigma_px: float) -> np.ndarray:
-    """(H, W) float32: the photo's local contrast finer than ``sigma_px`` photo pixels, the RMS of ``log I`` less its
-    Gaussian blur over ``2 sigma_px`` around each pixel. brightness (H, W) linear. Hair and a beard are strands, skin
+    """(H, W) float32: the photo's local contrast finer than ``sigma_px`` photo pixels: ``log I`` less its Gaussian
+    blur over ``sigma_px``, its RMS over a Gaussian of ``2 sigma_px`` around each pixel. brightness (H, W) linear. Hair and a beard are strands, skin
     is smooth, in its shade too (at a hundredth of the eyes' distance, held-out portraits: lit skin's median
     0.02-0.08, a goatee's 0.2)."""
     log = np.log(np.maximum(np.asarray(brightness, np.float32), np.float32(1e-3)))
