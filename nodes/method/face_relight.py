@@ -232,7 +232,7 @@ class FaceRelight:
         # the colour of a dark pixel is noisy: told over a few pixels, or a shadow came back as speckles of both
         blurred = cv2.GaussianBlur(photo, (0, 0), 2.0 * scale)
         shaded = skin_distance(blurred, face, shade=True, keep_out=keep_out) < MAX_CHROMA_DISTANCE
-        texture = fine_texture(photo.sum(axis=-1), scale)
+        texture = fine_texture(photo, scale)
         return shaded & (texture < SHADE_TEXTURE * float(np.median(texture[lit]))) & ~keep_out & ~lit
 
     def _coarse(self, albedo: np.ndarray, mask: np.ndarray, lit: np.ndarray, px: float) -> np.ndarray:

@@ -218,12 +218,13 @@ def skin_locus(chroma: np.ndarray, brightness: np.ndarray, lit_skin: np.ndarray,
     return k.astype(np.float32), log_level
 
 
-def fine_texture(brightness: np.ndarray, sigma_px: float) -> np.ndarray:
-    """(H, W) float32: the photo's local contrast finer than ``sigma_px`` photo pixels: ``log I`` less its Gaussian
-    blur over ``sigma_px``, its RMS over a Gaussian of ``2 sigma_px`` around each pixel. brightness (H, W) linear. Hair and a beard are strands, skin
+def fine_texture(photo: np.ndarray, sigma_px: float) -> np.ndarray:
+    """(H, W) float32: the photo's local contrast finer than ``sigma_px`` photo pixels: ``log I`` (``I`` the sum of
+    its channels) less its Gaussian blur over ``sigma_px``, its RMS over a Gaussian of ``2 sigma_px`` around each
+    pixel. photo (H, W, C) linear. Hair and a beard are strands, skin
     is smooth, in its shade too (at a hundredth of the eyes' distance, held-out portraits: lit skin's median
     0.02-0.08, a goatee's 0.2)."""
-    log = np.log(np.maximum(np.asarray(brightness, np.float32), np.float32(1e-3)))
+    log = np.log(np.maximum(_channel_sum(np.atleast_3d(np.asarray(photo, np.float32))), np.float32(1e-3)))
     fine = log - cv2.GaussianBlur(log, (0, 0), sigma_px)
     return np.sqrt(cv2.GaussianBlur(fine * fine, (0, 0), 2.0 * sigma_px)).astype(np.float32)
 

@@ -1,5 +1,7 @@
 """One face relit in its box from arrays alone (``face_relight.FaceRelight``): a textured sphere on a
 small model grid, placed 4x larger in a colour photo, with its true shape and light."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from shadowflow.nodes.method.face_relight import FaceRelight
@@ -183,31 +185,45 @@ def test_a_brow_dark_into_the_shadow_is_kept_not_filled_as_shadow():
     assert relit_level([outline], 148, 162) < 0.6, relit_level([outline], 148, 162)  # skin's trust: 0.8-1.1
 
 
+def _frontal_disc() -> SimpleNamespace:
+    """The sphere lit from the front (``light``), with a disc around model pixel (x, y) = (18, 20) for a shadow
+    deeper than the model's. Its fields: the grid's ``mask``, ``normals``, ``depth``; the alignment ``al``; on the
+    photo's 260 x 260 pixels the ``face``, its ``shading``, ``rows`` / ``cols`` and ``r_px``, the distance to the
+    disc's ``centre`` (photo x, y); ``grid_r``, the same on the grid; ``lit``, the grid's lit mask, its shadow the
+    disc's core only."""
+    mask, normals, depth = _sphere()
+    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
+    shape, light = (260, 260), np.array([0.0, 0.0, 1.0])
+    face = mask_to_input(mask, al, shape)
+    shading = np.clip(np.nan_to_num(normals_to_input(normals, mask, al, shape)) @ light, 0.0, None)
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    centre = al.points_to_input(np.array([[18.0, 20.0]]))[0]  # model pixel (x, y) -> photo
+    grid_r = np.hypot(*(np.mgrid[0:GRID, 0:GRID] - np.array([20.0, 18.0])[:, None, None]))
+    return SimpleNamespace(mask=mask, normals=normals, depth=depth, al=al, light=light, face=face, shading=shading,
+                           rows=rows, cols=cols, centre=centre, r_px=np.hypot(cols - centre[0], rows - centre[1]),
+                           grid_r=grid_r, lit=mask & (grid_r >= 2.5))
+
+
+def _disc_relight(d: SimpleNamespace, photo: np.ndarray, albedo: np.ndarray, iod_px: float = 0.9 * R * SCALE):
+    """``FaceRelight`` of ``photo`` (260, 260, 3) on ``_frontal_disc``'s sphere, its grid albedo ``albedo``."""
+    return FaceRelight(photo=photo, grey=photo.mean(-1), alignment=d.al, mask=d.mask, normals=d.normals, lit=d.lit,
+                       albedo=albedo, depth=d.depth, light=d.light, iod_px=iod_px)
+
+
 def test_the_fits_map_is_filled_again_where_the_photo_finds_a_shadow_the_grid_measured_as_lit():
     """A shadow deeper than the model's (an eye socket under a light from above): the photo is dark over a disc,
     the grid took only its core for shadow and measured the rest as lit, so the fit's albedo map holds the shadow
     there (0.1 against the skin's 0.5). Relit frontally, the disc is filled at the skin's level, not the map's
     (0.71 of it; 0.42 before)."""
-    mask, normals, depth = _sphere()
-    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
-    shape = (260, 260)
-    face = mask_to_input(mask, al, shape)
-    light = np.array([0.0, 0.0, 1.0])
-    shading = np.clip(np.nan_to_num(normals_to_input(normals, mask, al, shape)) @ light, 0.0, None)
-    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
-    centre = al.points_to_input(np.array([[18.0, 20.0]]))[0]  # model pixel (x, y) -> photo
-    r_px = np.hypot(cols - centre[0], rows - centre[1])
+    d = _frontal_disc()
     skin_rgb = np.array([0.62, 0.48, 0.38])
-    photo = np.where(face[..., None], skin_rgb * np.where(r_px < 24, 0.15, 1.0)[..., None] * shading[..., None],
-                     0.3).astype(np.float32)
-    grid_r = np.hypot(*(np.mgrid[0:GRID, 0:GRID] - np.array([20.0, 18.0])[:, None, None]))
-    lit = mask & (grid_r >= 2.5)  # the grid's shadow: the disc's core only
+    dark = np.where(d.r_px < 24, 0.15, 1.0)[..., None]
+    photo = np.where(d.face[..., None], skin_rgb * dark * d.shading[..., None], 0.3).astype(np.float32)
     # measured where the grid took it for lit: 0.1 over the disc's rim; its core the fit filled, as the skin's
-    albedo = np.where(mask, np.where((grid_r < 6.5) & lit, 0.1, 0.5), np.nan).astype(np.float32)
-    r = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
-                    albedo=albedo, depth=depth, light=light, iod_px=0.9 * R * SCALE)
-    out = compose(photo, [r.layer(light)]).mean(-1)
-    ring, skin_near = (r_px > 12) & (r_px < 20), (r_px > 32) & (r_px < 44) & face
+    albedo = np.where(d.mask, np.where((d.grid_r < 6.5) & d.lit, 0.1, 0.5), np.nan).astype(np.float32)
+    r = _disc_relight(d, photo, albedo)
+    out = compose(photo, [r.layer(d.light)]).mean(-1)
+    ring, skin_near = (d.r_px > 12) & (d.r_px < 20), (d.r_px > 32) & (d.r_px < 44) & d.face
     level = np.median(out[ring]) / np.median(out[skin_near])
     assert level > 0.6, level
 
@@ -219,32 +235,19 @@ def test_a_shadow_redder_than_the_skin_is_found_and_filled_and_hair_across_it_is
     (0.24 of the skin's level). Now skin in its shade is found as shadow and filled at the skin's level. A band of
     hair strands across it, as dark and as red, is not smooth as skin is: it keeps its own pixels, dark in the fill.
     On a face under 60 px between the eyes the shadow is kept as before."""
-    mask, normals, depth = _sphere()
-    al = Alignment(np.array([[SCALE, 0.0, OFFSET[0]], [0.0, SCALE, OFFSET[1]]]), "test")
-    shape = (260, 260)
-    face = mask_to_input(mask, al, shape)
-    light = np.array([0.0, 0.0, 1.0])
-    shading = np.clip(np.nan_to_num(normals_to_input(normals, mask, al, shape)) @ light, 0.0, None)
-    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
-    centre = al.points_to_input(np.array([[18.0, 20.0]]))[0]  # model pixel (x, y) -> photo
-    r_px = np.hypot(cols - centre[0], rows - centre[1])
-    strands = (r_px < 22) & (np.abs(rows - (centre[1] + 10)) < 4)
-    reach = shading * np.where(r_px < 24, 0.2, 1.0) * np.where(strands, np.where(cols % 2, 0.3, 0.9), 1.0)
+    d = _frontal_disc()
+    strands = (d.r_px < 22) & (np.abs(d.rows - (d.centre[1] + 10)) < 4)
+    reach = d.shading * np.where(d.r_px < 24, 0.2, 1.0) * np.where(strands, np.where(d.cols % 2, 0.3, 0.9), 1.0)
     colour = np.array([0.62, 0.48, 0.38]) * reach[..., None] ** np.array([0.8, 1.0, 1.3])
-    photo = np.where(face[..., None], colour, 0.3).astype(np.float32)
-    grid_r = np.hypot(*(np.mgrid[0:GRID, 0:GRID] - np.array([20.0, 18.0])[:, None, None]))
-    lit = mask & (grid_r >= 2.5)  # the grid's shadow: the disc's core only
-    r = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
-                    albedo=np.where(mask, 0.5, np.nan).astype(np.float32), depth=depth, light=light,
-                    iod_px=0.9 * R * SCALE)
-    out = compose(photo, [r.layer(light)]).mean(-1)
-    disc, skin_near = (r_px > 4) & (r_px < 20) & ~strands, (r_px > 32) & (r_px < 44) & face
+    photo = np.where(d.face[..., None], colour, 0.3).astype(np.float32)
+    r = _disc_relight(d, photo, np.where(d.mask, 0.5, np.nan).astype(np.float32))
+    out = compose(photo, [r.layer(d.light)]).mean(-1)
+    disc, skin_near = (d.r_px > 4) & (d.r_px < 20) & ~strands, (d.r_px > 32) & (d.r_px < 44) & d.face
     level = np.median(out[disc]) / np.median(out[skin_near])
     assert 0.7 < level < 1.3, level
-    hair = np.median(out[strands & (r_px < 18)]) / np.median(out[disc])
+    hair = np.median(out[strands & (d.r_px < 18)]) / np.median(out[disc])
     assert hair < 0.5, hair
     # a face under SHADE_MIN_IOD between the eyes: its colour too coarse to follow, the shadow is kept as it was
-    small = FaceRelight(photo=photo, grey=photo.mean(-1), alignment=al, mask=mask, normals=normals, lit=lit,
-                        albedo=np.where(mask, 0.5, np.nan).astype(np.float32), depth=depth, light=light, iod_px=50.0)
-    out = compose(photo, [small.layer(light)]).mean(-1)
+    small = _disc_relight(d, photo, np.where(d.mask, 0.5, np.nan).astype(np.float32), iod_px=50.0)
+    out = compose(photo, [small.layer(d.light)]).mean(-1)
     assert np.median(out[disc]) / np.median(out[skin_near]) < 0.5
