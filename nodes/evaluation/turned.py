@@ -168,8 +168,8 @@ def score_turned(normals: np.ndarray, truth: np.ndarray, face: np.ndarray) -> di
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only]``: the table of
-    docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
+    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only] [--views Y,P ...]``: the
+    tables of docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
     import argparse
 
     import shadowflow
@@ -184,9 +184,18 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--frontal-only", action="store_true", help="fit every face with the frontal model")
     ap.add_argument("--surrey", metavar="PATH", help="faces of this eos model (sfm_shape_3448.bin), not ICT's")
+    ap.add_argument("--views", metavar="Y,P", nargs="+", help="the true views (yaw, pitch degrees) to render")
+    ap.add_argument("--frontal-pitch", type=float, metavar="DEG",
+                    help="a face within 7.5 deg of frontal in yaw is fitted at a pitched view from this pitch on")
+    ap.add_argument("--max-view-pitch", type=float, metavar="DEG", help="the pitched views' reach")
     args = ap.parse_args(argv)
     if args.frontal_only:
         turned.views_near = lambda yaw, pitch: [(0.0, 0.0)]
+    if args.frontal_pitch is not None:
+        turned.FRONTAL_PITCH = args.frontal_pitch
+    if args.max_view_pitch is not None:
+        from ..model import default_model as views
+        views.MAX_VIEW_PITCH = args.max_view_pitch
     basis, model, light = shipped_basis(), default_model(), light_from_angles(45.0, 0.0)
     if args.surrey:
         faces = eos_samples(args.surrey, args.identities, 1000)
@@ -196,22 +205,24 @@ def main(argv: list[str] | None = None) -> None:
         for _ in range(args.identities):
             verts, eyes = basis.face(rng.standard_normal(basis.n_identity))
             faces.append((verts, basis.triangles, eyes, verts[list(LANDMARKS)]))
-    print("| view | normals | coverage | read yaw | status |\n|---|---|---|---|---|")
-    for view in ((0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)):
+    views = [tuple(int(float(a)) for a in v.split(",")) for v in args.views] if args.views else [
+        (0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)]
+    print("| view | normals | coverage | read yaw | read pitch | status |\n|---|---|---|---|---|---|")
+    for view in views:
         rows = []
         for verts, tris, eyes, landmarks in faces:
             r = render_turned_mesh(verts, tris, eyes, landmarks, view, light, model)
             try:
                 result = shadowflow.fit(r.photo, light=light)
             except ValueError as exc:
-                rows.append((np.nan, 0.0, np.nan, str(exc).split(": ", 1)[-1]))
+                rows.append((np.nan, 0.0, np.nan, np.nan, str(exc).split(": ", 1)[-1]))
                 continue
-            s = score_turned(result.normals, r.normals, r.face)
-            rows.append((s["error"], s["coverage"], result.faces[0]["pose"]["yaw"], result.faces[0]["status"]))
+            s, pose = score_turned(result.normals, r.normals, r.face), result.faces[0]["pose"]
+            rows.append((s["error"], s["coverage"], pose["yaw"], pose["pitch"], result.faces[0]["status"]))
         err = [x[0] for x in rows if np.isfinite(x[0])]
         print(f"| {view[0]:+d}, {view[1]:+d} | {np.mean(err) if err else float('nan'):.2f} | "
               f"{np.mean([x[1] for x in rows]):.3f} | {', '.join(f'{x[2]:+.0f}' for x in rows)} | "
-              f"{'; '.join(sorted({x[3] for x in rows}))} |", flush=True)
+              f"{', '.join(f'{x[3]:+.0f}' for x in rows)} | {'; '.join(sorted({x[4] for x in rows}))} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -17,20 +17,26 @@ from ..photo.placement import FacePlacement, place_found
 # between views 5 deg apart cost the normals 0.3-1.2 deg (docs/accuracy.md, "Turned heads"); and the frontal
 # path keeps its speed
 FRONTAL_YAW = 7.5
+# ... unless it is read tilted this far (degrees of pitch): level faces read within 10 deg (Yale B -8...+5, renders
+# 0...+6), a misplaced upside-down face at -15, while a head tilted 20 deg and fitted frontally is 6-8 deg worse than
+# with its pitched view (docs/accuracy.md, "Turned heads")
+FRONTAL_PITCH = 17.5
 
 
 def turned_placements(model: ShapeModel, placement: FacePlacement, shape: tuple[int, int],
                       face_length: str | float, note=None) -> list[FacePlacement]:
     """The placements of a found face to fit (``placement`` itself first when it is frontal enough): one per
     view near its pose (``views_near``), each on the grid of ``model`` turned so. Just ``placement`` when it
-    is refused, read within ``FRONTAL_YAW`` of frontal in yaw (whatever its pitch), not placed by landmarks, or ``model``
-    has no turned views (a model file: fitted frontally, doubtful beyond its reach). ``note`` is given the
+    is refused, read within ``FRONTAL_YAW`` of frontal in yaw and ``FRONTAL_PITCH`` in pitch, not placed by landmarks,
+    or ``model`` has no turned views (a model file: fitted frontally, doubtful beyond its reach). ``note`` is given the
     cache file of each view's model this builds (once per view and process, about two seconds each)."""
     if placement.face is None or placement.pose is None or placement.refused:
         return [placement]
     yaw, pitch = placement.pose.view
-    if abs(yaw) < FRONTAL_YAW:  # pitch alone is not turned: a misplaced face (nostrils for eyes) read pitched
-        return [placement]  # was fitted "ok" by a pitched view where the frontal fit refused it
+    # a little pitch alone is not turned: a misplaced face (nostrils for eyes) read -15 deg was fitted "ok" by a
+    # pitched view where the frontal fit refused it
+    if abs(yaw) < FRONTAL_YAW and abs(pitch) < FRONTAL_PITCH:
+        return [placement]
     out = []
     for view in views_near(yaw, pitch):
         turned = model if view == (0.0, 0.0) else turned_model(model, view, note)

@@ -135,7 +135,7 @@ def build_into(recipe: dict, path: str | os.PathLike) -> None:
 VIEW_STEP = 5.0
 MAX_VIEW_YAW = 35.0
 PITCH_STEP = 10.0
-MAX_VIEW_PITCH = 10.0
+MAX_VIEW_PITCH = 30.0
 # a turned model's region: the pixels at least this share of its heads cover (the others' heights filled
 # smoothly there). All of them, as for the frontal model, stops at the narrowest of 200 far cheeks: 0.85 of a
 # 30 deg face's visible skin against 0.87-0.90, for the same normals (docs/accuracy.md, "Turned heads")
@@ -147,7 +147,8 @@ _views_lock = threading.Lock()
 def view_of(yaw: float, pitch: float) -> tuple[float, float]:
     """The (yaw, pitch) degrees of the turned model for a head at ``yaw``, ``pitch``: yaw to the nearest
     multiple of ``VIEW_STEP`` within ``MAX_VIEW_YAW``; pitch a whole ``PITCH_STEP`` once it reaches one, within
-    ``MAX_VIEW_PITCH`` (the landmarks' pitch of a level real face reads up to 9.6 deg, Yale B)."""
+    ``MAX_VIEW_PITCH`` (the landmarks' pitch of a level real face reads up to 9.6 deg, Yale B; a render's at 20
+    and 30 deg reads 20-27 and 30-33)."""
     y = float(np.clip(VIEW_STEP * np.round(yaw / VIEW_STEP), -MAX_VIEW_YAW, MAX_VIEW_YAW))
     p = float(np.clip(PITCH_STEP * np.trunc(pitch / PITCH_STEP), -MAX_VIEW_PITCH, MAX_VIEW_PITCH))
     return y + 0.0, p + 0.0  # no -0.0

@@ -26,6 +26,10 @@ from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
 MAX_FRONTAL_YAW = 15.0
 # turned further than this, a face is refused: the far half of the face is hidden (docs/accuracy.md, "Turned heads")
 MAX_YAW = 35.0
+# the frontal model's reach in pitch (a model without pitched views), and the pitched views': tilted further, a face
+# is doubtful (docs/accuracy.md, "Turned heads": renders read at 39-42 deg fitted within 12-14 deg, at 48 deg 19-20)
+MAX_FRONTAL_PITCH = 20.0
+MAX_PITCH = 45.0
 # the landmarks' placement fit leaves at most this much (root-mean-square, in eye distances) on a face: real
 # faces well under it, concentric rings (which both nets take for a face) over it (docs/tuning.md)
 MAX_PLACEMENT_RMS = 0.12
@@ -123,7 +127,7 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``) on ``model``'s
     grid, seen at the model's ``view``; with ``face_length`` "off" the stretch is 1, with a number it is
     that. Turned more than ``MAX_YAW``, it is refused; more than ``MAX_FRONTAL_YAW`` from a frontal
-    model's view, doubtful."""
+    model's view, doubtful; tilted more than ``MAX_PITCH`` (``MAX_FRONTAL_PITCH`` for a frontal model), doubtful."""
     mouth = model.mouth if face_length == "auto" else None
     matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth, model.view)
     how = f"landmarks; face length x{stretch:.3f}"
@@ -146,6 +150,12 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     elif model.view == (0.0, 0.0) and abs(yaw) > MAX_FRONTAL_YAW:
         doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to "
                       f"{MAX_FRONTAL_YAW:.0f} deg")
+    pitch = pose.view[1]
+    if abs(pitch) > MAX_PITCH:
+        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); faces tilted up to {MAX_PITCH:.0f} deg are fitted")
+    elif model.view == (0.0, 0.0) and abs(pitch) > MAX_FRONTAL_PITCH:
+        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); the frontal model fits up to "
+                      f"{MAX_FRONTAL_PITCH:.0f} deg")
     if rms > MAX_PLACEMENT_RMS:
         doubts.append(f"the landmarks do not fit a face's proportions (off by {rms:.2f} of the eye distance)")
     doubts += small_face(face.iod, model)

@@ -53,7 +53,10 @@ def test_the_mirror_map_of_a_turned_face_is_its_own_inverse_where_both_sides_are
 def test_views_are_the_nearest_step_and_its_neighbours_in_yaw_within_the_reach():
     assert dm.view_of(12.4, 9.6) == (10.0, 0.0)
     assert dm.view_of(-33.0, -12.0) == (-35.0, -10.0)
-    assert dm.view_of(80.0, 30.0) == (35.0, 10.0)
+    assert dm.view_of(80.0, 30.0) == (35.0, 30.0)
+    assert dm.view_of(0.0, 27.0) == (0.0, 20.0)  # a render tilted 20 deg reads 20-27
+    assert dm.view_of(0.0, -48.0) == (0.0, -30.0)  # the pitched views' reach
+    assert dm.views_near(0.0, -24.0) == [(0.0, -20.0), (-5.0, -20.0), (5.0, -20.0)]
     assert dm.views_near(12.4, 0.0) == [(10.0, 0.0), (5.0, 0.0), (15.0, 0.0)]
     assert dm.views_near(34.0, 0.0) == [(35.0, 0.0), (30.0, 0.0)]
 
