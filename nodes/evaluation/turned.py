@@ -167,20 +167,34 @@ def score_turned(normals: np.ndarray, truth: np.ndarray, face: np.ndarray) -> di
             "coverage": float(np.mean(covered[face])) if face.any() else 0.0}
 
 
-def main(argv: list[str] | None = None) -> None:
-    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only] [--views Y,P ...]``: the
-    tables of docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
-    import argparse
-
+def score_view(faces: list, view: tuple[float, float], light: np.ndarray, model: ShapeModel) -> tuple:
+    """Each face of ``faces`` (``render_turned_mesh``'s first four arguments) rendered at ``view`` (yaw, pitch)
+    degrees under ``light`` and run through the photo path: one (error, coverage, read yaw, read pitch, status)
+    per face, NaNs and the reason for a face refused."""
     import shadowflow
 
-    from ..geometry.reflectance import light_from_angles
-    from ..method import turned
-    from ..model.default_model import default_model
-    from ..model.faces.ict import shipped_basis
-    from ..model.sources import eos_samples
+    rows = []
+    for verts, tris, eyes, landmarks in faces:
+        r = render_turned_mesh(verts, tris, eyes, landmarks, view, light, model)
+        try:
+            result = shadowflow.fit(r.photo, light=light)
+        except ValueError as exc:
+            rows.append((np.nan, 0.0, np.nan, np.nan, str(exc).split(": ", 1)[-1]))
+            continue
+        s, pose = score_turned(result.normals, r.normals, r.face), result.faces[0]["pose"]
+        rows.append((s["error"], s["coverage"], pose["yaw"], pose["pitch"], result.faces[0]["status"]))
+    return rows
 
-    ap = argparse.ArgumentParser(description=main.__doc__)
+
+def _arguments(argv: list[str] | None, doc: str | None):
+    """``main``'s arguments, its view choices applied (``--frontal-only``, ``--frontal-pitch``,
+    ``--max-view-pitch``: for comparisons with a former reach)."""
+    import argparse
+
+    from ..method import turned
+    from ..model import default_model as views
+
+    ap = argparse.ArgumentParser(description=doc)
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--frontal-only", action="store_true", help="fit every face with the frontal model")
     ap.add_argument("--surrey", metavar="PATH", help="faces of this eos model (sfm_shape_3448.bin), not ICT's")
@@ -194,8 +208,19 @@ def main(argv: list[str] | None = None) -> None:
     if args.frontal_pitch is not None:
         turned.FRONTAL_PITCH = args.frontal_pitch
     if args.max_view_pitch is not None:
-        from ..model import default_model as views
         views.MAX_VIEW_PITCH = args.max_view_pitch
+    return args
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only] [--views Y,P ...]``: the
+    tables of docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
+    from ..geometry.reflectance import light_from_angles
+    from ..model.default_model import default_model
+    from ..model.faces.ict import shipped_basis
+    from ..model.sources import eos_samples
+
+    args = _arguments(argv, main.__doc__)
     basis, model, light = shipped_basis(), default_model(), light_from_angles(45.0, 0.0)
     if args.surrey:
         faces = eos_samples(args.surrey, args.identities, 1000)
@@ -209,16 +234,7 @@ def main(argv: list[str] | None = None) -> None:
         (0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)]
     print("| view | normals | coverage | read yaw | read pitch | status |\n|---|---|---|---|---|---|")
     for view in views:
-        rows = []
-        for verts, tris, eyes, landmarks in faces:
-            r = render_turned_mesh(verts, tris, eyes, landmarks, view, light, model)
-            try:
-                result = shadowflow.fit(r.photo, light=light)
-            except ValueError as exc:
-                rows.append((np.nan, 0.0, np.nan, np.nan, str(exc).split(": ", 1)[-1]))
-                continue
-            s, pose = score_turned(result.normals, r.normals, r.face), result.faces[0]["pose"]
-            rows.append((s["error"], s["coverage"], pose["yaw"], pose["pitch"], result.faces[0]["status"]))
+        rows = score_view(faces, view, light, model)
         err = [x[0] for x in rows if np.isfinite(x[0])]
         print(f"| {view[0]:+d}, {view[1]:+d} | {np.mean(err) if err else float('nan'):.2f} | "
               f"{np.mean([x[1] for x in rows]):.3f} | {', '.join(f'{x[2]:+.0f}' for x in rows)} | "

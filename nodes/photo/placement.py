@@ -123,11 +123,28 @@ def place_given_eyes(model: ShapeModel, eyes: np.ndarray, how: str, face_length:
     return FacePlacement(al, "given", eyes, model_box(model, al, shape), doubts=tuple(small_face(iod, model)))
 
 
+def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
+    """Why a face at ``pose`` is refused ("" when it is not) and what leaves it in doubt, fitted with a ``frontal``
+    model or with one turned to its view: turned past ``MAX_YAW``, refused; past ``MAX_FRONTAL_YAW`` with a frontal
+    model, doubtful; tilted past ``MAX_PITCH`` (``MAX_FRONTAL_PITCH`` with a frontal model), doubtful."""
+    yaw, pitch = pose.view
+    refused, doubts = "", []
+    if abs(yaw) > MAX_YAW:
+        refused = f"the head is turned {yaw:+.0f} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
+    elif frontal and abs(yaw) > MAX_FRONTAL_YAW:
+        doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to {MAX_FRONTAL_YAW:.0f} deg")
+    if abs(pitch) > MAX_PITCH:
+        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); faces tilted up to {MAX_PITCH:.0f} deg are fitted")
+    elif frontal and abs(pitch) > MAX_FRONTAL_PITCH:
+        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); the frontal model fits up to "
+                      f"{MAX_FRONTAL_PITCH:.0f} deg")
+    return refused, doubts
+
+
 def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face_length: str | float) -> FacePlacement:
     """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``) on ``model``'s
     grid, seen at the model's ``view``; with ``face_length`` "off" the stretch is 1, with a number it is
-    that. Turned more than ``MAX_YAW``, it is refused; more than ``MAX_FRONTAL_YAW`` from a frontal
-    model's view, doubtful; tilted more than ``MAX_PITCH`` (``MAX_FRONTAL_PITCH`` for a frontal model), doubtful."""
+    that. Turned or tilted too far (``pose_doubts``), it is refused or doubtful."""
     mouth = model.mouth if face_length == "auto" else None
     matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth, model.view)
     how = f"landmarks; face length x{stretch:.3f}"
@@ -143,19 +160,8 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     cut = np.mean((core[:, 0] < 0) | (core[:, 0] > w - 1) | (core[:, 1] < 0) | (core[:, 1] > h - 1))
     if cut > MAX_CUT:
         doubts.append(f"the face is cut by the frame ({100 * cut:.0f} % of its eyes, brows and lips outside)")
-    yaw = pose.view[0]
-    refused = ""
-    if abs(yaw) > MAX_YAW:
-        refused = f"the head is turned {yaw:+.0f} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
-    elif model.view == (0.0, 0.0) and abs(yaw) > MAX_FRONTAL_YAW:
-        doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to "
-                      f"{MAX_FRONTAL_YAW:.0f} deg")
-    pitch = pose.view[1]
-    if abs(pitch) > MAX_PITCH:
-        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); faces tilted up to {MAX_PITCH:.0f} deg are fitted")
-    elif model.view == (0.0, 0.0) and abs(pitch) > MAX_FRONTAL_PITCH:
-        doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); the frontal model fits up to "
-                      f"{MAX_FRONTAL_PITCH:.0f} deg")
+    refused, turned = pose_doubts(pose, model.view == (0.0, 0.0))
+    doubts += turned
     if rms > MAX_PLACEMENT_RMS:
         doubts.append(f"the landmarks do not fit a face's proportions (off by {rms:.2f} of the eye distance)")
     doubts += small_face(face.iod, model)
