@@ -734,7 +734,8 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     into the hair and neck without a seam and the photo beyond is untouched; inside the face, the
     ratio itself (what ``inner_alpha`` blends toward at the border). photo, face_image (H, W, C);
     face (H, W) bool; beyond (H, W) bool or None: the face's own skin past ``face`` (its outline beyond the
-    model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``); person (H, W) float in [0, 1]
+    model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``), the fade running from its
+    edge; person (H, W) float in [0, 1]
     or None: how sure a segmentation is that each pixel is the person, not the background: the change of light
     around the face reaches only as far (hair and neck follow the face, the wall behind it keeps its light)."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
@@ -755,13 +756,13 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
     if box is not None:
         ratio[at] = beyond_at
-    # the fade is measured from the model's face even where the face's own skin lies beyond it: measured from that
-    # skin's edge, the change of light reached further into the background, a glow beside a lit cheek
-    distance = cv2.distanceTransform((~face).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    whole = face if box is None else face | beyond  # where the ratio itself applies
+    # the fade runs from the face's own outline: run from the model's face, it had ended where that outline lies a
+    # feather beyond it (a portrait's cheek), and the skin relit into shadow met the photo's lit edge of the cheek
+    distance = cv2.distanceTransform((~whole).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     if person is not None:  # a wall lit up or darkened around a relit face is a halo
         fade *= np.asarray(person, np.float32)[..., None]
-    whole = face if box is None else face | beyond  # where the ratio itself applies
     gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
                     ).astype(np.float32)
     if box is None:

@@ -316,13 +316,36 @@ def test_the_faces_own_skin_beyond_the_model_takes_the_faces_change_of_light():
     lifted = np.std(out[noisy] - out_clean[noisy]) / np.std(grain[noisy])  # measured 1.31 (3.09 unquieted)
     assert lifted < 2.0, lifted
     outside = cv2.distanceTransform((~own).astype(np.uint8), cv2.DIST_L2, 5)
-    past = outside > 0.25 * feather + 1  # past the outline and the reach beyond it: the gain as without the outline
-    np.testing.assert_allclose(gain[past], outside_gain(photo, relit, face, feather)[past], rtol=1e-6)
+    past = outside > 0.25 * feather + 1  # past the outline and the reach beyond it: within RATIO_OUTSIDE
     assert gain[past].max() <= RATIO_OUTSIDE[1] + 1e-6
     np.testing.assert_array_equal(out[outside > feather + 0.5], photo[outside > feather + 0.5, 0])
     np.testing.assert_allclose(outside_gain(photo, relit, face, feather, None),
                                outside_gain(photo, relit, face, feather, np.zeros_like(face)), rtol=1e-6)
     assert outside_gain(photo, relit, face, feather, None)[beyond].max() <= RATIO_OUTSIDE[1] + 1e-6
+
+
+def test_the_photo_just_past_the_faces_own_outline_follows_its_skin_without_a_step():
+    """A cheek relit into shadow whose own outline reaches far past the model's mask (a face mesh's oval on a
+    portrait: 0.4 eye distances, about a feather): the photo just past the outline (the cheek's last pixels, the
+    hair beside it) darkens as that skin does, and the photo a feather past the outline is untouched. The fade from
+    the model's face alone had ended there: the skin was relit dark up to the outline and the photo beside it kept
+    its light, a bright edge along the cheek."""
+    from shadowflow.nodes.method.photo_relight import FaceLayer, compose, inner_alpha, outside_gain
+
+    yy, xx = np.mgrid[0:160, 0:160]
+    r2 = (xx - 80) ** 2 + (yy - 80) ** 2
+    face, own = r2 < 30**2, r2 < 48**2
+    photo = np.full((160, 160, 1), 0.5, np.float32)
+    relit = np.where(face[..., None], np.float32(0.1), np.float32(0.0))
+    feather = 16.0
+    gain = outside_gain(photo, relit, face, feather, own & ~face)
+    out = compose(photo, [FaceLayer((0, 160, 0, 160), face, relit, gain, inner_alpha(face, feather))])[..., 0]
+    outside = cv2.distanceTransform((~own).astype(np.uint8), cv2.DIST_L2, 5)
+    inside = cv2.distanceTransform(own.astype(np.uint8), cv2.DIST_L2, 5)
+    skin_edge = np.median(out[own & ~face & (inside <= 2)])  # the outline's last pixels
+    just_past = np.median(out[(outside > 0) & (outside <= 2)])
+    assert skin_edge < 0.15 and just_past < 1.5 * skin_edge, (skin_edge, just_past)  # measured 0.10, 0.11 (0.50)
+    np.testing.assert_array_equal(out[outside > feather + 0.5], 0.5)
 
 
 def test_a_face_relit_into_shadow_darkens_the_photo_around_its_dark_side_as_its_rim_is():
