@@ -133,7 +133,8 @@ def live_relight_data(box: tuple[int, int, int, int], photo: np.ndarray, albedo:
     reach = beyond_reach(b, feather)
     reach = np.zeros(f.shape, np.float32) if reach is None else reach
     flags = flags + b * BEYOND
-    distance = cv2.distanceTransform((~(f | b)).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)  # from the outline
+    # from the face's own outline (``outside_gain``)
+    distance = cv2.distanceTransform((~(f | b)).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     fade = np.where(f | b, 0.0, 1.0 - smoothstep(distance, 0.0, feather))
     if person is not None:  # the change of light reaches the person around the face only (``outside_gain``)
         fade = fade * area(person)

@@ -132,7 +132,8 @@ def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
     if abs(yaw) > MAX_YAW:
         refused = f"the head is turned {yaw:+.0f} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
     elif frontal and abs(yaw) > MAX_FRONTAL_YAW:
-        doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to {MAX_FRONTAL_YAW:.0f} deg")
+        doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to "
+                      f"{MAX_FRONTAL_YAW:.0f} deg")
     if abs(pitch) > MAX_PITCH:
         doubts.append(f"the head is tilted {pitch:+.0f} deg (pitch); faces tilted up to {MAX_PITCH:.0f} deg are fitted")
     elif frontal and abs(pitch) > MAX_FRONTAL_PITCH:
