@@ -233,11 +233,16 @@ def _card(out: Path, r: dict, thumbs: dict | None = None, pictures: CardPictures
 
 
 def _face_line(k: int, f: dict) -> str:
-    """A face's line on its photo's card: its status, how it was found, how far it is turned."""
+    """A face's line on its photo's card: its status, how it was found, how far it is turned and tilted, and the
+    view of the model it was fitted with when not the frontal one."""
     status = str(f.get("status", ""))
     cls = "ok" if status == "ok" else "doubtful"
     pose = f.get("pose") or {}
-    turn = f", turned {_num(pose.get('yaw'), 2)}°" if isinstance(pose.get("yaw"), (int, float)) else ""
+    turn = "".join(f", {word} {pose[key]:+.0f}°" for word, key in (("turned", "yaw"), ("tilted", "pitch"))
+                   if isinstance(pose.get(key), (int, float)) and np.isfinite(pose[key]))
+    view = f.get("model_view") or {}
+    if isinstance(view.get("yaw"), (int, float)) and isinstance(view.get("pitch"), (int, float)):
+        turn += f"; fitted with heads at {view['yaw']:+.0f}°, {view['pitch']:+.0f}°"
     return (f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
             f"({_text(f.get('found', ''))}{turn})</span>")
 

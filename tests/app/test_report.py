@@ -125,3 +125,17 @@ def test_the_reports_count_of_doubtful_photos_agrees_with_their_rows(tmp_path):
     page = write_report(tmp_path, records).read_text()
     assert "2 frames: 1 ok, 1 doubtful" in page
     assert page.count("<span class=doubtful>doubtful</span>") == 1
+
+
+def test_a_faces_line_says_how_far_it_is_turned_and_tilted_and_which_view_fitted_it():
+    """A face looking down and to the side: its card names both angles and the turned model it was fitted with
+    (a tilt alone, fitted with a pitched view, was invisible: the line gave the yaw only); a frontal face's line
+    names no view."""
+    from shadowflow.nodes.app.report import _face_line
+
+    tilted = _face_line(1, {"status": "ok", "found": "detected", "pose": {"yaw": 15.8, "pitch": -27.9, "roll": -3.1},
+                            "model_view": {"yaw": 20.0, "pitch": -20.0}})
+    assert "turned +16°, tilted -28°; fitted with heads at +20°, -20°" in tilted
+    frontal = _face_line(2, {"status": "ok", "found": "detected", "pose": {"yaw": -1.6, "pitch": -13.4, "roll": 0.0}})
+    assert "turned -2°, tilted -13°)" in frontal and "fitted with" not in frontal
+    assert "turned" not in _face_line(3, {"status": "ok", "found": "given"})  # eyes given: no pose
