@@ -198,7 +198,8 @@ def _arguments(argv: list[str] | None, doc: str | None):
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--frontal-only", action="store_true", help="fit every face with the frontal model")
     ap.add_argument("--surrey", metavar="PATH", help="faces of this eos model (sfm_shape_3448.bin), not ICT's")
-    ap.add_argument("--views", metavar="Y,P", nargs="+", help="the true views (yaw, pitch degrees) to render")
+    ap.add_argument("--view", metavar="Y,P", action="append", dest="views",
+                    help="a true view (yaw, pitch degrees) to render, as --view=-30,20; repeat for more")
     ap.add_argument("--frontal-pitch", type=float, metavar="DEG",
                     help="a face within 7.5 deg of frontal in yaw is fitted at a pitched view from this pitch on")
     ap.add_argument("--max-view-pitch", type=float, metavar="DEG", help="the pitched views' reach")
@@ -213,7 +214,7 @@ def _arguments(argv: list[str] | None, doc: str | None):
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only] [--views Y,P ...]``: the
+    """``python -m shadowflow.nodes.evaluation.turned [--identities N] [--frontal-only] [--view=Y,P ...]``: the
     tables of docs/accuracy.md, "Turned heads" (normals error and coverage per view, means over the identities)."""
     from ..geometry.reflectance import light_from_angles
     from ..model.default_model import default_model
