@@ -38,6 +38,7 @@ from .photo_relight import (
     glints,
     grow,
     inner_alpha,
+    kept_cap,
     lit_weight,
     mirror_lift,
     mirrored_detail,
@@ -198,7 +199,7 @@ class FaceRelight:
         not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
         # how far each pixel keeps its own I / lighting whatever the new light: what is not skin, and a lit brow
         self.kept = np.maximum(not_skin, (face_lit & brow) * smoothstep(self.lighting, *BROW_KEPT))
-        self.kept_measured = self.kept * self.measured  # the weight each light's ``brightened_as_around`` takes
+        self.kept_measured, self.kept_cap = self.kept * self.measured, kept_cap(face, self.feather)
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the face seen across its midline: its detail for the fill, its level for the side lit less
         self.lift_sigma = LIFT_SIGMA * iod_px
@@ -324,7 +325,7 @@ class FaceRelight:
         a = photo_albedo(self.photo, self.lighting, trust, self.coarse, self.face, self.match_px, self.skin_only)
         if new is not None:  # what is not skin: relit no brighter than the skin around it (before the fill's detail)
             a = brightened_as_around(a, self.photo, self.lighting, new, self.skin_only, self.kept_measured,
-                                     self.match_px)
+                                     self.match_px, self.kept_cap)
         if self.detail is not None:
             detail, seen = self.detail
             weight = np.where(self.face, trust, np.float32(0.0))

@@ -284,7 +284,8 @@ def _channel_sum(values: np.ndarray) -> np.ndarray:
 
 
 def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.ndarray, new_lighting: np.ndarray,
-                         skin: np.ndarray, kept: np.ndarray, sigma_px: float) -> np.ndarray:
+                         skin: np.ndarray, kept: np.ndarray, sigma_px: float,
+                         cap: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) float32 ``albedo`` with the pixels ``kept`` (H, W) in [0, 1] (not skin, their own pixels kept:
     eyes, brows, hair, glasses, a red nose) relit by the new lighting no brighter than the ``skin`` (H, W) bool
     around them: ``I x min(S' / S, R)``, with ``R`` the skin's relit over photo brightness (``albedo x S' / I``)
@@ -295,7 +296,7 @@ def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.nda
     frontal light and a red nose glowed orange, clipped. Capped at their own ratio, a photo relit by its own
     light keeps them as they are, and a new light's cast shadow stays sharp on them.
     albedo (H, W, C); photo (H, W, C) linear; lighting, new_lighting (H, W): ``S``, ``S'`` with the room's
-    light (``with_ambient``)."""
+    light (``with_ambient``). cap (H, W) or None: a bound on each pixel's ``S' / S`` besides (``kept_cap``)."""
     w = np.asarray(kept, np.float32)
     ys, xs = np.nonzero(w > 0)
     if not ys.size:
@@ -309,11 +310,26 @@ def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.nda
     own = new / np.maximum(np.asarray(lighting, np.float32), np.float32(1e-3))
     around = local_average(relit_ratio, use.astype(np.float32), sigma_px, own)
     # only the kept pixels change: a colour portrait's box is megapixels, they a fifth of it
-    ratio = np.minimum(around[ys, xs], own[ys, xs]) / np.maximum(new[ys, xs], np.float32(1e-3))
+    ratio = np.minimum(around[ys, xs], own[ys, xs])
+    if cap is not None:
+        ratio = np.minimum(ratio, np.asarray(cap, np.float32)[ys, xs])
+    ratio = ratio / np.maximum(new[ys, xs], np.float32(1e-3))
     out = np.array(albedo, np.float32, copy=True)
     wk = w[ys, xs][:, None]
     out[ys, xs] = wk * img[ys, xs] * ratio[:, None] + (np.float32(1.0) - wk) * out[ys, xs]
     return out
+
+
+def kept_cap(face: np.ndarray, feather_px: float) -> np.ndarray:
+    """(H, W) float32: how far what keeps its own pixels (hair over the face, a beard) may be brightened, by its
+    distance inside ``face`` (H, W) bool: ``RATIO_OUTSIDE``'s top at the face's edge, as the photo just beyond it
+    (``outside_gain``), rising to ``RATIO_BEYOND`` at ``feather_px`` inside, unbounded further in. Brightened as the
+    skin around it up to the edge, hair over a temple relit into the light came back a pale ghost of hair, cut at the
+    outline from the same hair beyond it."""
+    inside = cv2.distanceTransform(np.asarray(face, np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    hi = np.float32(RATIO_OUTSIDE[1])
+    cap = hi + np.float32(RATIO_BEYOND - RATIO_OUTSIDE[1]) * smoothstep(inside, 0.0, max(feather_px, 1.0))
+    return np.where(inside >= feather_px, np.float32(np.inf), cap).astype(np.float32)
 
 
 def photo_albedo(photo: np.ndarray, shading: np.ndarray, weight: np.ndarray, coarse: np.ndarray,

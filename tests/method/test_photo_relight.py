@@ -324,6 +324,33 @@ def test_the_faces_own_skin_beyond_the_model_takes_the_faces_change_of_light():
     assert outside_gain(photo, relit, face, feather, None)[beyond].max() <= RATIO_OUTSIDE[1] + 1e-6
 
 
+def test_hair_over_the_faces_edge_is_brightened_no_more_than_the_photo_beyond_it():
+    """A face relit 4x brighter (its shaded side lit), with hair over its edge and an eye inside it, both dark and
+    not skin: the eye is brightened as the skin around it, the hair at the face's edge no more than the photo just
+    beyond the outline (``RATIO_OUTSIDE``'s top), rising inward. Brightened 4x up to the edge, a temple's hair came
+    back a pale ghost of hair cut at the outline from the same hair beyond it."""
+    from shadowflow.nodes.method.photo_relight import RATIO_OUTSIDE, brightened_as_around, kept_cap
+
+    yy, xx = np.mgrid[0:120, 0:120]
+    face = (xx - 60) ** 2 + (yy - 60) ** 2 < 40**2
+    edge = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, 5)
+    hair, eye = face & (xx < 45), face & ((xx - 70) ** 2 + (yy - 55) ** 2 < 5**2)
+    kept = (hair | eye).astype(np.float32)
+    photo = np.where(hair | eye, np.float32(0.02), np.float32(0.1))[..., None].astype(np.float32)
+    lighting, new = np.full(face.shape, 0.1, np.float32), np.full(face.shape, 0.4, np.float32)
+    albedo = photo / lighting[..., None]
+    feather = 15.0
+    args = (albedo, photo, lighting, new, face & ~(hair | eye), kept, 6.0)
+    relit = brightened_as_around(*args, cap=kept_cap(face, feather))[..., 0] * new
+    brightened = relit / photo[..., 0]
+    assert brightened[eye].min() > 3.9  # as the skin around it
+    rim = hair & (edge <= 1.5)
+    assert brightened[rim].max() <= RATIO_OUTSIDE[1] * 1.25, brightened[rim].max()  # measured 1.76 (4.0 uncapped)
+    assert np.median(brightened[hair & (edge > feather)]) > 3.9  # a feather inside: as the skin around it
+    uncapped = brightened_as_around(*args)[..., 0] * new / photo[..., 0]
+    assert uncapped[rim].min() > 3.9
+
+
 def test_the_photo_just_past_the_faces_own_outline_follows_its_skin_without_a_step():
     """A cheek relit into shadow whose own outline reaches far past the model's mask (a face mesh's oval on a
     portrait: 0.4 eye distances, about a feather): the photo just past the outline (the cheek's last pixels, the
