@@ -141,32 +141,14 @@ class FaceRelight:
                  eye_outlines: list[np.ndarray] | None = None):
         self.mask, self.depth, self.light = mask, depth, np.asarray(light, np.float64)
         self.feather = FEATHER * iod_px
-        # the layer's box: the face and its feather
-        ly0, ly1, lx0, lx1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * self.feather + 4)
-        self.layer_box = (ly0, ly1, lx0, lx1)
-        self.layer_photo = photo[ly0:ly1, lx0:lx1]
-        layer_face = mask_to_input(mask, alignment.cropped(lx0, ly0), (ly1 - ly0, lx1 - lx0))
-        self.layer_beyond = None  # the face's own skin the model does not reach (jaw, cheeks): relit as its rim
-        if outline is not None:  # the face's own outline, at the photo's resolution
-            own = polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
-            self.layer_beyond = own & ~layer_face
-            layer_face &= own
-        self.layer_face = layer_face
-        # where the person is around the face (hair, neck), not the background: the change of light reaches that far
-        self.layer_person = None if segment is None else segment(self.layer_photo)
-        # ``box``: the face's own box in it, where the albedo, shadows and relit face are computed
-        rows, cols = np.nonzero(layer_face.any(axis=1))[0], np.nonzero(layer_face.any(axis=0))[0]
-        if not rows.size:
-            rows = cols = np.zeros(1, int)
-        m = INNER_MARGIN
-        iy0, iy1 = max(0, int(rows[0]) - m), min(ly1 - ly0, int(rows[-1]) + 1 + m)
-        ix0, ix1 = max(0, int(cols[0]) - m), min(lx1 - lx0, int(cols[-1]) + 1 + m)
-        self.inner = (slice(iy0, iy1), slice(ix0, ix1))  # the face's box within the layer's
-        y0, y1, x0, x1 = self.box = (ly0 + iy0, ly0 + iy1, lx0 + ix0, lx0 + ix1)
+        self._boxes(photo, alignment, mask, outline, segment)
+        y0, y1, x0, x1 = self.box
         self.al = al = alignment.cropped(x0, y0)
         self.photo = photo = photo[y0:y1, x0:x1]
         self.shape = shape = photo.shape[:2]
-        self.face = face = layer_face[self.inner]
+        self.face = face = self.layer_face[self.inner]
+        # each face pixel's distance inside it, once: the relit face's fade at its border and the kept pixels' bound
+        inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         self.normals = np.nan_to_num(normals_to_input(normals, mask, al, shape)).astype(np.float32)
         self.shading = shading = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         box_grey = grey[y0:y1, x0:x1]
@@ -199,7 +181,7 @@ class FaceRelight:
         not_skin = face_lit & ~face_skin & ~self.glints if photo.shape[-1] == 3 else face_lit & hair_px
         # how far each pixel keeps its own I / lighting whatever the new light: what is not skin, and a lit brow
         self.kept = np.maximum(not_skin, (face_lit & brow) * smoothstep(self.lighting, *BROW_KEPT))
-        self.kept_measured, self.kept_cap = self.kept * self.measured, kept_cap(face, self.feather)
+        self.kept_measured, self.kept_cap = self.kept * self.measured, kept_cap(inside, self.feather)
         self.fill_detail = fill_detail if midline is not None else 0.0
         # the face seen across its midline: its detail for the fill, its level for the side lit less
         self.lift_sigma = LIFT_SIGMA * iod_px
@@ -209,8 +191,34 @@ class FaceRelight:
         self.albedo = self.albedo_for(self.trust_for())
         # the photo's shine, which a new light takes out where it darkens the skin (``without_sheen``)
         self.shine = sheen(self.albedo, self.skin_only | self.glints, self.measured > 0.5, SHEEN_SCALE * iod_px)
-        self.alpha = inner_alpha(face, self.feather)
+        self.alpha = inner_alpha(face, self.feather, inside)
         self.layer_alpha = self._in_layer(self.alpha)  # every light's layer shares it
+
+    def _boxes(self, photo: np.ndarray, alignment: Alignment, mask: np.ndarray, outline: np.ndarray | None,
+               segment: Callable[[np.ndarray], np.ndarray] | None) -> None:
+        """The layer's box (the face and its feather: ``layer_box``, ``layer_photo``, ``layer_face``, its own skin
+        beyond the model ``layer_beyond``, the person around it ``layer_person``) and, in it, the face's own box
+        (``inner``; ``box`` in the photo), where the albedo, shadows and relit face are computed."""
+        ly0, ly1, lx0, lx1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * self.feather + 4)
+        self.layer_box = (ly0, ly1, lx0, lx1)
+        self.layer_photo = photo[ly0:ly1, lx0:lx1]
+        layer_face = mask_to_input(mask, alignment.cropped(lx0, ly0), (ly1 - ly0, lx1 - lx0))
+        self.layer_beyond = None  # the face's own skin the model does not reach (jaw, cheeks): relit as its rim
+        if outline is not None:  # the face's own outline, at the photo's resolution
+            own = polygon_mask(np.asarray(outline) - [lx0, ly0], layer_face.shape)
+            self.layer_beyond = own & ~layer_face
+            layer_face &= own
+        self.layer_face = layer_face
+        # where the person is around the face (hair, neck), not the background: the change of light reaches that far
+        self.layer_person = None if segment is None else segment(self.layer_photo)
+        rows, cols = np.nonzero(layer_face.any(axis=1))[0], np.nonzero(layer_face.any(axis=0))[0]
+        if not rows.size:
+            rows = cols = np.zeros(1, int)
+        m = INNER_MARGIN
+        iy0, iy1 = max(0, int(rows[0]) - m), min(ly1 - ly0, int(rows[-1]) + 1 + m)
+        ix0, ix1 = max(0, int(cols[0]) - m), min(lx1 - lx0, int(cols[-1]) + 1 + m)
+        self.inner = (slice(iy0, iy1), slice(ix0, ix1))  # the face's box within the layer's
+        self.box = (ly0 + iy0, ly0 + iy1, lx0 + ix0, lx0 + ix1)
 
     def _shaded_skin(self, photo: np.ndarray, lit: np.ndarray, features: list[np.ndarray] | None,
                      eyes_and_brows: list[np.ndarray], iod_px: float) -> np.ndarray:

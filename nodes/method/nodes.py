@@ -587,12 +587,11 @@ class PhotoRelightNode:
         eyes = None
         if d.get("eyes_found") in ("detected", "mesh only"):
             eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
-        # a frontal face's symmetry axis: the model's, across its eyes' midpoint, a tilted one's too (its heads
-        # turned in pitch alone mirror column for column); a turned face's mirror is a map on the model grid, which
-        # the fit's albedo uses: its photo gets no detail from across the face
+        # a frontal or tilted face's symmetry axis: the model's, across its eyes' midpoint; a turned face's mirror is
+        # a map on the model grid, which the fit's albedo uses: its photo gets no detail from across the face
         iod = m.iod  # model pixels
         midline = None
-        if m.mirror is None or m.view[0] == 0.0:
+        if m.mirrors_by_column:
             centre = np.mean(m.eyes, axis=0)
             midline = al.points_to_input(np.array([centre, centre + [0.0, iod]]))
         return FaceRelight(

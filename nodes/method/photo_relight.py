@@ -320,13 +320,12 @@ def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.nda
     return out
 
 
-def kept_cap(face: np.ndarray, feather_px: float) -> np.ndarray:
+def kept_cap(inside: np.ndarray, feather_px: float) -> np.ndarray:
     """(H, W) float32: how far what keeps its own pixels (hair over the face, a beard) may be brightened, by its
-    distance inside ``face`` (H, W) bool: ``RATIO_OUTSIDE``'s top at the face's edge, as the photo just beyond it
-    (``outside_gain``), rising to ``RATIO_BEYOND`` at ``feather_px`` inside, unbounded further in. Brightened as the
-    skin around it up to the edge, hair over a temple relit into the light came back a pale ghost of hair, cut at the
-    outline from the same hair beyond it."""
-    inside = cv2.distanceTransform(np.asarray(face, np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    distance ``inside`` (H, W) the face (as ``inner_alpha`` takes it): ``RATIO_OUTSIDE``'s top at the face's edge, as
+    the photo just beyond it (``outside_gain``), rising to ``RATIO_BEYOND`` at ``feather_px`` inside, unbounded
+    further in. Brightened as the skin around it up to the edge, hair over a temple relit into the light came back a
+    pale ghost of hair, cut at the outline from the same hair beyond it."""
     hi = np.float32(RATIO_OUTSIDE[1])
     cap = hi + np.float32(RATIO_BEYOND - RATIO_OUTSIDE[1]) * smoothstep(inside, 0.0, max(feather_px, 1.0))
     return np.where(inside >= feather_px, np.float32(np.inf), cap).astype(np.float32)
@@ -676,12 +675,14 @@ class FaceLayer:
     alpha: np.ndarray | None = None
 
 
-def inner_alpha(face: np.ndarray, feather_px: float) -> np.ndarray:
+def inner_alpha(face: np.ndarray, feather_px: float, inside: np.ndarray | None = None) -> np.ndarray:
     """(H, W) float32: how much of the relit face a face pixel shows, 1 beyond ``INNER_FEATHER`` x
     ``feather_px`` from the face's border and falling smoothly to 0 at it; the rest is the photo
     times the face's change of light there (``outside_gain``). A face relit far brighter than its
-    shadowed border in the photo (the jaw at +-70) fades into it instead of ending on a cut."""
-    inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    shadowed border in the photo (the jaw at +-70) fades into it instead of ending on a cut. inside (H, W): each
+    pixel's distance inside ``face`` when the caller has it (``cv2.distanceTransform``, precise), else measured."""
+    if inside is None:
+        inside = cv2.distanceTransform(face.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     return smoothstep(inside, 0.0, max(INNER_FEATHER * feather_px, 1.0))
 
 

@@ -82,6 +82,12 @@ class ShapeModel:
         return float(np.linalg.norm(np.subtract(*np.asarray(self.eyes, np.float64))))
 
     @property
+    def mirrors_by_column(self) -> bool:
+        """Whether each pixel's mirror image is its column's flip about the eyes' midpoint: a frontal model, or one
+        whose heads are turned in pitch alone (its ``mirror`` map then is that flip: checked on the -20 deg view)."""
+        return self.mirror is None or self.view[0] == 0.0
+
+    @property
     def normal_variance(self) -> np.ndarray:
         """(N,) variance of each pixel's normal over the modes (AEP radians squared, both axes)."""
         if "normal_variance" not in self._derived:
