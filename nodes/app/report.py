@@ -238,11 +238,11 @@ def _face_line(k: int, f: dict) -> str:
     status = str(f.get("status", ""))
     cls = "ok" if status == "ok" else "doubtful"
     pose = f.get("pose") or {}
-    turn = "".join(f", {word} {pose[key]:+.0f}°" for word, key in (("turned", "yaw"), ("tilted", "pitch"))
+    turn = "".join(f", {word} {round(pose[key]):+d}°" for word, key in (("turned", "yaw"), ("tilted", "pitch"))
                    if isinstance(pose.get(key), (int, float)) and np.isfinite(pose[key]))
     view = f.get("model_view") or {}
     if isinstance(view.get("yaw"), (int, float)) and isinstance(view.get("pitch"), (int, float)):
-        turn += f"; fitted with heads at {view['yaw']:+.0f}°, {view['pitch']:+.0f}°"
+        turn += f"; fitted with heads at {round(view['yaw']):+d}°, {round(view['pitch']):+d}°"  # "+0", never "-0"
     return (f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
             f"({_text(f.get('found', ''))}{turn})</span>")
 
