@@ -74,8 +74,8 @@ def _photo_jpeg(frame: Frame) -> tuple[str, tuple[int, int]]:
     h, w = img.shape[:2]
     k = min(1.0, BEFORE_SIDE / max(h, w))
     small = img if k == 1.0 else cv2.resize(img, (round(w * k), round(h * k)), interpolation=cv2.INTER_AREA)
-    bgr = small[..., ::-1] if small.ndim == 3 else small
-    ok, enc = cv2.imencode(".jpg", np.ascontiguousarray(bgr), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    bgr = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR) if small.ndim == 3 else small
+    ok, enc = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 90])
     if not ok:
         raise OSError("JPEG encoding failed")
     return base64.b64encode(enc.tobytes()).decode("ascii"), (w, h)

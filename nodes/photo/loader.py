@@ -338,7 +338,7 @@ def _samples(p: Path, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
             raw = raw[..., :3]
         if raw.shape[2] == 3 and not (np.array_equal(raw[..., 0], raw[..., 1])
                                       and np.array_equal(raw[..., 1], raw[..., 2])):
-            colour = raw[..., ::-1]  # BGR -> RGB
+            colour = _rgb(raw)
         raw = raw[..., 0] if colour is None else _grey(raw)
     if raw.dtype.kind == "f" and not np.all(np.isfinite(raw)):
         raise InputError(f"{p}: image holds NaN or infinite values")
@@ -351,20 +351,25 @@ def _photo(p: Path, raw: np.ndarray, colour_raw: np.ndarray | None, header: _Hea
            encoding: str) -> Photo:
     """The ``Photo`` of the samples: on their real range, reduced to ``max_pixels``, in the encoding asked."""
     full = sample_range(raw if colour_raw is None else colour_raw)
-    raw, colour_raw = shrunk(raw, max_pixels), None if colour_raw is None else shrunk(colour_raw, max_pixels)
-    lo, hi = float(raw.min()) / full, float(raw.max()) / full
-    if hi - lo < 1.0 / 255.0:
-        raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
-    width, height = header.width, header.height
-    scale = max(raw.shape) / max(width, height)  # EXIF may turn it
-    if width != height and (raw.shape[1] > raw.shape[0]) != (width > height):
-        width, height = height, width  # turned a quarter by its EXIF orientation: the size as it stands
     # a JPEG is sRGB-encoded whatever its channels (a black-and-white photo too); other grey files (Yale B's PGMs,
     # the project's renders) are taken as linear
-    if resolve(encoding, 3 if colour_raw is not None or header.kind == "JPEG" else 1) == "srgb":
-        encoded = raw if colour_raw is None else colour_raw
+    srgb = resolve(encoding, 3 if colour_raw is not None or header.kind == "JPEG" else 1) == "srgb"
+    if srgb and colour_raw is not None:  # its grey is the decoded colour's luminance: this one is not reduced
+        lo, hi = float(raw.min()) / full, float(raw.max()) / full
+        raw, colour_raw = None, shrunk(colour_raw, max_pixels)
+    else:
+        raw, colour_raw = shrunk(raw, max_pixels), None if colour_raw is None else shrunk(colour_raw, max_pixels)
+        lo, hi = float(raw.min()) / full, float(raw.max()) / full
+    if hi - lo < 1.0 / 255.0:
+        raise InputError(f"{p}: has no contrast (every pixel is {lo:.3f}): nothing to fit")
+    kept = raw if colour_raw is None else colour_raw
+    width, height = header.width, header.height
+    scale = max(kept.shape[:2]) / max(width, height)  # EXIF may turn it
+    if width != height and (kept.shape[1] > kept.shape[0]) != (width > height):
+        width, height = height, width  # turned a quarter by its EXIF orientation: the size as it stands
+    if srgb:
         del raw, colour_raw
-        return _srgb_photo(encoded, full, scale, (width, height))
+        return _srgb_photo(kept, full, scale, (width, height))
     img = np.clip(raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     colour = None if colour_raw is None else np.clip(colour_raw.astype(np.float32) / np.float32(full), 0.0, 1.0)
     return Photo(img, colour, scale, (width, height))
@@ -384,6 +389,14 @@ def _srgb_photo(encoded: np.ndarray, full: float, scale: float, size: tuple[int,
     if linear.ndim == 2:
         return Photo(linear, None, scale, size, "srgb", np.repeat(rgb8[..., None], 3, axis=-1))
     return Photo(linear_luminance(linear), linear, scale, size, "srgb", np.ascontiguousarray(rgb8))
+
+
+def _rgb(bgr: np.ndarray) -> np.ndarray:
+    """(H, W, 3) BGR -> RGB, contiguous: by OpenCV where it can (a 4-megapixel photo in half a millisecond,
+    where numpy's reversed copy takes 10)."""
+    if bgr.dtype in (np.uint8, np.uint16, np.float32):
+        return cv2.cvtColor(np.ascontiguousarray(bgr), cv2.COLOR_BGR2RGB)
+    return np.ascontiguousarray(bgr[..., ::-1])
 
 
 def _grey(bgr: np.ndarray) -> np.ndarray:

@@ -100,3 +100,26 @@ def test_an_8_bit_colour_photo_is_decoded_where_it_is_read_never_whole(tmp_path)
     assert np.array_equal(photo.colour[300:420, 1500:1720], whole[300:420, 1500:1720])
     assert np.array_equal(photo.colour[..., ::-1][5:9], whole[..., ::-1][5:9])
     assert np.array_equal(photo.grey, linear_luminance(whole))
+
+
+def test_a_colour_photo_over_the_working_size_is_reduced_once_in_its_own_colours(tmp_path):
+    """A colour photo larger than ``max_pixels`` keeps its colours in order when reduced (R stays R), its grey is the
+    reduced colours' decoded luminance, and its file's values are what the area average of its RGB gives; the
+    same photo given in grey is reduced as its own samples."""
+    from shadowflow.nodes.photo.encoding import decoded_luminance
+
+    rng = np.random.default_rng(3)
+    rgb = cv2.resize(rng.integers(0, 256, (30, 40, 3), np.uint8), (1600, 1200), interpolation=cv2.INTER_CUBIC)
+    rgb[..., 0] = np.maximum(rgb[..., 0], 150)  # red over its other channels, so a swap would show
+    cv2.imwrite(str(tmp_path / "big.png"), rgb[..., ::-1])
+    photo = read_photo(tmp_path / "big.png", max_pixels=1_000_000, encoding="auto")
+    expected = cv2.resize(rgb, (1154, 866), interpolation=cv2.INTER_AREA)
+    assert photo.rgb8.shape == (866, 1154, 3) and photo.rgb8.flags.c_contiguous
+    assert np.array_equal(photo.rgb8, expected)
+    assert np.array_equal(photo.grey, decoded_luminance(expected))
+    assert photo.scale == pytest.approx(1154 / 1600) and photo.size == (1600, 1200)
+    grey = rgb[..., 1].copy()
+    cv2.imwrite(str(tmp_path / "grey.png"), grey)
+    told = read_photo(tmp_path / "grey.png", max_pixels=1_000_000, encoding="linear")
+    assert told.colour is None and told.grey.shape == (866, 1154)
+    assert np.allclose(told.grey * 255.0, cv2.resize(grey, (1154, 866), interpolation=cv2.INTER_AREA), atol=1e-3)
