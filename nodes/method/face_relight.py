@@ -92,6 +92,13 @@ SHADE_TEXTURE_SCALE = 0.01
 # at half resolution) and hair's strands are not resolved, and the shadows so found took hairlines, a cartoon's
 # cheek and annotated faces' skin (opencv-doc's faces 19-37 px between the eyes; docs/relighting.md)
 SHADE_MIN_IOD = 60.0
+# on skin the fit shades at least this much (its lit side: a shape's cast shadow falls on skin turned further from
+# the light), what is as rough as hair's strands (``SHADE_TEXTURE``) is not a shadow, whatever its colour: dark brown
+# hair over a cheek in a warm shade has the skin's colour and was filled as shadow with a flat patch of skin. At 0.3 the
+# noses' cast shadows on tinted Yale B faces at +-50 lost their sharp edges to it (docs/relighting.md, "Hair's strands")
+STRAND_SHADING = 0.5
+# the least texture (``fine_texture``, log brightness) lit skin is taken to have: held-out portraits' is 0.02-0.08
+ROUGH_FLOOR = 0.01
 # the fit's albedo map is filled again (harmonic) where the grid measured it lit but the photo finds shadow over
 # more than this share of a model pixel: its value there holds that shadow (an eye socket under a light from above,
 # deeper than the model's, came back a dark patch of fill)
@@ -158,8 +165,13 @@ class FaceRelight:
         hair_px = self._hair(hair, mask) if photo.shape[-1] == 1 else np.zeros_like(face)
         brow = self._features(brows, BROW_MARGIN * iod_px)
         face_skin = skin(photo, face) & ~hair_px
-        self.shadow = self._shadows(box_grey, mask, lit, near, (face_skin | self._shaded_skin(
-            photo, face_skin, features, (eye_outlines or []) + (brows or []), iod_px)) & ~brow)
+        # in colour, how rough the photo is tells hair's strands from skin in its shade and from shadow on lit skin
+        rough, keep_out = self._roughness(photo, face_skin, features, (eye_outlines or []) + (brows or []), iod_px)
+        shaded = strands = np.zeros_like(face)
+        if rough is not None:
+            shaded = self._shaded_skin(photo, face_skin, rough, keep_out, iod_px)
+            strands = (rough >= SHADE_TEXTURE) & (shading >= STRAND_SHADING) & ~keep_out
+        self.shadow = self._shadows(box_grey, mask, lit, near, ((face_skin & ~strands) | shaded) & ~brow)
         px = max(al.scale, 1.0)  # photo pixels per model pixel
         face_lit = face & ~grow(self.shadow, 1.5 * px)  # a shadow's soft edge (penumbra) is not lit skin either
         self.coarse = coarse = self._coarse(albedo, mask, lit, px)
@@ -220,29 +232,38 @@ class FaceRelight:
         self.inner = (slice(iy0, iy1), slice(ix0, ix1))  # the face's box within the layer's
         self.box = (ly0 + iy0, ly0 + iy1, lx0 + ix0, lx0 + ix1)
 
-    def _shaded_skin(self, photo: np.ndarray, lit: np.ndarray, features: list[np.ndarray] | None,
-                     eyes_and_brows: list[np.ndarray], iod_px: float) -> np.ndarray:
+    def _roughness(self, photo: np.ndarray, lit: np.ndarray, features: list[np.ndarray] | None,
+                   eyes_and_brows: list[np.ndarray], iod_px: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """In colour, on a face ``SHADE_MIN_IOD`` or more between the eyes: (h, w) float32 how rough the photo is, its
+        ``fine_texture`` over the median of ``lit`` (h, w) bool skin's (hair and a beard are strands, skin is smooth,
+        in its shade too), and (h, w) bool the eyes, brows and lips, which are rough and dark by their make
+        (``SHADE_FEATURE_MARGIN``; ``SHADE_EYE_MARGIN`` around the eyes and brows: their ring of lids and lashes).
+        (None, None) in grey or on a smaller face: there a photo's colour (a JPEG's at half resolution) and hair's
+        strands are not resolved (opencv-doc's faces 19-37 px between the eyes: hairlines, a cartoon's cheek and
+        annotated faces' skin were taken for shadow; docs/relighting.md)."""
+        if photo.shape[-1] != 3 or lit.sum() <= 50 or iod_px < SHADE_MIN_IOD:
+            return None, None
+        keep_out = (self._features(features, SHADE_FEATURE_MARGIN * iod_px)
+                    | self._features(eyes_and_brows, SHADE_EYE_MARGIN * iod_px))
+        texture = fine_texture(photo, max(SHADE_TEXTURE_SCALE * iod_px, 1.0))
+        # a photo's lit skin is never smoother than ROUGH_FLOOR (a render's can be, and against it every edge is rough)
+        return texture / np.float32(max(float(np.median(texture[lit])), ROUGH_FLOOR)), keep_out
+
+    def _shaded_skin(self, photo: np.ndarray, lit: np.ndarray, rough: np.ndarray, keep_out: np.ndarray,
+                     iod_px: float) -> np.ndarray:
         """(h, w) bool: in colour, the face's skin in its shade beside ``lit`` (h, w) bool, its skin by its colour
-        (``skin``): redder than lit skin as it darkens (``skin_distance``), smooth as skin is (``fine_texture`` under
-        ``SHADE_TEXTURE`` times the lit skin's median: hair and a beard are strands), and off the eyes, brows and lips
-        (``SHADE_FEATURE_MARGIN``; ``SHADE_EYE_MARGIN`` around the eyes and brows, whose ring of lids and lashes was
-        taken for a shadow and filled, the eyes with it), which are dark and red too. None in grey.
+        (``skin``): redder than lit skin as it darkens (``skin_distance``), smooth as skin is (``rough`` under
+        ``SHADE_TEXTURE``: hair and a beard are strands), and off ``keep_out`` (the eyes, brows and lips, which are
+        dark and red too; ``_roughness``).
 
         Only the photo's shadows are found on it (a shadow under a nose, redder than the skin, was neither skin nor
         shadow, kept as it was: a brown patch on a face relit from the front); skin the fit already shades dark keeps
-        its own pixels as what is not skin does (filled, a film still's shaded cheek came back flat). None on a face
-        under ``SHADE_MIN_IOD`` between the eyes."""
-        face = self.face
-        if photo.shape[-1] != 3 or lit.sum() <= 50 or iod_px < SHADE_MIN_IOD:
-            return np.zeros_like(lit)
-        keep_out = (self._features(features, SHADE_FEATURE_MARGIN * iod_px)
-                    | self._features(eyes_and_brows, SHADE_EYE_MARGIN * iod_px))
+        its own pixels as what is not skin does (filled, a film still's shaded cheek came back flat)."""
         scale = max(SHADE_TEXTURE_SCALE * iod_px, 1.0)
         # the colour of a dark pixel is noisy: told over a few pixels, or a shadow came back as speckles of both
         blurred = cv2.GaussianBlur(photo, (0, 0), 2.0 * scale)
-        shaded = skin_distance(blurred, face, shade=True, keep_out=keep_out) < MAX_CHROMA_DISTANCE
-        texture = fine_texture(photo, scale)
-        return shaded & (texture < SHADE_TEXTURE * float(np.median(texture[lit]))) & ~keep_out & ~lit
+        shaded = skin_distance(blurred, self.face, shade=True, keep_out=keep_out) < MAX_CHROMA_DISTANCE
+        return shaded & (rough < SHADE_TEXTURE) & ~keep_out & ~lit
 
     def _coarse(self, albedo: np.ndarray, mask: np.ndarray, lit: np.ndarray, px: float) -> np.ndarray:
         """(h, w) the fit's albedo map (Hm, Wm) on the box's pixels, smoothed (``smooth_coarse``), filled again first

@@ -104,7 +104,8 @@ def test_every_composited_face_is_found_and_relit_as_its_tight_crop_is(subjects,
         rows.append((path.name, share, round(roll), scene - carried))
     deltas = np.array([r[3] for r in rows])
     print("\n".join(f"{name} {share:.2f} roll {roll:+d}: {d:+.2f} dB" for name, share, roll, d in rows))
-    # measured: mean -0.07 dB, each -0.86..+0.85 dB, 17 of 20 within -0.5 (with the brows kept, docs/relighting.md;
+    # measured: mean -0.11 dB, each -0.86..+0.85 dB, 17 of 20 within -0.5 (with hair's strands on lit skin no shadow:
+    # B05 at -50, its fringe kept, +0.22 -> -0.45; before, mean -0.07; with the brows kept, docs/relighting.md;
     # before them -0.05, -0.90..+0.86, 18 of 20; before the near shadows and the lift
     # +0.01, -0.88..+0.68, 18 of 20; B05's grey tight crop keeps its fringe,
     # which the composite, its hair tinted with its skin, cannot tell: +25 -0.48 -> -0.54 dB; before hair and the dark head drawn around a crop, inside
