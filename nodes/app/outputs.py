@@ -24,6 +24,7 @@ from ..method.products import (face_products, grid_placement, grid_products, in_
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..method.quality import NO_FACE
 from ..photo.align import Alignment, scalar_to_input
+from ..photo.encoding import swapped_rb
 from ..model.shape_model import ShapeModel
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
@@ -110,10 +111,7 @@ def mesh_ply_bytes(m: dict[str, np.ndarray]) -> bytes:
 
 def _bgr(rgb8: np.ndarray) -> np.ndarray:
     """(H, W, 3) RGB -> OpenCV's BGR; (H, W, 1) -> (H, W)."""
-    if rgb8.shape[-1] == 1:
-        return rgb8[..., 0]
-    # OpenCV's swap: a 4-megapixel photo in half a millisecond, numpy's reversed copy in 10
-    return cv2.cvtColor(np.ascontiguousarray(rgb8), cv2.COLOR_RGB2BGR)
+    return rgb8[..., 0] if rgb8.shape[-1] == 1 else swapped_rb(rgb8)
 
 
 def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:

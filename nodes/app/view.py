@@ -34,7 +34,7 @@ from ..method.photo_relight import (
 )
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
-from ..photo.encoding import linear_to_srgb
+from ..photo.encoding import linear_to_srgb, swapped_rb
 
 VIEW_NAME = "view.html"
 BEFORE_SIDE = 1600  # pixels, the embedded photo's longer side at most
@@ -74,7 +74,7 @@ def _photo_jpeg(frame: Frame) -> tuple[str, tuple[int, int]]:
     h, w = img.shape[:2]
     k = min(1.0, BEFORE_SIDE / max(h, w))
     small = img if k == 1.0 else cv2.resize(img, (round(w * k), round(h * k)), interpolation=cv2.INTER_AREA)
-    bgr = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR) if small.ndim == 3 else small
+    bgr = swapped_rb(small) if small.ndim == 3 else small
     ok, enc = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 90])
     if not ok:
         raise OSError("JPEG encoding failed")
