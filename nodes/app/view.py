@@ -388,7 +388,7 @@ function render(f, light) {
   const ring = new ImageData(f.w, f.h), inside = new ImageData(f.w, f.h);
   for (let i = 0; i < N; i++) {
     const face = w[i] > 0, alpha = f.alpha8[i] / 255, fade = f.fade8[i] / 255;
-    const beyond = (f.flags[i] & K.BEYOND) > 0, high = hi + (K.RATIO_BEYOND - hi) * f.reach8[i] / 255;
+    const beyond = (f.flags[i] & K.BEYOND) > 0, high = hi * Math.pow(K.RATIO_BEYOND / hi, f.reach8[i] / 255);
     for (let c = 0; c < 3; c++) {
       const ch = C === 1 ? 0 : c, j = C * i + ch;
       // beyond_ratio: past RATIO_OUTSIDE (the face's own skin beyond the model) no brighter than the relit rim

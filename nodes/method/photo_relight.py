@@ -65,8 +65,12 @@ INNER_FEATHER = 0.12
 RATIO_OUTSIDE = (0.15, 1.6)
 # ... but on the face's own skin beyond the model (inside the face mesh's outline, past the model's mask: the jaw
 # and cheeks of a face the model does not reach) up to this: it is the face, lit as its rim is, and a jaw in
-# shadow held at 1.6x stayed a dark wedge beside a face relit 5x brighter (Yale B at +-70)
-RATIO_BEYOND = 8.0
+# shadow held at 1.6x stayed a dark wedge beside a face relit 5x brighter (Yale B at +-70). What bounds it is the
+# relit rim's level beside it (``beyond_ratio``); this only keeps a black pixel's gain finite: at 8x a jaw in deep
+# shadow (3 grey levels of 255, Yale B's subjects at -70) stayed a dark wedge at a quarter of the frontal photo's level
+RATIO_BEYOND = 64.0
+# what keeps its own pixels (hair over the face) is brightened up to this at a feather inside the face (``kept_cap``)
+RATIO_KEPT = 8.0
 # ... that reach fading back to ``RATIO_OUTSIDE`` over this share of the feather either side of that skin's border
 BEYOND_EDGE = 0.25
 # a gain past ``RATIO_OUTSIDE`` lifts the photo's detail (finer than this share of the change of light's blur) by
@@ -323,11 +327,11 @@ def brightened_as_around(albedo: np.ndarray, photo: np.ndarray, lighting: np.nda
 def kept_cap(inside: np.ndarray, feather_px: float) -> np.ndarray:
     """(H, W) float32: how far what keeps its own pixels (hair over the face, a beard) may be brightened, by its
     distance ``inside`` (H, W) the face (as ``inner_alpha`` takes it): ``RATIO_OUTSIDE``'s top at the face's edge, as
-    the photo just beyond it (``outside_gain``), rising to ``RATIO_BEYOND`` at ``feather_px`` inside, unbounded
+    the photo just beyond it (``outside_gain``), rising to ``RATIO_KEPT`` at ``feather_px`` inside, unbounded
     further in. Brightened as the skin around it up to the edge, hair over a temple relit into the light came back a
     pale ghost of hair, cut at the outline from the same hair beyond it."""
     hi = np.float32(RATIO_OUTSIDE[1])
-    cap = hi + np.float32(RATIO_BEYOND - RATIO_OUTSIDE[1]) * smoothstep(inside, 0.0, max(feather_px, 1.0))
+    cap = hi + np.float32(RATIO_KEPT - RATIO_OUTSIDE[1]) * smoothstep(inside, 0.0, max(feather_px, 1.0))
     return np.where(inside >= feather_px, np.float32(np.inf), cap).astype(np.float32)
 
 
@@ -725,11 +729,13 @@ def beyond_reach(beyond: np.ndarray | None, feather_px: float) -> np.ndarray | N
 
 def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """The face's change of light ``ratio`` (..., C) held within ``RATIO_OUTSIDE``, or up to ``RATIO_BEYOND``
-    as far as ``reach`` (..., 1) allows; past ``RATIO_OUTSIDE`` no brighter than the relit rim's ``level`` (..., C)
-    beside it (the ratio is the rim's average: a jaw brighter in the photo than its rim would overshoot it).
-    Where the ratio is within ``RATIO_OUTSIDE`` it is kept as it is. Any leading shape: images or pixel lists."""
+    as far as ``reach`` (..., 1) allows (geometrically: ``hi (RATIO_BEYOND / hi) ** reach``, so the photo just past
+    that skin, where the reach fades, is lifted little more than ``RATIO_OUTSIDE`` allows); past ``RATIO_OUTSIDE``
+    no brighter than the relit rim's ``level`` (..., C) beside it (the ratio is the rim's average: a jaw brighter
+    in the photo than its rim would overshoot it). Where the ratio is within ``RATIO_OUTSIDE`` it is kept as it is.
+    Any leading shape: images or pixel lists."""
     lo, hi = RATIO_OUTSIDE
-    r = np.clip(ratio, lo, hi + (RATIO_BEYOND - hi) * reach)
+    r = np.clip(ratio, lo, np.float32(hi) * np.float32(RATIO_BEYOND / hi) ** reach)
     return np.minimum(r, np.maximum(np.float32(hi), level / np.maximum(photo, np.float32(1e-6)))).astype(np.float32)
 
 
