@@ -164,8 +164,10 @@ def test_two_and_three_faces_to_a_photo_are_each_found_and_relit(subjects, tight
 def test_a_yaleb_face_upside_down_or_on_its_side_is_placed_right_or_not_ok(subjects, tight_runs, tmp_path):
     """Each subject at (+-25, 0) turned 180 and 90 degrees (a photo saved the wrong way up): when the
     run calls it ``ok``, its eyes are within 10 % of their distance of where the upright run found them,
-    turned with it. Measured: 18 of the 20 turned upright and placed, the other two doubtful (one
-    meshed upside down, one whose fit explains 23 % of the photo)."""
+    turned with it. Measured: all 20 turned upright and placed (before the photo's half turn was looked at
+    when the detector was sure of no face upright, 18: B02 at -25 upside down and on its side was meshed
+    the wrong way up, its nostrils for eyes, at a detector score of 0.53 against 0.73 turned, doubtful only
+    as long as its fit explained under 40 % of the photo)."""
     import shadowflow
 
     placed = 0
@@ -191,4 +193,4 @@ def test_a_yaleb_face_upside_down_or_on_its_side_is_placed_right_or_not_ok(subje
                 off = min(np.linalg.norm(found - truth, axis=1).max(), np.linalg.norm(found[::-1] - truth, axis=1).max())
                 assert off < 0.1 * iod, (path.name, found, truth)
                 placed += 1
-    assert placed >= 14  # most are turned upright and placed, not refused
+    assert placed >= 18  # nearly all are turned upright and placed, not refused
