@@ -243,27 +243,29 @@ def _inside(face: FoundFace, larger: FoundFace) -> bool:
 
 
 def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
-    """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put; None
-    when the first look or the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts of
-    a face, a pattern, pass the first but not the second), when the mesh is surer of the crop turned
-    upside down, or the eyes are under ``SMALLEST_IOD`` apart."""
+    """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put, and its
+    points from that crop looked at both ways (``face_mesh``'s ``mirrored``); None when the first look or
+    the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts of a face, a pattern, pass the
+    first but not the second), when the mesh is surer of the crop turned upside down, or the eyes are
+    under ``SMALLEST_IOD`` apart."""
     mesh, presence = face_mesh(rgb, roi)
     if presence < MIN_PRESENCE:
         return None
     # the crop the mesh implies is better centred, sized and turned than the detector's (whose box a face
     # cut by the frame or in deep shadow can shrink to half of it): follow it until it stays put
-    crop = roi_from_mesh(mesh)
+    meshed, crop = roi, roi_from_mesh(mesh)
     for k in range(TRACKING_PASSES):
         tracked, again = face_mesh(rgb, crop)
         if again < MIN_PRESENCE:
             if k == 0:  # the crop its own mesh implies does not show a face: a face too small in the detector's
                 return None  # box, meshed with its features in the background (a face without hair or neck)
             break
-        mesh, presence = tracked, again
-        previous, crop = crop, roi_from_mesh(mesh)
-        moved = np.linalg.norm(crop.centre - previous.centre) + abs(crop.side - previous.side)
-        if moved < SETTLED * previous.side:
+        mesh, presence, meshed = tracked, again, crop
+        crop = roi_from_mesh(mesh)
+        moved = np.linalg.norm(crop.centre - meshed.centre) + abs(crop.side - meshed.side)
+        if moved < SETTLED * meshed.side:
             break
+    mesh = face_mesh(rgb, meshed, mirrored=True)[0]  # the settled crop looked at both ways: its points' mean
     # a face upside down meshes as one the right way up, its nostrils for eyes: the mesh is surer of it turned
     if face_mesh(rgb, Roi(crop.centre, crop.side, crop.angle + np.pi))[1] > presence:
         return None  # (the photo's half turn finds it)

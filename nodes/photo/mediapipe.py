@@ -12,7 +12,8 @@ feeds them and reads their outputs is ours:
   suppression.
 - ``face_mesh``: the mesh model sees a 192 x 192 RGB crop in [0, 1], square, 1.5 x the face, turned
   so the eyes are level; it gives 468 points (x, y in crop pixels, z a relative depth on the same
-  scale, smaller = nearer the camera) and a face-presence logit.
+  scale, smaller = nearer the camera) and a face-presence logit. A face's settled crop is looked at
+  twice, as it is and as its mirror image (``mesh_on_crop``), and the points averaged.
 - ``person_share``: the segmentation model sees a 256 x 256 RGB image in [0, 1] and gives, for each
   pixel, how sure it is that a person (face, hair, neck, clothes) is there, not the background.
 
@@ -20,9 +21,11 @@ Everything here is in photo pixels: x = column, y = row (down).
 """
 from __future__ import annotations
 
+import json
 import os
 import threading
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable
 
@@ -35,6 +38,7 @@ from .native_messages import decoder_messages_dropped
 DATA = Path(__file__).resolve().parent / "data"
 DETECTOR_FILE = DATA / "face_detection_short_range.tflite"
 MESH_FILE = DATA / "face_landmark.tflite"
+MIRROR_FILE = DATA / "face_mesh_mirror.json"
 SEGMENTER_FILE = DATA / "selfie_segmentation.tflite"
 SEGMENTER_SIDE = 256  # the segmentation model's input, square
 
@@ -353,10 +357,11 @@ def roi_from_mesh(points: np.ndarray) -> Roi:
     return Roi(centre, float(max(hi - lo)) * ROI_SCALE, angle)
 
 
-def face_mesh(rgb: np.ndarray, roi: Roi) -> tuple[np.ndarray, float]:
+def face_mesh(rgb: np.ndarray, roi: Roi, mirrored: bool = False) -> tuple[np.ndarray, float]:
     """The 468-point mesh in ``roi`` of ``rgb`` (H, W, 3) uint8: ``(points (468, 3) float64, presence)``;
     points are x, y in photo pixels and z in the same pixels, toward the camera positive; presence
-    in [0, 1] (under 0.5: no face)."""
+    in [0, 1] (under 0.5: no face). ``mirrored``: the points are the mean of the crop's and its mirror
+    image's (``mesh_on_crop``), presence the crop's own."""
     to_photo = roi.to_photo(MESH_SIZE)
     shrink = roi.side / MESH_SIZE  # photo pixels per crop pixel
     if shrink > 2.0:  # a large face: area-average the photo first, so the crop is not aliased
@@ -365,10 +370,37 @@ def face_mesh(rgb: np.ndarray, roi: Roi) -> tuple[np.ndarray, float]:
         crop = _window(small, to_photo, MESH_SIZE, offset @ from_small)
     else:
         crop = _window(rgb, to_photo, MESH_SIZE)
-    x = crop.astype(np.float32) / np.float32(255.0)
-    mesh, presence = MESH.forward(x[None], ["conv2d_21", "conv2d_31"])
-    pts = mesh.reshape(468, 3).astype(np.float64)
+    pts, logit = mesh_on_crop(crop.astype(np.float32) / np.float32(255.0), mirrored)
     xy = pts[:, :2] @ to_photo[:, :2].T + to_photo[:, 2]
     z = -pts[:, 2] * (roi.side / MESH_SIZE)
-    p = 1.0 / (1.0 + np.exp(-np.clip(float(presence.reshape(-1)[0]), -80.0, 80.0)))
+    p = 1.0 / (1.0 + np.exp(-np.clip(logit, -80.0, 80.0)))
     return np.column_stack([xy, z]), float(p)
+
+
+def mesh_on_crop(crop: np.ndarray, mirrored: bool = False) -> tuple[np.ndarray, float]:
+    """The face mesh of a (192, 192, 3) float32 crop in [0, 1]: ``(points (468, 3) float64, presence
+    logit)``, points x, y in crop pixels (column, row) and z as the model gives it. ``mirrored``: the
+    mean of the crop's points and its mirror image's, mirrored back (each point's mirror partner from
+    ``mesh_mirror``): the model is not symmetric, and its two looks at a face disagree by 1-2 % of the
+    eye distance, left-right bias and noise that the mean halves (the same face pasted at another
+    scale, turn and tint is placed 20 % closer to where its crop alone is; ``docs/accuracy.md``).
+    Exactly symmetric: the mirror image's points are the crop's, mirrored."""
+    mesh, presence = MESH.forward(crop[None], ["conv2d_21", "conv2d_31"])
+    pts = mesh.reshape(468, 3).astype(np.float64)
+    if mirrored:
+        seen, _ = MESH.forward(np.ascontiguousarray(crop[:, ::-1])[None], ["conv2d_21", "conv2d_31"])
+        back = seen.reshape(468, 3).astype(np.float64)[mesh_mirror()]
+        back[:, 0] = (crop.shape[1] - 1) - back[:, 0]  # column u of the mirror image is column W-1-u
+        pts = 0.5 * (pts + back)
+    return pts, float(presence.reshape(-1)[0])
+
+
+@lru_cache(maxsize=1)
+def mesh_mirror() -> np.ndarray:
+    """(468,) int: for each face-mesh point, the point that is its mirror image across the face's
+    midline (the image-left eye's outer corner 33 and the image-right's 263; the midline's points are
+    their own). From MediaPipe's canonical face model (``data/face_mesh_mirror.json``, ``data/NOTICE``)."""
+    order = np.asarray(json.loads(MIRROR_FILE.read_text()), np.intp)
+    if order.shape != (468,) or not np.array_equal(order[order], np.arange(468)):
+        raise ValueError(f"{MIRROR_FILE}: not a mirror pairing of the mesh's 468 points")
+    return order

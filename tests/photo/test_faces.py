@@ -132,6 +132,42 @@ def test_a_large_photo_saved_the_wrong_way_up_is_looked_at_small_and_placed_in_i
         assert off < 0.05 * iod, (quarter, eyes, truth)
 
 
+def test_the_mesh_pairs_each_point_with_its_mirror_image_across_the_face(astronaut):
+    """``mesh_mirror``: the eyes' outer and inner corners and the mouth's corners swap, the nose stays; on
+    the astronaut's mesh every point reflected across her midline (the line through the points that are
+    their own mirror) lands within 5 % of the eye distance of its partner (measured: 3.1 % at most, 1.1 %
+    on average; each point against itself: 61 % on average)."""
+    order = M.mesh_mirror()
+    assert np.array_equal(order[order], np.arange(468))
+    assert (order[33], order[133], order[61], order[1], order[4]) == (263, 362, 291, 1, 4)
+    roi = M.roi_from_mesh(F.find_faces(astronaut)[0].mesh)
+    crop = M._window(astronaut, roi.to_photo(M.MESH_SIZE), M.MESH_SIZE).astype(np.float32) / 255
+    p = M.mesh_on_crop(crop)[0][:, :2]
+    midline = p[order == np.arange(468)]
+    centre = midline.mean(axis=0)
+    along = np.linalg.svd(midline - centre)[2][0]
+    across = np.array([-along[1], along[0]])
+    reflected = p - 2.0 * ((p - centre) @ across)[:, None] * across
+    iod = np.linalg.norm(p[263] - p[33])
+    assert np.linalg.norm(reflected - p[order], axis=1).max() < 0.05 * iod
+
+
+def test_the_mesh_looked_at_both_ways_gives_a_mirror_image_its_points_mirrored(astronaut):
+    """``mesh_on_crop(mirrored=True)``: the astronaut's crop and its mirror image give each other's points,
+    mirrored, to the float (the model alone: 0.77 crop pixels apart on average, 3.9 at most)."""
+    roi = M.roi_from_mesh(F.find_faces(astronaut)[0].mesh)
+    crop = M._window(astronaut, roi.to_photo(M.MESH_SIZE), M.MESH_SIZE).astype(np.float32) / 255
+    flipped = np.ascontiguousarray(crop[:, ::-1])
+    apart = {}
+    for mirrored in (False, True):
+        p, q = M.mesh_on_crop(crop, mirrored)[0], M.mesh_on_crop(flipped, mirrored)[0]
+        back = q[M.mesh_mirror()]
+        back[:, 0] = (M.MESH_SIZE - 1) - back[:, 0]
+        apart[mirrored] = np.abs(back[:, :2] - p[:, :2]).mean()
+    assert apart[True] < 1e-3 and apart[False] > 0.3, apart
+    assert M.mesh_on_crop(crop, True)[1] == M.mesh_on_crop(crop)[1]  # presence: the crop's own look
+
+
 def test_placement_recovers_a_similarity_and_a_face_length():
     rng = np.random.default_rng(0)
     grid = rng.uniform(20, 100, (12, 2))
