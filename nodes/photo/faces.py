@@ -244,7 +244,8 @@ def _inside(face: FoundFace, larger: FoundFace) -> bool:
 
 def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
     """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put, and its
-    points from that crop looked at both ways (``face_mesh``'s ``mirrored``); None when the first look or
+    points the mean of the mesh's looks at that crop and at its mirror image (``face_mesh``'s
+    ``mirrored``); None when the first look or
     the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts of a face, a pattern, pass the
     first but not the second), when the mesh is surer of the crop turned upside down, or the eyes are
     under ``SMALLEST_IOD`` apart."""
@@ -265,7 +266,7 @@ def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
         moved = np.linalg.norm(crop.centre - meshed.centre) + abs(crop.side - meshed.side)
         if moved < SETTLED * meshed.side:
             break
-    mesh = face_mesh(rgb, meshed, mirrored=True)[0]  # the settled crop looked at both ways: its points' mean
+    mesh = 0.5 * (mesh + face_mesh(rgb, meshed, mirrored=True)[0])  # the settled crop looked at both ways
     # a face upside down meshes as one the right way up, its nostrils for eyes: the mesh is surer of it turned
     if face_mesh(rgb, Roi(crop.centre, crop.side, crop.angle + np.pi))[1] > presence:
         return None  # (the photo's half turn finds it)

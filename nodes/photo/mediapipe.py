@@ -360,8 +360,8 @@ def roi_from_mesh(points: np.ndarray) -> Roi:
 def face_mesh(rgb: np.ndarray, roi: Roi, mirrored: bool = False) -> tuple[np.ndarray, float]:
     """The 468-point mesh in ``roi`` of ``rgb`` (H, W, 3) uint8: ``(points (468, 3) float64, presence)``;
     points are x, y in photo pixels and z in the same pixels, toward the camera positive; presence
-    in [0, 1] (under 0.5: no face). ``mirrored``: the points are the mean of the crop's and its mirror
-    image's (``mesh_on_crop``), presence the crop's own."""
+    in [0, 1] (under 0.5: no face). ``mirrored``: the mesh's look at the crop's mirror image, its points
+    mirrored back onto the face (``mesh_on_crop``)."""
     to_photo = roi.to_photo(MESH_SIZE)
     shrink = roi.side / MESH_SIZE  # photo pixels per crop pixel
     if shrink > 2.0:  # a large face: area-average the photo first, so the crop is not aliased
@@ -380,18 +380,17 @@ def face_mesh(rgb: np.ndarray, roi: Roi, mirrored: bool = False) -> tuple[np.nda
 def mesh_on_crop(crop: np.ndarray, mirrored: bool = False) -> tuple[np.ndarray, float]:
     """The face mesh of a (192, 192, 3) float32 crop in [0, 1]: ``(points (468, 3) float64, presence
     logit)``, points x, y in crop pixels (column, row) and z as the model gives it. ``mirrored``: the
-    mean of the crop's points and its mirror image's, mirrored back (each point's mirror partner from
-    ``mesh_mirror``): the model is not symmetric, and its two looks at a face disagree by 1-2 % of the
-    eye distance, left-right bias and noise that the mean halves (the same face pasted at another
-    scale, turn and tint is placed 20 % closer to where its crop alone is; ``docs/accuracy.md``).
-    Exactly symmetric: the mirror image's points are the crop's, mirrored."""
-    mesh, presence = MESH.forward(crop[None], ["conv2d_21", "conv2d_31"])
+    mesh of the crop's mirror image, each point mirrored back onto the crop and given its partner's
+    place in the list (``mesh_mirror``). The model is not symmetric: its two looks at a face disagree by
+    1-2 % of the eye distance, a left-right bias and noise that their mean halves (``faces._confirmed``;
+    ``docs/accuracy.md``, "Both ways"); the mean of a crop's two looks is exactly the mirror of its
+    mirror image's."""
+    seen = np.ascontiguousarray(crop[:, ::-1]) if mirrored else crop
+    mesh, presence = MESH.forward(seen[None], ["conv2d_21", "conv2d_31"])
     pts = mesh.reshape(468, 3).astype(np.float64)
     if mirrored:
-        seen, _ = MESH.forward(np.ascontiguousarray(crop[:, ::-1])[None], ["conv2d_21", "conv2d_31"])
-        back = seen.reshape(468, 3).astype(np.float64)[mesh_mirror()]
-        back[:, 0] = (crop.shape[1] - 1) - back[:, 0]  # column u of the mirror image is column W-1-u
-        pts = 0.5 * (pts + back)
+        pts = pts[mesh_mirror()]
+        pts[:, 0] = (crop.shape[1] - 1) - pts[:, 0]  # column u of the mirror image is column W-1-u
     return pts, float(presence.reshape(-1)[0])
 
 
