@@ -27,9 +27,6 @@ CONTRAST = 1.0
 MAX_RATIO = 1.2  # a lit eye's pixel over its skin: brighter is shine on the cornea, not albedo
 MIN_SHADING = 0.1  # the shading divided out is taken as at least this (grazing light: noise, not detail)
 TRUSTED = 0.5  # an eye whose region's mean trust is at least this keeps its measured albedo
-# the source eye's skin ring must be this much out of shadow (under a side light the nose's shadow can cover
-# half of the lit eye's ring)
-MIN_RING_LIT = 0.25
 
 
 def _quadratic_fit(values: np.ndarray, where: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -59,17 +56,27 @@ def _ring_level(values: np.ndarray, ring: np.ndarray, u: np.ndarray, v: np.ndarr
     return fitted * colour
 
 
+def _pattern(photo: np.ndarray, shading: np.ndarray, region: dict, contrast: float) -> np.ndarray:
+    """(h, w, C) float32: an eye's pattern in its ``region`` (``EyeDetail``'s), a ratio to the skin around it
+    at ``contrast``. The fitted shading is divided out first: the socket's and the lids' own shading under the
+    side light is not the eye's albedo (on a render without eye texture it alone made a dark blot)."""
+    box = region["box"]
+    albedo_seen = photo[box] / np.maximum(np.asarray(shading, np.float64)[box], MIN_SHADING)[..., None]
+    skin = _quadratic_fit(albedo_seen, region["ring"], region["u"], region["v"])
+    pattern = np.clip(albedo_seen / np.maximum(skin, 1e-3), 0.0, MAX_RATIO)
+    return (1.0 + contrast * (pattern - 1.0)).astype(np.float32)
+
+
 class EyeDetail:
     """The lit eye's pattern in a photo, found once: ``apply`` puts it into an albedo, as often as
     there are trust maps (the output albedo's and each relit light's).
 
-    photo (H, W, C) in [0, 1]; shading (H, W) the fitted ``n . s`` under the photo's light; lit
-    (H, W) bool, not in shadow on the photo; eyes (2, 2) the eye centres, ``[x, y]`` pixels. The
-    source is the eye whose skin ring is brighter and lit. contrast: 0 leaves every albedo as it is.
+    photo (H, W, C) in [0, 1]; shading (H, W) the fitted ``n . s`` under the photo's light; eyes (2, 2)
+    the eye centres, ``[x, y]`` pixels. The source is the eye whose skin ring is brighter, seen in the
+    light or in the room's light only. contrast: 0 leaves every albedo as it is.
     """
 
-    def __init__(self, photo: np.ndarray, shading: np.ndarray, lit: np.ndarray, eyes: np.ndarray,
-                 contrast: float = CONTRAST):
+    def __init__(self, photo: np.ndarray, shading: np.ndarray, eyes: np.ndarray, contrast: float = CONTRAST):
         self.regions: list[dict] = []  # per eye: box, (u, v), ellipse e, ring, and its ratio (None: no detail)
         photo = np.atleast_3d(np.asarray(photo, np.float64))
         eyes = np.asarray(eyes, np.float64)
@@ -79,7 +86,7 @@ class EyeDetail:
             return
         along = axis / iod
         across = np.array([-along[1], along[0]])
-        h, w = lit.shape
+        h, w = photo.shape[:2]
         reach = RING * EYE_AXES[0] * iod + 2
         regions = []
         for centre in eyes:
@@ -95,19 +102,13 @@ class EyeDetail:
             if ring.sum() < 30:
                 return
             box = (slice(y0, y1), slice(x0, x1))
-            regions.append({"box": box, "u": u, "v": v, "e": e, "ring": ring,
-                            "bright": float(np.mean(photo[box][ring])), "ring_lit": float(np.mean(lit[box][ring]))})
+            regions.append({"box": box, "u": u, "v": v, "e": e, "ring": ring, "bright": float(np.mean(photo[box][ring]))})
+        # the source is the brighter eye, in the light or not: with none when its ring lay under a quarter out of the
+        # photo's shadows, a dark film still's eyes (its ring 18 % out of them) came back as flat patches of skin, a
+        # glint for the iris; each eye its own source, the darker one came back in coloured speckle
         source = int(np.argmax([r["bright"] for r in regions]))
         src = regions[source]
-        if src["ring_lit"] < MIN_RING_LIT or (src["ring"] & np.asarray(lit[src["box"]], bool)).sum() < 30:
-            return  # neither eye is seen in the light
-        # the fitted shading divided out first: the socket's and the lids' own shading under the side light
-        # is not the eye's albedo (on a render without eye texture it alone made a dark blot)
-        src_shading = np.asarray(shading, np.float64)[src["box"]]
-        albedo_seen = photo[src["box"]] / np.maximum(src_shading, MIN_SHADING)[..., None]
-        skin = _quadratic_fit(albedo_seen, src["ring"], src["u"], src["v"])
-        pattern = np.clip(albedo_seen / np.maximum(skin, 1e-3), 0.0, MAX_RATIO)
-        pattern = (1.0 + contrast * (pattern - 1.0)).astype(np.float32)
+        pattern = _pattern(photo, shading, src, contrast)
         for k, r in enumerate(regions):
             if k == source:
                 r["ratio"] = pattern

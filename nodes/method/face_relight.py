@@ -179,7 +179,7 @@ class FaceRelight:
         self.skin_only = skin(photo, face & face_lit) & ~hair_px
         self.lit_skin = self.skin_only & (shading >= LIT_SHADING)  # what the relit face's exposure is matched to
         self.match_px = MATCH_SIGMA * iod_px
-        self.eyes = None if eyes is None else EyeDetail(photo, shading, face_lit, np.asarray(eyes) - [x0, y0],
+        self.eyes = None if eyes is None else EyeDetail(photo, shading, np.asarray(eyes) - [x0, y0],
                                                         eye_contrast)
         # the albedo divides out the light the photo's face had, the room's included (``with_ambient``)
         self.ambient = photo_ambient(box_grey, coarse, shading, face, AMBIENT_RIM * iod_px, face_skin)

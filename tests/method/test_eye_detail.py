@@ -31,8 +31,7 @@ def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
     filled[~left] = true_albedo[~left, None]  # measured elsewhere, the right eye's iris included
     trust[48:53, 45:49] = 1.0  # a few pixels inside the filled eye were measured: they must stay
     filled[48:53, 45:49] = 0.123
-    lit = ~left
-    out = EyeDetail(photo, shading, lit, EYES, 1.0).apply(filled, trust)
+    out = EyeDetail(photo, shading, EYES, 1.0).apply(filled, trust)
     assert np.all(out[48:53, 45:49] == np.float32(0.123))
     # the left eye's iris comes back where the mirror of the right eye's puts it: toward the nose (+x)
     iris = (60 + 6, 50)
@@ -48,12 +47,22 @@ def test_a_filled_eye_gets_the_lit_eyes_iris_mirrored_and_nothing_else_moves():
     assert np.array_equal(out[trust == 1], filled[trust == 1])
 
 
-def test_eye_detail_is_off_at_zero_contrast_and_when_no_eye_is_lit():
+def test_eye_detail_is_off_at_zero_contrast():
     photo, _, shading = _photo()
     filled = np.full((H, W, 1), SKIN, np.float32)
-    trust = np.zeros((H, W))
-    assert np.array_equal(EyeDetail(photo, shading, np.ones((H, W), bool), EYES, 0.0).apply(filled, trust), filled)
-    assert np.array_equal(EyeDetail(photo, shading, np.zeros((H, W), bool), EYES).apply(filled, trust), filled)
+    assert np.array_equal(EyeDetail(photo, shading, EYES, 0.0).apply(filled, np.zeros((H, W))), filled)
+
+
+def test_both_eyes_filled_take_the_brighter_eyes_pattern_not_flat_skin():
+    """Both eyes' albedo filled (a dark photo, both eyes in the fit's shadow): the brighter eye (the right, the
+    light's side) is the source of both, its iris back where it is and mirrored into the left, toward the nose;
+    beside the irises, skin. Without a source both came back as flat skin (the iris at 1.0 of it)."""
+    photo, _, shading = _photo()
+    filled = np.full((H, W, 1), SKIN, np.float32)
+    out = EyeDetail(photo, shading, EYES).apply(filled, np.zeros((H, W)))
+    for iris, away in (((134, 50), (146, 50)), ((66, 50), (54, 50))):
+        assert out[iris[1], iris[0], 0] < 0.45 * SKIN, (iris, out[iris[1], iris[0], 0])
+        assert out[away[1], away[0], 0] > 0.85 * SKIN, (away, out[away[1], away[0], 0])
 
 
 def test_the_sockets_own_shading_is_not_taken_for_the_eyes_albedo():
@@ -66,7 +75,7 @@ def test_the_sockets_own_shading_is_not_taken_for_the_eyes_albedo():
     photo = (SKIN * shading)[..., None]
     filled = np.full((H, W, 1), SKIN, np.float32)
     trust = np.where(xx < 100, 0.0, 1.0)
-    out = EyeDetail(photo, shading, np.ones((H, W), bool), EYES, 1.0).apply(filled, trust)
+    out = EyeDetail(photo, shading, EYES, 1.0).apply(filled, trust)
     eye = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1
     assert np.abs(out[eye, 0] - SKIN).max() < 0.05 * SKIN, out[eye, 0].min()
 
@@ -81,7 +90,7 @@ def test_a_colour_photos_eye_comes_back_in_its_own_colour():
     left = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1.6**2
     filled = np.where(left[..., None], SKIN * skin_tint, photo3 / shading[..., None]).astype(np.float32)
     trust = np.where(left, 0.0, 1.0)
-    out = EyeDetail(photo3, shading, ~left, EYES, 1.0).apply(filled, trust)
+    out = EyeDetail(photo3, shading, EYES, 1.0).apply(filled, trust)
     assert out.shape == (H, W, 3)
     # the iris over the skin around it, per channel, as the lit eye shows it: 0.3 x iris / skin colour
     assert np.allclose(out[50, 66], 0.3 * SKIN * iris_tint, rtol=0.15), (out[50, 66], 0.3 * SKIN * iris_tint)
@@ -100,7 +109,7 @@ def test_a_ring_half_hair_gives_the_filled_eye_the_skins_colour_not_a_blend_of_c
     left = ((xx - EYES[0, 0]) / (EYE_AXES[0] * 80)) ** 2 + ((yy - EYES[0, 1]) / (EYE_AXES[1] * 80)) ** 2 < 1.6**2
     filled = np.where(left[..., None], SKIN * skin_tint, photo3 / shading[..., None]).astype(np.float32)
     filled[(xx < 56) & (yy > 40)] = (0.30, 0.16, 0.07)  # hair
-    out = EyeDetail(photo3, shading, ~left, EYES, 1.0).apply(filled, np.where(left, 0.0, 1.0))
+    out = EyeDetail(photo3, shading, EYES, 1.0).apply(filled, np.where(left, 0.0, 1.0))
     for x in (48, 54):  # the eye's skin, off the iris
         chroma = out[50, x] / out[50, x].sum()
         assert np.abs(chroma - skin_tint / skin_tint.sum()).max() < 0.01, (x, chroma)
