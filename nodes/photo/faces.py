@@ -156,11 +156,11 @@ def find_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:
     shows none, of the photo turned a half, a quarter and three quarters (a photo saved upside down or
     on its side), the first turn whose faces the detector is sure of (``SURE_DETECTION``), else the turn
     it is surest of, mapped back: such a face is placed turned, its eyes listed as they are when the face
-    is upright (image-left first then). When the detector is sure of
-    none of the upright faces (``SURE_DETECTION``), the photo turned a half is looked at too, and its
-    faces kept instead when the detector is surer of one of them (a face upside down meshes as one the
-    right way up, its nostrils for eyes). Faces are upright in nearly every photo, and trying every
-    turn of every candidate finds faces in a sleeve or a badge (a jacket's folds turned over)."""
+    is upright (image-left first then). When the detector is sure of none of the upright faces, the
+    photo turned a half is looked at too, and its faces kept instead when the detector is surer of one
+    of them (a face upside down meshes as one the right way up, its nostrils for eyes). Faces are
+    upright in nearly every photo, and trying every turn of every candidate finds faces in a sleeve or
+    a badge (a jacket's folds turned over)."""
     faces = upright_faces(rgb, min_iod)
     best = max((f.score for f in faces), default=-1.0)
     if best >= SURE_DETECTION:
@@ -243,12 +243,11 @@ def _inside(face: FoundFace, larger: FoundFace) -> bool:
 
 
 def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
-    """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put, and its
-    points the mean of the mesh's looks at that crop and at its mirror image (``face_mesh``'s
-    ``mirrored``); None when the first look or
-    the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts of a face, a pattern, pass the
-    first but not the second), when the mesh is surer of the crop turned upside down, or the eyes are
-    under ``SMALLEST_IOD`` apart."""
+    """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put, its points
+    the mean of the mesh's looks at that crop and at its mirror image (``face_mesh``'s ``mirrored``);
+    None when the first look or the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts
+    of a face, a pattern, pass the first but not the second), when the mesh is surer of the crop turned
+    upside down, or the eyes are under ``SMALLEST_IOD`` apart."""
     mesh, presence = face_mesh(rgb, roi)
     if presence < MIN_PRESENCE:
         return None

@@ -402,4 +402,5 @@ def mesh_mirror() -> np.ndarray:
     order = np.asarray(json.loads(MIRROR_FILE.read_text()), np.intp)
     if order.shape != (468,) or not np.array_equal(order[order], np.arange(468)):
         raise ValueError(f"{MIRROR_FILE}: not a mirror pairing of the mesh's 468 points")
+    order.flags.writeable = False  # shared by every call
     return order
