@@ -27,6 +27,7 @@ import numpy as np
 
 from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
+from ..photo.encoding import swapped_rb
 from ..photo.loader import InputError, read_photo
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
@@ -157,7 +158,7 @@ def _shown(source, max_pixels: int | None) -> np.ndarray | None:
         photo = read_photo(source, max_pixels=max_pixels)
     except (InputError, OSError, ValueError):
         return None
-    values = photo.colour[..., ::-1] if photo.colour is not None else photo.grey  # read as linear: the file's values
+    values = swapped_rb(photo.colour) if photo.colour is not None else photo.grey  # read as linear: the file's values
     return np.ascontiguousarray(np.clip(values * 255 + 0.5, 0, 255).astype(np.uint8))
 
 

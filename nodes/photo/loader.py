@@ -89,7 +89,7 @@ def _read_binary_pnm(data: bytes) -> tuple[np.ndarray, int] | None:
         return None
     samples = np.frombuffer(body, dtype).reshape((height, width, channels) if channels == 3 else (height, width))
     samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
-    return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
+    return (swapped_rb(samples) if channels == 3 else samples), maxval
 
 
 def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, int] | None:
@@ -111,7 +111,7 @@ def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, i
         return None
     samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
     samples = samples.reshape((height, width, 3) if channels == 3 else (height, width))
-    return (samples[..., ::-1].copy() if channels == 3 else samples), maxval
+    return (swapped_rb(samples) if channels == 3 else samples), maxval
 
 
 # a progressive JPEG is decoded scan by scan, each a pass over the whole image: encoders write 6 (grey) to 10 (colour)
