@@ -7,8 +7,11 @@ import json
 import time
 from contextlib import contextmanager
 
+import cv2
+
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
+from ...evaluation.people import contact_sheet, evaluate_people, format_table, json_rows, people_inputs, summarise as people_summary
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
 from ...evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS, evaluate_yaleb, format_report, summarise
 from ...method.nodes import CHOICES, MethodOptions
@@ -98,11 +101,35 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_eval_people(args: argparse.Namespace) -> int:
+    if not args.data:
+        raise ValueError("eval people needs --data DIR (a folder of photos, or one holding photos/ and clips/)")
+    items = people_inputs(args.data, args.clip_frames)
+    if not items:
+        raise ValueError(f"{args.data}: no photos or clips to evaluate")
+    model = model_arg(args.model)
+    t0 = time.perf_counter()
+    with _mapper(args.dask) as mapper:
+        rows = evaluate_people(items, model, MethodOptions(), mapper=mapper, thumbs=bool(args.sheet))
+    print(format_table(rows))
+    if args.sheet:
+        sheet = contact_sheet(rows, args.worst)
+        if sheet is not None:
+            ok, png = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+            atomic_write_bytes(args.sheet, png.tobytes())
+            print(f"written: {args.sheet}")
+    _write_report(args.json, {"data": str(args.data), "rows": json_rows(rows), "summary": people_summary(rows),
+                              "seconds": time.perf_counter() - t0})
+    return 0
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.dask is not None:
         parse_dask(args.dask)  # before any work
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
+    if args.benchmark == "people":
+        return cmd_eval_people(args)
 
     size = grid_size(args.size)
     at_least(args.n_test, 1, "--n-test")
@@ -145,9 +172,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def add_parser(sub) -> None:
     """``shadowflow eval``'s arguments."""
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
-    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb"], default="synthetic",
-                   help="synthetic (default): rendered faces of --source; yaleb: real photos in --data")
-    e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders")
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people"], default="synthetic",
+                   help="synthetic (default): rendered faces of --source; yaleb: real photos in --data; people: "
+                        "photos and clips of people in --data, scored without a reference (harm H, P)")
+    e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders; eval people: a folder "
+                   "of photos, or one holding photos/ and clips/")
+    e.add_argument("--clip-frames", type=int, default=3, metavar="N",
+                   help="eval people: frames taken from each clip (default 3; 0: none)")
+    e.add_argument("--sheet", metavar="PNG", help="eval people: write a contact sheet of the worst faces here")
+    e.add_argument("--worst", type=int, default=24, metavar="N", help="eval people: faces on the sheet (default 24)")
     e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
     e.add_argument("--model", help="ict | procedural | a model .npz (synthetic default: train one from "
                    "--train-source; yaleb default: ict)")

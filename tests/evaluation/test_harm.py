@@ -1,0 +1,100 @@
+"""The no-reference harm measure (``evaluation/harm.py``) on synthetic faces with known damage."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shadowflow.nodes.evaluation.harm import face_ellipse, harm, light_move
+from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
+
+EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart
+
+
+def _skin(seed: int = 0, shape=(400, 400)) -> np.ndarray:
+    """(H, W, 3) linear 'skin': a warm tone with pores' fine texture."""
+    rng = np.random.default_rng(seed)
+    tone = np.array([0.45, 0.3, 0.22], np.float32)
+    texture = 1.0 + 0.08 * rng.standard_normal(shape).astype(np.float32)
+    return tone * texture[..., None]
+
+
+def _disc(centre, radius, shape=(400, 400)) -> np.ndarray:
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]]
+    return (xx - centre[0]) ** 2 + (yy - centre[1]) ** 2 <= radius**2
+
+
+def test_the_ellipse_is_placed_by_the_eyes_and_follows_their_roll():
+    e = face_ellipse(EYES, (400, 400))
+    y0, _, x0, _ = e.box
+    rows, cols = np.nonzero(e.mask)
+    # 1 x 1.35 eye distances (semi-axes), centred 0.45 below the eyes' midpoint
+    assert cols.min() + x0 == pytest.approx(100, abs=1.5) and cols.max() + x0 == pytest.approx(300, abs=1.5)
+    assert rows.min() + y0 == pytest.approx(205 - 135, abs=1.5) and rows.max() + y0 == pytest.approx(205 + 135, abs=1.5)
+    # the same eyes given the other way round: the same ellipse; rolled by 90 degrees: the ellipse turns with them
+    assert np.array_equal(face_ellipse(EYES[::-1], (400, 400)).mask, e.mask)
+    rolled = face_ellipse(np.array([[200.0, 150.0], [200.0, 250.0]]), (400, 400))
+    r_rows, r_cols = np.nonzero(rolled.mask)
+    assert np.ptp(r_cols) > np.ptp(r_rows)  # longer across the image now
+
+
+def test_an_unchanged_face_or_a_smooth_change_of_light_is_no_harm():
+    photo = _skin()
+    assert harm(photo, photo, EYES).h == 0.0
+    yy, xx = np.mgrid[0:400, 0:400].astype(np.float32)
+    smooth = 0.6 + 0.9 * np.exp(-((xx - 120) ** 2 + (yy - 200) ** 2) / (2 * 150.0**2))  # a light from the left
+    relit = photo * smooth[..., None]
+    score = harm(photo, relit, EYES)
+    assert score.h < 1.5 and score.p == 0.0  # a light 2.5x brighter on one side than the other
+
+
+@pytest.mark.parametrize("damage", ["patch", "erased beard", "outline"])
+def test_patches_erased_texture_and_outlines_are_harm(damage):
+    photo = _skin(1)
+    beard = _disc((200, 300), 45)
+    photo[beard] *= 0.15  # a dark beard
+    relit = photo.copy()
+    if damage == "patch":  # a flat, brighter tone pasted over a cheek
+        relit[_disc((150, 230), 20)] = 0.7
+    elif damage == "erased beard":  # the beard taken for shadow and painted as skin
+        relit[beard] = np.array([0.45, 0.3, 0.22], np.float32)
+    else:  # the face relit 1.5x with a hard edge
+        relit[_disc((200, 205), 90)] *= 1.5
+    score = harm(photo, relit, EYES)
+    # one such flaw on a face: above what a person called good (1.0-4.1 %), each pixel of it a blotch (P)
+    assert score.h > 6.0, score
+    assert score.p > 2.0
+
+
+def test_halves_say_whether_a_face_is_lit_evenly():
+    photo = _skin(2)
+    assert harm(photo, photo, EYES).even
+    side = photo.copy()
+    side[:, :200] *= 1.4  # the image-left half 40 % brighter
+    score = harm(side, side, EYES)
+    assert not score.even and score.halves == pytest.approx(1.4, rel=0.02)
+
+
+def test_a_light_from_the_image_left_moves_the_light_left():
+    photo = _skin(3)
+    xx = np.mgrid[0:400, 0:400][1].astype(np.float32)
+    relit = photo * np.exp(0.004 * (200 - xx))[..., None]  # brighter toward the image's left
+    # each half's centroid lies 4 a / (3 pi) = 42 px from the axis: 2 x 0.004 x 42 apart in log (the blur, normalised
+    # over the ellipse, flattens the ramp at its edge a little)
+    assert light_move(photo, relit, EYES) == pytest.approx(2 * 0.004 * 400 / (3 * np.pi), rel=0.1)
+    darker_left = photo * np.exp(0.004 * (xx - 200))[..., None]
+    assert light_move(photo, darker_left, EYES) == pytest.approx(-2 * 0.004 * 400 / (3 * np.pi), rel=0.1)
+
+
+def test_the_summary_counts_evenly_lit_faces_and_the_ones_called_ok_that_are_harmed():
+    rows = [{"photo": "a.jpg", "face": 1, "status": "ok", "h": 2.0, "p": 0.0, "halves": 1.05, "even": True, "move": 0.6},
+            {"photo": "a.jpg", "face": 2, "status": "ok", "h": 15.0, "p": 6.0, "halves": 1.1, "even": True, "move": 0.4},
+            {"photo": "b.jpg", "face": 1, "status": "doubtful", "h": 30.0, "p": 9.0, "halves": 1.5, "even": False,
+             "move": 0.2, "reason": "x"},
+            {"photo": "c.jpg", "face": 1, "status": "refused", "reason": "turned"},
+            {"photo": "d.jpg", "face": 0, "status": "refused", "reason": "no face found"}]
+    s = summarise(rows)
+    assert (s["faces"], s["relit"], s["refused"], s["doubtful"], s["inputs_refused"]) == (4, 3, 1, 1, 1)
+    assert s["even"] == 2 and s["even_h_median"] == pytest.approx(8.5) and s["even_ok_over_bad"] == 1
+    assert s["ok_over_bad"] == 1 and s["move_median"] == pytest.approx(0.4)
+    assert "evenly lit (halves within 15 %): 2 faces" in format_table(rows)
+    assert contact_sheet(rows) is None  # no thumbnails kept
