@@ -37,6 +37,7 @@ from ..method.nodes import MethodOptions, photo_nodes
 from ..method.products import input_grid_products, relit_photos
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment, normals_to_input, normals_to_model
+from ..photo.loader import read_photo
 from .photometric_stereo import register_translation, render
 from .yaleb import YaleSubject, build_ground_truth
 
@@ -181,10 +182,18 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.count_nonzero(a & b) / union) if union else float("nan")
 
 
+# the lights the frontal photo is relit toward and scored against the real photos under them (``frontal_self_relight``)
+TOWARD_LIGHTS = ((50, 0), (-50, 0))
+
+
 def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: MethodOptions) -> dict:
     """The frontal photo relit frontally with its true light: how much of the photo survives (PSNR
-    against itself, gain-corrected, over the face; and the share of its gradient energy kept)."""
-    chain = Chain(photo_nodes(model, options))
+    against itself, gain-corrected, over the face; and the share of its gradient energy kept); and relit
+    toward each of ``TOWARD_LIGHTS`` against the real photo under that light (``toward``: PSNR after a
+    gain, over the face where stereo has normals, the relit photo moved onto that photo's place), beside the
+    frontal photo itself scored so (``toward_input``)."""
+    lights = tuple(light_from_angles(az, el) for az, el in TOWARD_LIGHTS)
+    chain = Chain(photo_nodes(model, dataclasses.replace(options, extra_lights=lights)))
     frame = chain.process(Frame(0, str(subject.image_path(0, 0))))
     if not frame.ok:
         raise RuntimeError(frame.status)
@@ -199,8 +208,17 @@ def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: Metho
         gy, gx = np.gradient(np.asarray(img, np.float64))
         return float(np.sum((gx**2 + gy**2)[inner]))
 
+    toward, toward_input = {}, {}
+    frontal_shift = stereo_shift(subject, subject.frontal, light_from_angles(0, 0))
+    for (az, el), light, (_, image) in zip(TOWARD_LIGHTS, lights, out["relit_extra"]):
+        real = read_photo(subject.image_path(az, el)).grey
+        dx, dy = camera_shift(subject, real, light, frontal_shift)  # real -> frontal; the relit goes back
+        name = f"{az:+d},{el:+d}"
+        toward[name] = relight_scores(translate(image, (-dx, -dy)), real, region)[0]
+        toward_input[name] = relight_scores(photo, real, region)[0]
     return {"subject": subject.name, "psnr": relight_scores(relit, photo, region)[0],
-            "gradient_energy": energy(gain * relit) / max(energy(photo), 1e-12)}
+            "gradient_energy": energy(gain * relit) / max(energy(photo), 1e-12),
+            "toward": toward, "toward_input": toward_input}
 
 
 def clean_render(subject: YaleSubject, photo: np.ndarray, light: np.ndarray) -> np.ndarray:
@@ -389,5 +407,11 @@ def format_report(report: dict, summary: list[dict]) -> str:
                      f"{np.mean([r['ssim'] for r in rows]):.3f}; normals {np.mean([r['err'] for r in rows]):.2f} deg")
     lines += [f"{r['subject']:8} {r['light']:>7} left out: {r['skipped']}" for r in report.get("skipped", [])]
     lines += [f"{f['subject']:8} frontal photo relit frontally: {f['psnr']:.2f} dB, "
-              f"{100 * f['gradient_energy']:.1f} % of its gradient energy" for f in report["frontal"]]
+              f"{100 * f['gradient_energy']:.1f} % of its gradient energy; relit toward "
+              + ", ".join(f"{k}: {v:.2f} dB (the photo itself {f['toward_input'][k]:.2f})" for k, v in f["toward"].items())
+              for f in report["frontal"]]
+    if report["frontal"]:
+        toward = [v for f in report["frontal"] for v in f["toward"].values()]
+        lines.append(f"the frontal photos relit toward {', '.join(report['frontal'][0]['toward'])}: "
+                     f"{np.mean(toward):.2f} dB on average (against the real photos)")
     return "\n".join(lines)
