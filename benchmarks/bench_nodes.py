@@ -13,7 +13,8 @@ import statistics
 from shadowflow.flow import Chain
 from shadowflow.nodes.evaluation.scenes import render_scene
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid
+from shadowflow.nodes.method.nodes import MethodOptions, on_model_grid
+from shadowflow.nodes.relight.nodes import face_nodes
 from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.sources import procedural
 
@@ -25,7 +26,7 @@ def main() -> None:
     ap.add_argument("--json")
     args = ap.parse_args()
     model = default_model()
-    chain = Chain(method_nodes(model, MethodOptions()))
+    chain = Chain(face_nodes(model, MethodOptions()))
     s = light_from_angles(args.angle)
     depths, albedos = procedural(args.repeats, seed=99)
     rows = []

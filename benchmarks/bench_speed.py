@@ -32,7 +32,8 @@ from shadowflow.flow import Chain  # noqa: E402
 from shadowflow.nodes.evaluation.scenes import render_scene  # noqa: E402
 from shadowflow.nodes.geometry.normals import angle_deg  # noqa: E402
 from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid  # noqa: E402
+from shadowflow.nodes.method.nodes import MethodOptions, on_model_grid
+from shadowflow.nodes.relight.nodes import face_nodes  # noqa: E402
 from shadowflow.nodes.method.robust_fit import FitConfig, fit  # noqa: E402
 from shadowflow.nodes.model.shape_model import train_shape_model  # noqa: E402
 from shadowflow.nodes.model.sources import load_source  # noqa: E402
@@ -60,7 +61,7 @@ def run(grid: int, ks: list[int], frames: int, repeats: int, naive_max_grid: int
     rows = []
     for k in ks:
         model = full.truncated(k)
-        chain = Chain(method_nodes(model, MethodOptions()))
+        chain = Chain(face_nodes(model, MethodOptions()))
         timings, errors = [], []
         for d in tests:
             sc = render_scene(d, 1.0, s, model.mask)

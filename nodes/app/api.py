@@ -20,12 +20,14 @@ import numpy as np
 from ...flow.chain import Chain
 from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
-from ..method.nodes import MethodOptions, photo_nodes
-from ..method.products import input_grid_products, photo_mesh, relit_photos
+from ..method.nodes import MethodOptions
+from ..method.products import input_grid_products, photo_mesh
 from ..method.turned import face_model
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, checked_light, parse_light
+from ..relight.nodes import photo_nodes
+from ..relight.products import relit_photos
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees

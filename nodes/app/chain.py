@@ -5,7 +5,8 @@ from pathlib import Path
 from typing import MutableSet
 
 from ...flow.recording import Recorder
-from ..method.nodes import MethodOptions, photo_nodes
+from ..method.nodes import MethodOptions
+from ..relight.nodes import photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode
 from .record import FitRecorder, RecordNode

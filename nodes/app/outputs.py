@@ -20,7 +20,8 @@ from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ..geometry.reflectance import light_tag
 from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
-                               photo_mesh, relit_lights, relit_photo_8bit)
+                               photo_mesh)
+from ..relight.products import relit_lights, relit_photo_8bit
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..method.quality import NO_FACE
 from ..photo.align import Alignment, scalar_to_input

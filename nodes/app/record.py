@@ -20,7 +20,6 @@ from ..method.nodes import (
     FacesNode,
     IntegrateNode,
     LoadNode,
-    PhotoRelightNode,
     QualityNode,
     RelightNode,
     RemapNode,
@@ -32,6 +31,7 @@ from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..method.turned import face_model
 from ..model.shape_model import ShapeModel
+from ..relight.nodes import PhotoRelightNode
 
 # The method's channel names (``channels.py``), for the engine's replay (``flow/replay`` knows none of them).
 # the columns of ``replay``'s table: the final robust scale, the mean residual from the first iteration to the last

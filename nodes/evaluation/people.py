@@ -25,11 +25,13 @@ from ...flow.chain import Chain
 from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.reflectance import light_from_angles
-from ..method.nodes import MethodOptions, photo_nodes
-from ..method.products import photo_channels, relit_photos
+from ..method.nodes import MethodOptions
+from ..method.products import photo_channels
 from ..model.shape_model import ShapeModel
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
-from .harm import harm, light_move
+from ..relight.harm import harm, light_move
+from ..relight.nodes import photo_nodes
+from ..relight.products import relit_photos
 
 SIDE_LIGHT = (45, 0)  # azimuth, elevation (degrees; azimuth toward the image's left, as Yale B's)
 BAD_H = 12.0  # %: a face this harmed was visibly damaged (a person's verdicts: bad faces 14-48 %)

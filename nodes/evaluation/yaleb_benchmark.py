@@ -33,11 +33,13 @@ from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.normals import angle_deg
 from ..geometry.reflectance import lambertian, light_from_angles
-from ..method.nodes import MethodOptions, photo_nodes
-from ..method.products import input_grid_products, relit_photos
+from ..method.nodes import MethodOptions
+from ..method.products import input_grid_products
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment, normals_to_input, normals_to_model
 from ..photo.loader import read_photo
+from ..relight.nodes import photo_nodes
+from ..relight.products import relit_photos
 from .photometric_stereo import register_translation, render
 from .yaleb import YaleSubject, build_ground_truth
 

@@ -82,6 +82,7 @@ META: dict[str, tuple[str, str]] = {
     "iterations": ("fit iterations", "robust_fit"),
     "converged": ("whether the fit met its stopping rule", "robust_fit"),
     "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
+    "relight": ("what the face's relighting did under the first light: exposure, painted share, lift's 95th percentile", "relight_photo"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
     "card": ("``report.CardPictures``: the report's pictures of the photo, made while it was held; taken by the "

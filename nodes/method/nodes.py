@@ -6,34 +6,31 @@ photo, ``on_model_grid`` makes the frame of an image already on the model grid.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
-from ...flow.parts import EachPart
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
 from ..geometry.reflectance import light_tag
 from ..model.shape_model import ShapeModel
 from ..photo.align import IDENTITY, Alignment, to_model_grid
 from ..photo.cover import covered_on_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
+from ..photo.evenness import evenly_lit
 from ..photo.given import given_eyes, known_light
 from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
-from ..photo.mediapipe import person_share
 from ..photo.placement import FacePlacement, face_on_grid, features_on_grid, model_box, place_faces
+from ..photo.skin import skin
 from .albedo import FILL_CEILING, estimate_albedo
-from .eye_detail import CONTRAST as EYE_CONTRAST
-from .face_relight import FILL_DETAIL, FaceRelight, albedo_on_grid
 from .light import light_on_face
-from .photo_relight import skin
 from .products import photo_channels
 from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, grown_region, unread_weights
-from .relight import FRONTAL, novel_view, relight, resample_surface
+from .relight import FRONTAL, relight
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import NEAR_CAST_MOUTH, confirm_with_image, far_darker, near_cast, shadow_maps
-from .turned import ViewChoiceNode, face_model, turned_placements
+from .turned import face_model, turned_placements
 
 INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 HAIR_BELOW_EYES = 0.25  # interocular distances below the eyes' row that hair over a temple may reach
@@ -76,13 +73,13 @@ class MethodOptions:
     extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
     novel_yaw_deg: float = 45.0
     novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
-    # the lit eye's detail put into eyes whose albedo was filled, at this contrast (``eye_detail``); 0: off
-    eye_contrast: float = EYE_CONTRAST
+    # the lit eye's detail put into an eye a fill paints, at this contrast (``relight.eyes``); 0: off
+    eye_contrast: float = 1.0
     # the detail the lit side of a frontal face shows, seen across its midline, put into the fill of its shadowed
-    # side at this strength (``face_relight.mirrored_detail``); 0: the fit's smooth map alone
-    fill_detail: float = FILL_DETAIL
+    # side at this strength (``relight.face.FaceRelight``'s fill); 0: the fit's smooth map alone
+    fill_detail: float = 1.0
     # the side of a frontal face its light reaches less: its albedo raised toward its mirror's level, at this
-    # strength (``photo_relight.mirror_lift``); 0: measured as it is
+    # strength (``relight.albedo.mirror_raise``); 0: measured as it is
     mirror_lift: float = 1.0
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
@@ -532,89 +529,6 @@ class RelightNode:
         return frame
 
 
-class NovelViewNode:
-    """The surface turned ``novel_yaw_deg`` about the vertical axis (``relight.novel_view``), with the
-    albedo measured on the photo (colour for a colour photo: ``photo_albedo``, brought to the model grid):
-    the face within its own outline, not the hair, ears or background the model grid reaches beyond it."""
-
-    name = "novel_view"
-
-    def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
-
-    def __call__(self, frame: Frame) -> Frame:
-        d = frame.data
-        albedo, depth = d["albedo"], d["depth"]
-        if "photo_albedo" in d:
-            measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"], face_model(frame, self.model).grid)
-            depth = np.where(np.isfinite(measured[..., 0]), depth, np.nan)
-            albedo = measured[..., 0] if measured.shape[-1] == 1 else measured
-        if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
-            depth, albedo = resample_surface(depth, albedo, self.options.novel_size)
-        d["novel_view"] = novel_view(depth, albedo, self.options.novel_yaw_deg)
-        return frame
-
-
-class PhotoRelightNode:
-    """The face relit at the photo's own resolution, in colour when the input is (``face_relight``),
-    all of it in the box around the face (plus the feather): the albedo and shadows there
-    (``photo_albedo``, ``photo_shadow``, ``photo_box``), and one ``FaceLayer`` per light
-    (``relight_light``, then each of ``extra_lights``) for ``compose`` to put into the photo. The
-    face's own exposure is kept, and nothing beyond the face's feather changes."""
-
-    name = "relight_photo"
-
-    def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
-
-    def __call__(self, frame: Frame) -> Frame:
-        d = frame.data
-        face = self.face_relight(frame)
-        layers = [(np.asarray(light, np.float64), face.layer(light))
-                  for light in (self.options.relight_light, *self.options.extra_lights)]
-        d.update(photo_box=face.box, photo_albedo=face.albedo, photo_shadow=face.shadow, photo_layers=layers)
-        d["live"] = face.live_data(frame.meta.get("encoding", "linear"))
-        return frame
-
-    def face_relight(self, frame: Frame) -> FaceRelight:
-        """The frame's entries as ``FaceRelight``'s arrays."""
-        d, m = frame.data, face_model(frame, self.model)
-        al: Alignment = d["alignment"]
-        placement: FacePlacement | None = d.get("placement")
-        meshed = placement is not None and bool(placement.outlines)
-        # only eyes the face mesh found in the photo get their detail back; its eye openings, not the model's
-        # eye points (only where the placement put the iris centres)
-        eyes = None
-        if d.get("eyes_found") in ("detected", "mesh only"):
-            eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
-        # a frontal or tilted face's symmetry axis: the model's, across its eyes' midpoint; a turned face's mirror is
-        # a map on the model grid, which the fit's albedo uses: its photo gets no detail from across the face
-        iod = m.iod  # model pixels
-        midline = None
-        if m.mirrors_by_column:
-            centre = np.mean(m.eyes, axis=0)
-            midline = al.points_to_input(np.array([centre, centre + [0.0, iod]]))
-        return FaceRelight(
-            photo=photo_channels(frame), grey=d["image"], alignment=al,
-            mask=m.mask, normals=shading_normals(frame), lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"],
-            light=d["light"], iod_px=iod * al.scale, outline=placement.outlines["oval"][0] if meshed else None,
-            eyes=eyes, eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
-            mirror_lift=self.options.mirror_lift,
-            features=[o for part in ("eyes", "brows", "lips", "mouth") for o in placement.outlines.get(part, [])]
-            if meshed else None,
-            segment=person_segmenter(frame.meta.get("encoding", "linear")),
-            hair=covered_above_eyes(frame, m), near=d["shadow"].near,
-            brows=placement.outlines.get("brows") if meshed else None,
-            eye_outlines=placement.outlines.get("eyes") if meshed else None)
-
-
-def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:
-    """(h, w, C) linear photo -> (h, w) how sure MediaPipe's selfie segmentation is that each pixel is the person
-    (``mediapipe.person_share``), the photo shown to it as its file holds it (sRGB-encoded for an sRGB photo)."""
-    to_display = linear_to_srgb if encoding == "srgb" else None
-    return lambda linear: person_share(linear, to_display)
-
-
 class QualityNode:
     """Is there a face and did the fit work (``quality``): ``meta["quality"]`` holds the score,
     flags and signals; a frame with no face fails with that reason."""
@@ -646,7 +560,8 @@ class QualityNode:
                    doubts=placement.doubts if placement is not None else (),
                    plausible=placement.plausible if placement is not None else True,
                    presence=placement.presence if placement is not None else None,
-                   detection=placement.face.score if placement is not None and placement.face is not None else None)
+                   detection=placement.face.score if placement is not None and placement.face is not None else None,
+                   even=evenly_lit(photo_channels(frame), None if placement is None else placement.eyes))
         q.signals["covered"] = float(np.mean(unread[seen])) if seen.any() else 0.0  # hair the fit left out
         frame.meta["quality"] = q.record()
         if q.no_face:
@@ -656,7 +571,8 @@ class QualityNode:
 
 def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
                  with_views: bool = True) -> list:
-    """The nodes after loading, in order: remap .. relight (``with_views=False`` stops after albedo);
+    """The method's nodes after loading, in order: remap .. quality, then the model grid's relit face
+    (``with_views=False`` stops after the quality);
     ``observer`` goes to the fit node."""
     nodes = [
         RemapNode(model, options.fit.solver != "paper", options.fit.saturation, scale=options.remap),
@@ -669,19 +585,6 @@ def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserve
         # before the relighting: a frame with no face fails without paying for it
         QualityNode(model, options.fit.huber_k),
     ]
-    if with_views:
-        nodes += [RelightNode(options), PhotoRelightNode(model, options), NovelViewNode(model, options)]
+    if with_views:  # the model grid's relit face; the photo's is the relighting's (``relight.nodes``)
+        nodes.append(RelightNode(options))
     return nodes
-
-
-def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
-                with_views: bool = True, after: tuple = ()) -> list:
-    """The whole chain for a photo: load, find its faces, the method on each face (``method_nodes``,
-    then each of ``after``, e.g. recording). With ``with_views`` each face's relit layers are made
-    (``photo_layers``); the photo relit with every face is made from them when asked
-    (``products.relit_photo``)."""
-    faces = FacesNode(model, options)
-    # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
-    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3])
-    per_face = [choice, *method_nodes(model, options, observer, with_views), *after]
-    return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]

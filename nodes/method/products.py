@@ -1,6 +1,6 @@
 """A face's products mapped from the model grid back onto the input photo's pixel grid
-(``conventions.md``): what the output files hold and what benchmarks on photos score; and the
-photo relit with every face (``relit_photos``)."""
+(``conventions.md``): what the output files hold and what benchmarks on photos score. The photo relit
+with every face is the relighting's (``relight.products``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,7 +11,6 @@ from ..model.shape_model import ShapeModel
 from ..photo.align import face_box, mask_to_input, normals_to_input, reach_margin, scalar_to_input
 from ..photo.encoding import linear_to_srgb
 from ..photo.placement import outline_on_grid
-from .photo_relight import FaceLayer, compose
 from .relight import surface_mesh
 from .turned import face_model
 
@@ -127,25 +126,15 @@ def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = No
     photo, NaN off the face, in the photo's encoding; relit: the photo relit by ``relight_light`` (H,
     W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)``
     for each of ``extra_lights``. frame: the face's frame; relit: the photo's relit images with every
-    face (``relit_photos`` of the photo's frame), default this face's alone."""
+    face (``relight.products.relit_photos`` of the photo's frame), or None: no relit images."""
     model = face_model(frame, model)
     shape = frame.data["image"].shape[:2]
     box, products = face_products(frame, model)
-    relit = relit_photos(frame) if relit is None else relit
-    return {**{name: on_photo(values, box, shape) for name, values in products.items()},
-            "relit": squeeze_channels(relit[0][1]),
-            "relit_extra": [(light, squeeze_channels(r)) for light, r in relit[1:]]}
-
-
-def relit_lights(frame: Frame) -> list[np.ndarray]:
-    """The lights the frame's photo is relit by (``relight_light``, then each of ``extra_lights``), (3,) each."""
-    return [light for light, _ in _relit_faces(frame)[0].data["photo_layers"]]
-
-
-def _relit_faces(frame: Frame) -> list[Frame]:
-    """The faces whose layers go into the photo: its parts that came through (a frame of one face without
-    parts: its own)."""
-    return [p for p in frame.parts if p.ok and "photo_layers" in p.data] or [frame]
+    out = {name: on_photo(values, box, shape) for name, values in products.items()}
+    if relit:
+        out.update(relit=squeeze_channels(relit[0][1]),
+                   relit_extra=[(light, squeeze_channels(r)) for light, r in relit[1:]])
+    return out
 
 
 def photo_channels(frame: Frame) -> np.ndarray:
@@ -153,45 +142,6 @@ def photo_channels(frame: Frame) -> np.ndarray:
     grey with a channel axis (C = 1)."""
     d = frame.data
     return d["colour"] if "colour" in d else d["image"][..., None]
-
-
-def relit_photo(frame: Frame, index: int) -> np.ndarray:
-    """(H, W, C) float32 in [0, 1]: the frame's photo relit by its ``index``-th light (``relit_lights``), the
-    layers of every face that came through composed in, in the photo's own encoding (``meta["encoding"]``):
-    the relighting is done in linear light, and an sRGB photo's pixels no face changes keep the file's
-    values exactly. Made when asked, not kept: a 4-megapixel photo relit is 48 MB."""
-    if frame.meta.get("encoding", "linear") != "srgb":
-        return compose(photo_channels(frame), _layers(frame, index))
-    (y0, y1, x0, x1), encoded = _encoded_faces(frame, index)
-    image = photo_8bit(frame).astype(np.float32)
-    image /= np.float32(255.0)
-    image[y0:y1, x0:x1] = encoded
-    return image
-
-
-def relit_photo_8bit(frame: Frame, index: int) -> np.ndarray:
-    """(H, W, C) uint8 RGB (C = 1 for grey): ``relit_photo`` as its PNG holds it (rounded), made without the
-    float copy of the whole photo where it can be: an sRGB photo's file values with its faces' box encoded in."""
-    if frame.meta.get("encoding", "linear") != "srgb":
-        return to_8bit(relit_photo(frame, index))
-    (y0, y1, x0, x1), encoded = _encoded_faces(frame, index)
-    image = photo_8bit(frame).copy()
-    image[y0:y1, x0:x1] = to_8bit(encoded)
-    return image
-
-
-def _layers(frame: Frame, index: int) -> list[FaceLayer]:
-    """The ``index``-th light's layer of every face that came through."""
-    return [f.data["photo_layers"][index][1] for f in _relit_faces(frame)]
-
-
-def _encoded_faces(frame: Frame, index: int) -> tuple[tuple[int, int, int, int], np.ndarray]:
-    """An sRGB photo's faces relit by its ``index``-th light: ``(box, values)``, the box ``(y0, y1, x0, x1)``
-    around every face's layer and the photo there with the layers composed in linear light, sRGB-encoded
-    (h, w, C) float32. Beyond the box the relit photo is the file's values."""
-    layers = _layers(frame, index)
-    y0, y1, x0, x1 = _around(layers)
-    return (y0, y1, x0, x1), linear_to_srgb(compose(photo_channels(frame)[y0:y1, x0:x1], _shifted(layers, y0, x0)))
 
 
 def photo_8bit(frame: Frame) -> np.ndarray:
@@ -203,12 +153,6 @@ def photo_8bit(frame: Frame) -> np.ndarray:
     return to_8bit(photo)
 
 
-def relit_photos(frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(light, relit_photo)`` for each of the frame's lights (``relit_lights``): all of them at once, for
-    callers that want them held (the API, benchmarks); a run writes them one at a time."""
-    return [(light, relit_photo(frame, i)) for i, light in enumerate(relit_lights(frame))]
-
-
 def to_8bit(values: np.ndarray) -> np.ndarray:
     """[0, 1] floats -> uint8, rounded (NaN as 0)."""
     return np.clip(np.nan_to_num(values) * np.float32(255.0) + np.float32(0.5), 0, 255).astype(np.uint8)
@@ -217,18 +161,6 @@ def to_8bit(values: np.ndarray) -> np.ndarray:
 def _file_values(photo: np.ndarray, rgb8: np.ndarray) -> np.ndarray:
     """The file's own 8-bit values with the photo's channels: (H, W, 3), or (H, W, 1) for a grey photo."""
     return rgb8 if rgb8.shape[-1] == photo.shape[-1] else rgb8[..., :1]
-
-
-def _around(layers: list[FaceLayer]) -> tuple[int, int, int, int]:
-    """The box ``(y0, y1, x0, x1)`` around every layer's box."""
-    return (min(layer.box[0] for layer in layers), max(layer.box[1] for layer in layers),
-            min(layer.box[2] for layer in layers), max(layer.box[3] for layer in layers))
-
-
-def _shifted(layers: list[FaceLayer], y0: int, x0: int) -> list[FaceLayer]:
-    """The layers with their boxes in a crop whose corner is ``(y0, x0)``."""
-    return [FaceLayer((b[0] - y0, b[1] - y0, b[2] - x0, b[3] - x0), layer.inside, layer.relit, layer.gain, layer.alpha)
-            for layer in layers for b in [layer.box]]
 
 
 def in_encoding(frame: Frame, linear: np.ndarray) -> np.ndarray:

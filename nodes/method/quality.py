@@ -37,6 +37,8 @@ NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it ho
 # thresholds set between real and rendered faces (good) and the hostile corpus of tests/method/test_quality.py
 # (bad); what each side measured: docs/tuning.md, "Quality"
 MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness
+# ... which an evenly lit face (its eyes found) is not asked to: its score takes at least this for it
+EVEN_EXPLAINED = 0.7
 NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much to count as a face
 # a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a
 # face); under MIN_EXPLAINED, doubtful
@@ -122,18 +124,22 @@ def unread_weights(intensity: np.ndarray, model_normals: np.ndarray, light: np.n
 
 def assess(eyes: str, explained: float, downweighted: float, clipped: float, inside: float,
            doubts: tuple[str, ...] = (), plausible: bool = True, presence: float | None = None,
-           detection: float | None = None) -> Quality:
+           detection: float | None = None, even: bool = False) -> Quality:
     """The score and flags of one frame from its signals (module docstring); ``doubts``: what the
     face's placement found wrong (``photo.placement``), each a flag; ``plausible``: whether its
     landmarks have a face's proportions; ``presence``, ``detection``: the face mesh's and the face
-    detector's scores for a found face (None: not found by them)."""
+    detector's scores for a found face (None: not found by them); ``even``: the face is lit evenly from side to
+    side (``photo.evenness``): a soft or frontal light leaves little shading, and how little of it the fit explains
+    says nothing of the fit (such faces were called doubtful for it, and the score took it as a bad fit)."""
     signals = {"eyes": eyes, "explained": explained, "downweighted": downweighted, "clipped": clipped,
-               "inside": inside}
+               "inside": inside, "even": even}
     flags = list(doubts)
     if eyes == "none":
         flags.append("no eyes found")
-    if explained < MIN_EXPLAINED:
+    if explained < MIN_EXPLAINED and not (even and eyes != "none"):
         flags.append(f"the fitted face explains {100 * max(explained, 0):.0f} % of the image's shading")
+    if even and eyes != "none":
+        explained = max(explained, EVEN_EXPLAINED)
     if downweighted > MAX_DOWNWEIGHTED:
         flags.append(f"{100 * downweighted:.0f} % of the face down-weighted")
     if clipped > MAX_CLIPPED:
@@ -146,7 +152,9 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     score *= 1.0 - max(0.0, clipped - 0.05)
     score *= min(1.0, inside / MIN_INSIDE) ** 4
     score *= 0.5 ** len(flags)  # a doubtful frame never outscores a clean one of the same fit
-    return Quality(score, flags, signals, _no_face(eyes, explained, doubts, plausible, presence, detection))
+    no_face = _no_face(eyes, signals["explained"], doubts, plausible, presence, detection)
+    # a frame that holds no face has no result to trust, however even its light
+    return Quality(0.0 if no_face else score, flags, signals, no_face)
 
 
 def _no_face(eyes: str, explained: float, doubts: tuple[str, ...], plausible: bool, presence: float | None,

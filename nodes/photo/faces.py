@@ -22,7 +22,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .mediapipe import detect_faces, face_mesh, roi_from_detection, roi_from_mesh, Roi
+from .mediapipe import Roi, detect_faces, face_mesh, mesh_mirror, roi_from_detection, roi_from_mesh
 
 # outlines, in order around each part
 EYES = ((33, 7, 163, 144, 145, 153, 154, 155, 133, 173, 157, 158, 159, 160, 161, 246),
@@ -30,6 +30,8 @@ EYES = ((33, 7, 163, 144, 145, 153, 154, 155, 133, 173, 157, 158, 159, 160, 161,
 BROWS = ((70, 63, 105, 66, 107, 55, 65, 52, 53, 46), (300, 293, 334, 296, 336, 285, 295, 282, 283, 276))
 LIPS = (61, 146, 91, 181, 84, 17, 314, 405, 321, 375, 291, 409, 270, 269, 267, 0, 37, 39, 40, 185)
 MOUTH = (78, 95, 88, 178, 87, 14, 317, 402, 318, 324, 308, 415, 310, 311, 312, 13, 82, 81, 80, 191)  # inner lips
+# the image-left nostril's opening (the other's is its mirror: ``mediapipe.mesh_mirror``)
+NOSTRIL = (166, 79, 239, 238, 20, 60, 99, 240, 75)
 OVAL = (10, 338, 297, 332, 284, 251, 389, 356, 454, 323, 361, 288, 397, 365, 379, 378, 400, 377, 152, 148, 176,
         149, 150, 136, 172, 58, 132, 93, 234, 127, 162, 21, 54, 103, 67, 109)
 
@@ -143,10 +145,13 @@ class FoundFace:
 
     def outlines(self) -> dict[str, list[np.ndarray]]:
         """The parts' outlines, each (n, 2) photo pixels in order: ``eyes`` (two), ``brows`` (two),
-        ``lips`` (the outer edge), ``mouth`` (the inner edge: teeth and the mouth's inside), ``oval``."""
+        ``lips`` (the outer edge), ``mouth`` (the inner edge: teeth and the mouth's inside), ``nostrils`` (two),
+        ``oval``."""
         p = self.mesh[:, :2]
+        nostril = list(NOSTRIL)
         return {"eyes": [p[list(e)] for e in EYES], "brows": [p[list(b)] for b in BROWS], "lips": [p[list(LIPS)]],
-                "mouth": [p[list(MOUTH)]], "oval": [p[list(OVAL)]]}
+                "mouth": [p[list(MOUTH)]], "nostrils": [p[nostril], p[mesh_mirror()[nostril]]],
+                "oval": [p[list(OVAL)]]}
 
 
 def find_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:

@@ -123,8 +123,8 @@ def test_a_colour_photo_comes_back_a_colour_photo_of_its_size_with_the_face_reli
     assert saved.shape == (h, w, 3)
     # the sRGB photo is relit in linear light as a linear one is, the face's inner feather included, and
     # its 8-bit file is that rounded: the file's own values beyond the face's box
-    from shadowflow.nodes.method.photo_relight import compose
-    from shadowflow.nodes.method.products import relit_photo, relit_photo_8bit
+    from shadowflow.nodes.relight.compose import compose
+    from shadowflow.nodes.relight.products import relit_photo, relit_photo_8bit
     from shadowflow.nodes.photo.encoding import linear_to_srgb
 
     whole = result.photo

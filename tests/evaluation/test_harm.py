@@ -1,10 +1,10 @@
-"""The no-reference harm measure (``evaluation/harm.py``) on synthetic faces with known damage."""
+"""The no-reference harm measure (``relight/harm.py``) and the people evaluation's table and sheet on synthetic faces with known damage."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from shadowflow.nodes.evaluation.harm import face_ellipse, harm, light_move
+from shadowflow.nodes.relight.harm import face_ellipse, harm, light_move
 from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
 
 EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart

@@ -81,10 +81,11 @@ def test_a_head_tilted_20_degrees_is_fitted_with_its_pitched_view_and_one_tilted
     for render, result, score in pitched:
         assert result.faces[0]["status"] == "ok" and result.faces[0]["model_view"]["pitch"] == -20.0
     # a head tilted, not turned, mirrors about its midline as a frontal one: the fill takes the detail across it
-    from shadowflow.nodes.method.nodes import MethodOptions, PhotoRelightNode
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.relight.nodes import PhotoRelightNode
 
     relight = PhotoRelightNode(default_model(), MethodOptions()).face_relight(pitched[0][1].frame)
-    assert relight.axis is not None and relight.fill_detail > 0 and relight.lift_reach is not None
+    assert relight.mirror_raise is not None and relight.seen.max() > 0.5
     render, result, _ = _run(basis, ids[0], (0.0, -50.0))
     assert result.faces[0]["status"].startswith("doubtful") and "tilted -4" in result.faces[0]["status"]
     # a model without pitched views (not ICT's: no turned heads to build) fits it frontally, and says so

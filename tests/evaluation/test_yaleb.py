@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from conftest import SHARED
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.products import relit_photo
+from shadowflow.nodes.relight.products import relit_photo
 
 YALEB = SHARED / "data" / "yaleb"
 
@@ -117,7 +117,8 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
     alone: 0.48-0.89)."""
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
-    from shadowflow.nodes.method.nodes import MethodOptions, photo_nodes
+    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.relight.nodes import photo_nodes
     from shadowflow.nodes.model.default_model import default_model
 
     subjects = sorted(YALEB.glob("yaleB*"))
@@ -237,7 +238,7 @@ def test_yaleb_the_fill_takes_no_detail_from_across_the_face_beside_its_axis(yal
     0.05 interocular distances of the axis the fill is the smooth one; 0.25-0.6 out it takes the detail."""
     import shadowflow
     from shadowflow.nodes.method.nodes import MethodOptions
-    from shadowflow.nodes.method.photo_relight import axis_distance
+    from shadowflow.nodes.relight.albedo import axis_distance
     from shadowflow.nodes.method.turned import face_model
     from shadowflow.nodes.model.default_model import default_model
 

@@ -6,7 +6,8 @@ from shadowflow.flow.frame import Frame
 from shadowflow.nodes.evaluation.scenes import render_scene, write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method import keys
-from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions, method_nodes, on_model_grid
+from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions, on_model_grid
+from shadowflow.nodes.relight.nodes import face_nodes
 from shadowflow.nodes.model.sources import procedural
 
 
@@ -37,14 +38,14 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     photo_frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(model, options), FacesNode(model, options)])
     _check(added)
     assert len(photo_frame.parts) == 1
-    frame, added = _run_node_by_node(photo_frame.parts[0], method_nodes(model, options))
+    frame, added = _run_node_by_node(photo_frame.parts[0], face_nodes(model, options))
     _check(added)
     assert {"image", "grid_valid", "saturated", "shading_normals", "relit", "photo_layers"} <= set(frame.data)
 
     depth, _ = procedural(1, seed=5)
     s = light_from_angles(40)
     scene = render_scene(depth[0], 1.0, s, model.mask)
-    grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), method_nodes(model, options))
+    grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), face_nodes(model, options))
     _check(grid_added)
     # the render's way in gives the method every entry the photo's does, bar the photo's bounds, what covers the
     # face in it and its placement

@@ -15,8 +15,6 @@ from ....flow.pipeline import wait_for_abandoned
 from ....flow.recording import RecordOptions
 from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
-from ...method.eye_detail import CONTRAST as EYE_CONTRAST
-from ...method.face_relight import FILL_DETAIL
 from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
@@ -248,13 +246,13 @@ def add_parser(sub) -> None:
     r.add_argument("--relight", action="append", metavar="A,E|X,Y,Z",
                    help="also relight toward this light (angles in degrees or a vector, as --light; repeatable): "
                         "relit_A<az>E<el>.png per light, beside relit.png (frontal)")
-    r.add_argument("--eye-contrast", type=float, default=EYE_CONTRAST, metavar="C",
+    r.add_argument("--eye-contrast", type=float, default=MethodOptions.eye_contrast, metavar="C",
                    help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
-                        f"lids) at this contrast (default {EYE_CONTRAST:g}; 0: off, the eye stays the smooth fill; "
+                        f"lids) at this contrast (default {MethodOptions.eye_contrast:g}; 0: off, the eye stays the smooth fill; "
                         "1: as the photo shows it)")
-    r.add_argument("--fill-detail", type=float, default=FILL_DETAIL, metavar="C",
+    r.add_argument("--fill-detail", type=float, default=MethodOptions.fill_detail, metavar="C",
                    help="a frontal face's shadowed side, filled from the fit's smooth albedo, gets the detail its lit "
-                        f"side shows across the face (nostrils, lips, skin) at this strength (default {FILL_DETAIL:g}; "
+                        f"side shows across the face (nostrils, lips, skin) at this strength (default {MethodOptions.fill_detail:g}; "
                         "0: off, the smooth fill)")
     r.add_argument("--mirror-lift", type=float, default=1.0, metavar="C",
                    help="the side of a frontal face the photo's light reaches less keeps its measured albedo no darker "

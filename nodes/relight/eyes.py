@@ -1,7 +1,8 @@
-"""The eyes' own detail where the relit face's albedo had to be filled.
+"""The eyes' own detail where the relit face is painted.
 
-Where an eye is in shadow, or lit too obliquely for ``I / S`` to be trusted, the albedo there is
-the fill (``photo_relight.photo_albedo``): smooth skin, so the relit eye is a grey blur. The photo
+Where an eye is in a shadow so deep that the photo holds no signal there, and the new light lifts it, the
+relit face is painted with the expected albedo (``lift``, ``albedo.expected_albedo``): smooth skin, so the
+relit eye would be a grey blur. The photo
 still shows the lit eye (its iris, lids and lashes) against the skin around it. Its pattern is
 taken as a ratio to that skin, the fitted shading divided out first (a quadratic fitted over a
 ring around the eye takes what is left of the light's gradient across it out), scaled by a
@@ -15,7 +16,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .photo_relight import smoothstep
+from .fields import smoothstep
 
 # an eye's region: an ellipse of these semi-axes (interocular distances) along and across the eye
 # axis; its skin ring runs out to RING times that. The ellipse covers the opening and lids without the brow

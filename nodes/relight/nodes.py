@@ -1,0 +1,197 @@
+"""The relighting as nodes of the pipeline: ``PhotoRelightNode`` relights each face at the photo's resolution,
+``NovelViewNode`` turns it with the albedo measured there; ``face_nodes`` and ``photo_nodes`` are the whole
+chains, the method's nodes (``method.nodes``) and then these."""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+
+from ...flow.frame import Frame
+from ...flow.parts import EachPart
+from ..method.nodes import (
+    FacesNode,
+    FitObserver,
+    LoadNode,
+    MethodOptions,
+    covered_above_eyes,
+    method_nodes,
+    shading_normals,
+)
+from ..method.products import photo_channels
+from ..method.relight import novel_view, resample_surface
+from ..method.turned import ViewChoiceNode, face_model
+from ..model.shape_model import ShapeModel
+from ..photo.align import Alignment
+from ..photo.encoding import linear_to_srgb
+from ..photo.mediapipe import person_share
+from ..photo.placement import FacePlacement
+from .compose import FaceLayer, compose
+from .face import FaceRelight, Features
+from .harm import harm
+from .products import albedo_on_grid
+
+# an evenly lit face whose relit face would change more than this at a fine scale (``harm``'s H, %) comes back as it
+# was (a person called faces bad from 14 %; an evenly lit one relit by a light near its own barely changes)
+EVEN_HARM = 8.0
+# a face painted over more than this share of it is doubtful: the photo shows less of it than it hides (a render lit
+# from 60 degrees without a room light, its far side black, is 42 % painted)
+PAINTED_DOUBT = 0.5
+
+
+def face_eyes(frame: Frame) -> np.ndarray | None:
+    """(2, 2) the face's eyes in photo pixels: where a face mesh or the eyes given placed them, else None."""
+    placement = frame.data.get("placement")
+    return None if placement is None or placement.eyes is None else np.asarray(placement.eyes, np.float64)
+
+
+def layer_harm(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray) -> float:
+    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there; ``eyes`` (2, 2) photo
+    pixels."""
+    y0, y1, x0, x1 = layer.box
+    before = face.layer_photo
+    after = compose(before, [dataclasses.replace(layer, box=(0, y1 - y0, 0, x1 - x0))])
+    return harm(before, after, eyes - [x0, y0]).h
+
+
+def unchanged(layer: FaceLayer, photo: np.ndarray) -> FaceLayer:
+    """``layer`` made to leave its box of the photo (``photo`` (h, w, C), linear) as it is."""
+    return FaceLayer(layer.box, layer.inside, np.asarray(photo, np.float32), np.ones_like(layer.gain), None)
+
+
+class PhotoRelightNode:
+    """The face relit at the photo's own resolution, in colour when the input is (``face.FaceRelight``), all of it
+    in the box around the face (plus the feather): the albedo and shadows there (``photo_albedo``,
+    ``photo_shadow``, ``photo_box``), one ``FaceLayer`` per light (``relight_light``, then each of
+    ``extra_lights``) for ``compose`` to put into the photo, and what the relighting did (``meta["relight"]``). The
+    face's own exposure is kept, and nothing beyond the face's feather changes."""
+
+    name = "relight_photo"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+
+    def __call__(self, frame: Frame) -> Frame:
+        d = frame.data
+        face = self.face_relight(frame)
+        layers, reports = [], []
+        for light in (self.options.relight_light, *self.options.extra_lights):
+            layers.append((np.asarray(light, np.float64), face.layer(light)))
+            reports.append(face.report)
+        report = {k: round(float(v), 4) for k, v in reports[0].items()}
+        quality = frame.meta.get("quality")
+        if quality is not None:
+            layers = self._honest(frame, face, layers, report, quality)
+        d.update(photo_box=face.box, photo_albedo=face.albedo, photo_shadow=face.shadow, photo_layers=layers)
+        frame.meta["relight"] = report
+        d["live"] = face.live_data()
+        return frame
+
+    @staticmethod
+    def _honest(frame: Frame, face: FaceRelight, layers: list, report: dict, quality: dict) -> list:
+        """The face's layers, or its photo as it was when the relighting would harm it: a face lit evenly from side to
+        side (``quality["even"]``) whose relit face under the first light changes at a fine scale by more than
+        ``EVEN_HARM`` (``harm``'s H) comes back as it was, ``doubtful`` with why; a face painted over more than
+        ``PAINTED_DOUBT`` of it is ``doubtful`` too. The flags go into ``quality`` (its score halved by each, as
+        ``quality.assess``'s), the figures into ``report``."""
+        flags = []
+        eyes = face_eyes(frame)
+        if quality.get("even") and eyes is not None:
+            h = layer_harm(face, layers[0][1], eyes)
+            report["harm"] = round(h, 2)
+            if h > EVEN_HARM:
+                flags.append(f"lit evenly, yet relit it would change by {h:.0f} % at a fine scale: left as it was")
+                layers = [(light, unchanged(layer, face.layer_photo)) for light, layer in layers]
+        if report.get("painted", 0.0) > PAINTED_DOUBT:
+            flags.append(f"{100 * report['painted']:.0f} % of the face painted: the photo shows too little of it")
+        if flags:
+            quality["flags"] = [*quality.get("flags", []), *flags]
+            quality["score"] = round(float(quality.get("score", 0.0)) * 0.5 ** len(flags), 3)
+        return layers
+
+    def face_relight(self, frame: Frame) -> FaceRelight:
+        """The frame's entries as ``FaceRelight``'s arrays."""
+        d, m = frame.data, face_model(frame, self.model)
+        al: Alignment = d["alignment"]
+        placement: FacePlacement | None = d.get("placement")
+        meshed = placement is not None and bool(placement.outlines)
+        # only eyes the face mesh found in the photo get their detail back; its eye openings, not the model's
+        # eye points (only where the placement put the iris centres)
+        eyes = None
+        if d.get("eyes_found") in ("detected", "mesh only"):
+            eyes = placement.eyes if meshed else al.points_to_input(m.eyes)
+        # a frontal or tilted face's symmetry axis: the model's, across its eyes' midpoint; a turned face's mirror is
+        # a map on the model grid, which the fit's albedo uses: its photo gets no detail from across the face
+        iod = m.iod  # model pixels
+        midline = None
+        if m.mirrors_by_column:
+            centre = np.mean(m.eyes, axis=0)
+            midline = al.points_to_input(np.array([centre, centre + [0.0, iod]]))
+        encoding = frame.meta.get("encoding", "linear")
+        features = None
+        if meshed:
+            outlines = placement.outlines
+            features = Features(eyes=list(outlines.get("eyes", [])), brows=list(outlines.get("brows", [])),
+                                lips=[*outlines.get("lips", []), *outlines.get("mouth", [])],
+                                nostrils=list(outlines.get("nostrils", [])))
+        return FaceRelight(
+            photo=photo_channels(frame), alignment=al, mask=m.mask, normals=shading_normals(frame),
+            lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"], light=d["light"], iod_px=iod * al.scale,
+            encoding=encoding, outline=placement.outlines["oval"][0] if meshed else None, eyes=eyes,
+            eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
+            mirror_lift=self.options.mirror_lift, mirror=None if m.mirrors_by_column else m.mirror,
+            features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m))
+
+
+def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:
+    """(h, w, C) linear photo -> (h, w) how sure MediaPipe's selfie segmentation is that each pixel is the person
+    (``mediapipe.person_share``), the photo shown to it as its file holds it (sRGB-encoded for an sRGB photo)."""
+    to_display = linear_to_srgb if encoding == "srgb" else None
+    return lambda linear: person_share(linear, to_display)
+
+
+class NovelViewNode:
+    """The surface turned ``novel_yaw_deg`` about the vertical axis (``method.relight.novel_view``), with the
+    albedo measured on the photo (colour for a colour photo: ``photo_albedo``, brought to the model grid):
+    the face within its own outline, not the hair, ears or background the model grid reaches beyond it."""
+
+    name = "novel_view"
+
+    def __init__(self, model: ShapeModel, options: MethodOptions):
+        self.model, self.options = model, options
+
+    def __call__(self, frame: Frame) -> Frame:
+        d = frame.data
+        albedo, depth = d["albedo"], d["depth"]
+        if "photo_albedo" in d:
+            measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"],
+                                      face_model(frame, self.model).grid)
+            depth = np.where(np.isfinite(measured[..., 0]), depth, np.nan)
+            albedo = measured[..., 0] if measured.shape[-1] == 1 else measured
+        if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
+            depth, albedo = resample_surface(depth, albedo, self.options.novel_size)
+        d["novel_view"] = novel_view(depth, albedo, self.options.novel_yaw_deg)
+        return frame
+
+
+def face_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
+               with_views: bool = True) -> list:
+    """A face's nodes after loading: the method's (``method_nodes``), then, ``with_views``, the face relit at the
+    photo's resolution and turned (``PhotoRelightNode``, ``NovelViewNode``)."""
+    nodes = method_nodes(model, options, observer, with_views)
+    if with_views:
+        nodes += [PhotoRelightNode(model, options), NovelViewNode(model, options)]
+    return nodes
+
+
+def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
+                with_views: bool = True, after: tuple = ()) -> list:
+    """The whole chain for a photo: load, find its faces, the method on each face (``face_nodes``, then each of
+    ``after``, e.g. recording). With ``with_views`` each face's relit layers are made (``photo_layers``); the photo
+    relit with every face is made from them when asked (``products.relit_photo``)."""
+    faces = FacesNode(model, options)
+    # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
+    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3])
+    per_face = [choice, *face_nodes(model, options, observer, with_views), *after]
+    return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]

@@ -1,0 +1,87 @@
+"""The light a face gets, as the fitted shape explains it: a point light's ``n . s`` and the room's share of the
+light (ambient), on the face's box at the photo's resolution.
+
+``Shading`` holds what every light shares (the normals on the photo's grid, the room's light); ``lighting``
+gives ``a + (1 - a) S`` for any light, ``S = max(n . s, 0)`` less the share of each pixel its cast shadow covers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+# the share of the light a face gets from the room, not the lamp (ambient, fill): a face relit from the side has its
+# shadowed side this bright, as a photo's is, not black. Fitted to the photo's skin within this range
+# (``fit_ambient``), the default where too little skin tells
+DEFAULT_AMBIENT = 0.15
+AMBIENT_RANGE = (0.01, 0.9)
+# ... on skin this far inside the face's border (interocular distances), its brightness averaged over this many
+AMBIENT_RIM = 0.1
+AMBIENT_SIGMA = 0.05
+
+
+def with_ambient(shading: np.ndarray, ambient: float) -> np.ndarray:
+    """(H, W) float32 the light a surface gets from a point light (``shading``, ``n . s`` clipped at
+    0) and the room around it: ``a + (1 - a) S``."""
+    return (np.float32(ambient) + np.float32(1.0 - ambient) * np.asarray(shading, np.float32)).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Shading:
+    """The fitted shape's shading on a face's box (h, w): ``normals`` (h, w, 3) float32 unit, camera frame (0 off
+    the face); ``ambient`` the room's share of the light; ``light`` (3,) unit toward the photo's light."""
+
+    normals: np.ndarray
+    ambient: float
+    light: np.ndarray
+
+    def direct(self, light: np.ndarray | None = None) -> np.ndarray:
+        """(h, w) float32 ``max(n . s, 0)`` for ``light`` (3,) (None: the photo's)."""
+        s = self.light if light is None else np.asarray(light, np.float64) / np.linalg.norm(light)
+        return np.clip(self.normals @ s.astype(np.float32), 0.0, None)
+
+    def lighting(self, light: np.ndarray | None = None, cast: np.ndarray | None = None) -> np.ndarray:
+        """(h, w) float32 ``a + (1 - a) S``: ``S`` the ``direct`` light less the share ``cast`` (h, w) in [0, 1] of
+        each pixel its cast shadow covers (None: none)."""
+        direct = self.direct(light)
+        if cast is not None:
+            direct = direct * (np.float32(1.0) - np.asarray(cast, np.float32))
+        return with_ambient(direct, self.ambient)
+
+
+def fit_ambient(photo: np.ndarray, direct: np.ndarray, skin: np.ndarray, sigma_px: float) -> float:
+    """The room's share of the light that best explains the photo's skin: the ``a`` of ``AMBIENT_RANGE`` whose
+    shading ``a + (1 - a) S`` (``S`` = ``direct`` (h, w), the fitted ``max(n . s, 0)``) fits the skin's brightness
+    (``photo`` (h, w, C) linear, averaged over ``sigma_px`` of the ``skin`` (h, w) bool: pores and noise are no
+    shading) best up to one albedo, in log (least squares, a grid of ``a``); ``DEFAULT_AMBIENT`` when too little skin
+    tells. A soft light (a window, a softbox, a cloudy sky) leaves little shading and fits a large ``a``; a lamp in a
+    dark room, a small one. The light's direction alone, fitted to a softly lit face's albedo (a shiny forehead, a
+    beard), came out steep, and its shading taken out of the photo and put back from the front repainted the face."""
+    w = np.asarray(skin, bool)
+    if w.sum() < 100:
+        return DEFAULT_AMBIENT
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    grey = img.mean(axis=-1)
+    num = cv2.GaussianBlur(np.where(w, grey, 0.0).astype(np.float32), (0, 0), max(sigma_px, 1.0))
+    den = cv2.GaussianBlur(w.astype(np.float32), (0, 0), max(sigma_px, 1.0))
+    level = np.log(np.maximum(num[w] / np.maximum(den[w], 1e-6), 1e-5)).astype(np.float64)
+    s = np.asarray(direct, np.float64)[w]
+    best, best_error = DEFAULT_AMBIENT, np.inf
+    for a in np.geomspace(*AMBIENT_RANGE, 48):
+        r = level - np.log(a + (1.0 - a) * s)
+        error = float(np.var(r))
+        if error < best_error:
+            best, best_error = float(a), error
+    return best
+
+
+def _skin_level(photo: np.ndarray, skin: np.ndarray, sigma_px: float) -> np.ndarray:
+    """(n,) float64 ln of the photo's brightness (``photo`` (h, w, C) linear) averaged over ``sigma_px`` of the
+    ``skin`` (h, w) bool, at each of its pixels."""
+    grey = np.atleast_3d(np.asarray(photo, np.float32)).mean(axis=-1)
+    num = cv2.GaussianBlur(np.where(skin, grey, 0.0).astype(np.float32), (0, 0), max(sigma_px, 1.0))
+    den = cv2.GaussianBlur(skin.astype(np.float32), (0, 0), max(sigma_px, 1.0))
+    return np.log(np.maximum(num[skin] / np.maximum(den[skin], 1e-6), 1e-5)).astype(np.float64)
+
+
