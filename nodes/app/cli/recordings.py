@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from ....flow.replay import (
@@ -25,21 +26,32 @@ from ..record import (
 )
 
 
-def _refuse_overwriting_the_recording(target: Path, recording: Path) -> None:
-    """``ValueError`` when ``replay --rrd`` would write over the recording it reads: the file given, or
-    in a run's folder, any file of it."""
-    real = real_path(target)
-    sources = {real_path(recording)}
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: one inode, whatever the names (a symbolic or a hard link)."""
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def _refuse_overwriting_the_recording(target: Path, recording: Path, flag: str) -> None:
+    """``ValueError`` when ``replay --rrd`` or ``--plot`` (``flag``) would write over the recording it reads:
+    the file given, its MCAP twin, or in a run's folder any file of it, by any name that reaches it (a hard
+    link too); or into something that is not a file (a pipe would never let the write end)."""
+    sources = [recording, recording.with_suffix(".mcap")]
     if recording.is_dir():
-        sources |= {real_path(p) for p in recording.iterdir()}
-    if real in sources:
-        raise ValueError(f"--rrd {target}: is the recording being read (or a file of its run); write it elsewhere")
+        sources += [p for p in recording.iterdir()]
+    if real_path(target) in {real_path(s) for s in sources} or any(_same_file(target, s) for s in sources):
+        raise ValueError(f"{flag} {target}: is the recording being read (or a file of its run); write it elsewhere")
+    if target.exists() and not target.is_file():
+        raise ValueError(f"{flag} {target}: is not a regular file; name a file to write")
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
 
-    if args.rrd:
-        _refuse_overwriting_the_recording(Path(args.rrd), Path(args.recording))
+    for flag, target in (("--rrd", args.rrd), ("--plot", args.plot)):
+        if target:
+            _refuse_overwriting_the_recording(Path(target), Path(args.recording), flag)
     stream = open_frames(args.recording, arrays=bool(args.rrd))  # one frame in memory at a time
     rows, series = [], []
 
