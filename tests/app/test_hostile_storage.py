@@ -162,3 +162,22 @@ def test_links_planted_in_out_are_never_written_through(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1 and "symbolic link" in proc.stderr, proc.stderr
     assert list(elsewhere.iterdir()) == []
+
+
+def test_a_manifest_with_a_400_digit_frame_is_redone_not_a_traceback(tmp_path, procedural_model):
+    """``--resume`` over a manifest whose entry held a 400-digit ``frame`` ended in a traceback (``OverflowError:
+    Python int too large to convert to SQLite INTEGER``): frame ids are under 2^53 (as recordings' are), such an
+    entry is not one this code wrote, and its input is redone."""
+    import shadowflow
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(3), light_from_angles(30))
+    out = tmp_path / "out"
+    shadowflow.run([src], out, model=procedural_model, record=())
+    man = json.loads((out / "manifest.json").read_text())
+    man["inputs"][0]["frame"] = int("9" * 400)
+    (out / "manifest.json").write_text(json.dumps(man))
+    again = shadowflow.run([src], out, model=procedural_model, record=(), resume=True)
+    assert [r["status"] for r in again.records] == ["ok"]
+    assert RunManifest.load(out).entries[str(src)].frame == 0
