@@ -2,6 +2,7 @@
 ``conventions.md`` (``OUT/<stem>/...`` and ``OUT/summary.json``), every file atomically."""
 from __future__ import annotations
 
+import errno
 import io
 import itertools
 import json
@@ -10,7 +11,7 @@ import re
 import unicodedata
 from collections.abc import MutableSet
 from pathlib import Path
-from typing import Iterable
+from typing import Callable, Iterable
 
 import cv2
 import numpy as np
@@ -18,6 +19,7 @@ import numpy as np
 from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_chunks
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
+from ...flow.manifest import RunManifest
 from ..geometry.reflectance import light_tag
 from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
                                photo_mesh, relit_lights, relit_photo_8bit)
@@ -60,24 +62,79 @@ def reserved(name: str) -> bool:
     return low in RUN_FILES or _RUN_PART.fullmatch(low) is not None
 
 
-def safe_stem(path: str, taken: MutableSet[str]) -> str:
+def safe_stem(path: str, taken: MutableSet[str], free: Callable[[str], bool] = lambda name: True) -> str:
     """A file-system-safe, unique output folder name for an input path.
 
     Keeps letters, digits, ``.``, ``_``, ``+`` and ``-`` (after Unicode NFKD folding: a +50 and a
     -50 photo of one face stay a pair), never starts with ``.``, ``+`` or ``-``, and appends ``-2``,
     ``-3``... when the name is already in ``taken`` (lower-case names, a set or one on disk; the name
-    then joins it) or is one of the run's own files (``reserved``: an input called
-    ``summary.json.png`` gets ``summary.json-2``).
+    then joins it), is one of the run's own files (``reserved``: an input called
+    ``summary.json.png`` gets ``summary.json-2``) or is not ``free`` (a user's own file or folder there).
     """
     stem = Path(path).stem
     stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")
     stem = re.sub(r"[^A-Za-z0-9._+-]+", "_", stem).lstrip(".-_+") or "input"
     stem = stem[:120]
     name, k = stem, 2
-    while name.lower() in taken or reserved(name):
+    while name.lower() in taken or reserved(name) or not free(name):
         name, k = f"{stem}-{k}", k + 1
     taken.add(name.lower())
     return name
+
+
+_FACE_FOLDER = re.compile(r"face-[0-9]+")
+_RELIT_FILE = re.compile(r"relit_A[+-][0-9]{3}E[+-][0-9]{2}\.png")
+_TEMPORARY = re.compile(r"\..+\.tmp")  # an atomic write's, left by a kill
+
+
+def run_output_folder(path: Path) -> bool:
+    """Whether ``path`` may be written as a photo's output folder, being nobody else's: absent; or a real folder
+    holding nothing but what a run writes there (its files, ``face-<k>/`` folders, a killed write's temporary
+    files), with the first file a run writes (``normals.npy``) among them unless it holds none. A user's own file
+    or folder of that name (``README/`` beside ``README.png``, holding a ``relit.png`` of their own) is not."""
+    if not os.path.lexists(path):
+        return True
+    if path.is_symlink() or not path.is_dir():
+        return False
+    try:
+        names = [entry.name for entry in os.scandir(path)]
+    except OSError:
+        return False
+    ours = [n for n in names if not _TEMPORARY.fullmatch(n)]
+    if any(n not in OUTPUT_FILES and not _RELIT_FILE.fullmatch(n) and not _FACE_FOLDER.fullmatch(n) for n in ours):
+        return False
+    return not ours or "normals.npy" in ours
+
+
+_LOCK_HOLDER = re.compile(rb"pid [0-9]+ on .*, started ")  # what a run writes in its folder's ``.lock``
+_SEGMENT = re.compile(r"run(\.part[0-9]+)?\.s[0-9]+\.rrd")  # a long run's Rerun files after its first
+
+
+def foreign_run_files(out: Path) -> list[str]:
+    """The files in ``out`` that a run writes over (``summary.json``, ``report.html``, ``run.mcap``...; never a
+    resumed run's parts, which take free names) when ``out`` is not a run's folder: it has neither the ``.lock``
+    every run leaves (``pid N on HOST, started ...``) nor a manifest of shadowflow's. Empty for a run's folder,
+    or one holding none of those names."""
+    try:
+        names = [entry.name for entry in os.scandir(out)]
+    except OSError:  # absent, or not a folder: check_writable says what is wrong
+        return []
+    clashing = sorted(n for n in names if n in RUN_FILES or _SEGMENT.fullmatch(n))
+    holder = b""
+    if ".lock" in clashing:
+        try:
+            with open(out / ".lock", "rb", opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW | os.O_NONBLOCK)) as fh:
+                holder = fh.read(4096)
+        except OSError:
+            holder = b"?"
+        if _LOCK_HOLDER.match(holder):
+            return []
+        if not holder:  # (a run killed before it said who it was)
+            clashing.remove(".lock")
+    if not clashing:
+        return []
+    manifest = RunManifest.load(out)
+    return [] if manifest is not None and manifest.config.get("tool") == "shadowflow" else clashing
 
 
 def _npy_bytes(arr: np.ndarray) -> bytes:
@@ -249,14 +306,21 @@ def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np
 
 
 class WriteNode:
-    """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file."""
+    """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file, or into ``out_dir`` once
+    ``still_ours`` (the run's lock) says it was removed or replaced under the run (an ``OSError`` of ``ESTALE``,
+    which stops the run)."""
 
     name = "write"
 
-    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid"):
+    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid",
+                 still_ours: Callable[[], bool] | None = None):
         self.model, self.out_dir, self.protected, self.arrays = model, out_dir, protected, arrays
+        self.still_ours = still_ours
 
     def __call__(self, frame: Frame) -> Frame:
+        if self.still_ours is not None and not self.still_ours():
+            raise OSError(errno.ESTALE, "removed or replaced during the run; nothing more is written there",
+                          str(self.out_dir))
         folder = self.out_dir / frame.meta["stem"]
         targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light in relit_lights(frame)[1:]))]
         for face in faces_of(frame):

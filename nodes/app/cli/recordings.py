@@ -5,6 +5,7 @@ import argparse
 import os
 from pathlib import Path
 
+from ....flow.replay.text import one_line
 from ....flow.replay import (
     convergence_row,
     diff_streams,
@@ -69,12 +70,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
             pass
     print(format_table(sorted(rows, key=lambda r: r.frame), CONVERGENCE_TABLE))
     if stream.truncated:
-        print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
+        print(one_line(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut"))
     if args.plot:
         plot = plot_convergence(series, args.plot, CONVERGENCE_PLOTS, CONVERGENCE_LABELS, marks=CONVERGENCE_MARKS)
-        print(f"plot: {plot}")
+        print(one_line(f"plot: {plot}"))
     if args.rrd:
-        print(f"rerun: {args.rrd}")
+        print(one_line(f"rerun: {args.rrd}"))
     return 0
 
 
@@ -91,11 +92,11 @@ def cmd_diff(args: argparse.Namespace) -> int:
     diffs = report.differences
     first = diffs[0]
     it = "-" if first.iteration is None else first.iteration
-    print(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
-          f"{first.what}, max |difference| {first.max_abs:.6g}")
+    print(one_line(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
+                   f"{first.what}, max |difference| {first.max_abs:.6g}"))
     frames = {str(d.frame) for d in diffs}
     channels = sorted({d.channel for d in diffs})
-    print(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}")
+    print(one_line(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}"))
     return 1
 
 

@@ -21,7 +21,8 @@ from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..inputs import FolderWatch, expand_inputs
-from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream, say
+from ..outputs import real_path
+from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
     CONE_TRUST_HELP,
@@ -89,11 +90,16 @@ def _view_size(px: int | None) -> int | None:
     return px
 
 
-def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
-    """Synthetic shadowed faces with sidecar lights, as PNGs: random ICT-FaceKit identities (drawn
-    apart from the default model's training faces, seed 2024 vs 0) under side lights."""
-
+def write_demo_inputs(out: Path, count: int = 3) -> list[str]:
+    """Synthetic shadowed faces with sidecar lights, as PNGs in ``out/demo-inputs``: random ICT-FaceKit identities
+    (drawn apart from the default model's training faces, seed 2024 vs 0) under side lights. Never through a
+    link: a ``demo-inputs`` that is one, or leads out of ``out``, is refused (``ValueError``), and each file
+    replaces whatever link is at its name."""
+    folder = out / "demo-inputs"
+    refuse_link(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    if real_path(folder).parent != real_path(out):
+        raise ValueError(f"{folder}: leads out of --out; shadowflow writes nothing outside it")
     rng = np.random.default_rng(2024)
     lights = [(45, 0), (-60, 0), (30, 25), (-75, 0), (60, -10)]
     paths = []
@@ -174,7 +180,7 @@ def _run_exit_code(result, watch_error: str | None) -> int:
     """130 stopped by a signal; 0 every frame done; 1 a frame failed or is doubtful, the folder took no more,
     the cluster or the watched folder went away (said here for the watch)."""
     if watch_error:
-        print(f"error: {watch_error}", file=sys.stderr)
+        say(f"error: {watch_error}")
     if result.stopped:
         return 130
     fine = result.not_ok == 0 and result.storage_error is None and result.cluster_error is None and not watch_error
@@ -182,17 +188,18 @@ def _run_exit_code(result, watch_error: str | None) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+    out = out_folder(args.out)
     _check_run_arguments(args)  # before any work or any file is written
     options = method_options(args)
     why = _no_input(args)
     if why is not None:
-        print(f"shadowflow run: no input image: {why}", file=sys.stderr)
+        say(f"shadowflow run: no input image: {why}")
         return 2
-    check_writable(out)
-    inputs = (write_demo_inputs(out / "demo-inputs") if args.demo else []) + list(args.inputs)
+    if args.demo:  # (run_stream checks --out itself, after what the inputs are)
+        check_out(out)  # before the demo's inputs are written there
+    inputs = (write_demo_inputs(out) if args.demo else []) + list(args.inputs)
     if not inputs and not args.watch:
-        print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
+        say("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)")
         return 2
     note = (lambda msg: None) if args.quiet else say
     run = run_options(args)
@@ -205,7 +212,7 @@ def cmd_run(args: argparse.Namespace) -> int:
          + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
     code = _run_exit_code(result, watch.error if watch is not None else None)
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
-        print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
+        say("note: a step abandoned by --frame-timeout is still running; exiting without it")
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
