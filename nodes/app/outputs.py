@@ -26,8 +26,9 @@ from ..method.products import (face_products, grid_placement, grid_products, in_
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..method.quality import NO_FACE
 from ..photo.align import Alignment, scalar_to_input
+from ..photo.loader import MAX_PIXELS, MAX_SIDE
 from ..photo.encoding import swapped_rb
-from ..model.shape_model import ShapeModel
+from ..model.shape_model import MAX_GRID_SIDE, ShapeModel
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
 
@@ -285,24 +286,70 @@ def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np
     ``on_photo_grid`` on its photo's pixel grid (H, W[, 3]) whichever way they were written: model-grid
     arrays are brought there through ``grid.json`` as ``--arrays photo`` brings them (``align.scalar_to_input``:
     bilinear, renormalised at the face's edge; normals made unit again), NaN off ``mask.png``. Read without
-    pickles."""
+    pickles; ``grid.json`` and ``mask.png`` are checked before anything photo-sized is made (``ValueError``
+    naming the file): a photo within the loader's limits, of ``mask.png``'s size, the arrays of one grid."""
     folder = Path(folder)
     arrays = {name: np.load(folder / f"{name}.npy", allow_pickle=False) for name in ("normals", "weights", "depth")}
     if not on_photo_grid:
         return arrays
-    place = json.loads((folder / "grid.json").read_text())
-    h, w = place["photo"]
+    (h, w), al = _photo_placement(folder)
     if arrays["depth"].shape == (h, w):  # written on the photo's grid already
         return arrays
-    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
-    al, known = Alignment(np.asarray(place["to_photo"], np.float64), "grid.json"), np.isfinite(arrays["depth"])
+    grid = arrays["depth"].shape
+    if arrays["weights"].shape != grid or arrays["normals"].shape != (*grid, 3) or max(grid) > MAX_GRID_SIDE:
+        raise ValueError(f"{folder}: normals.npy {arrays['normals'].shape}, weights.npy {arrays['weights'].shape} "
+                         f"and depth.npy {grid} are not the arrays of one model grid, nor of the photo ({h}, {w})")
+    mask = _mask(folder, (h, w))
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    y0, y1, x0, x1 = (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1) if rows.size else (0, 0, 0, 0)
+    box, known = al.cropped(x0, y0), np.isfinite(arrays["depth"])
 
     def on_photo_grid(values: np.ndarray) -> np.ndarray:  # (the grid's vectors are the photo's already)
-        return np.where(mask, scalar_to_input(values, known, al, (h, w)), np.nan).astype(np.float32)
+        out = np.full((h, w), np.nan, np.float32)  # brought into the face's box only: the rest is off the face
+        if y1 > y0:
+            out[y0:y1, x0:x1] = np.where(mask[y0:y1, x0:x1], scalar_to_input(values, known, box, (y1 - y0, x1 - x0)),
+                                         np.nan)
+        return out
 
     normals = np.stack([on_photo_grid(arrays["normals"][..., i]) for i in range(3)], axis=-1)
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     return {"normals": normals, "weights": on_photo_grid(arrays["weights"]), "depth": on_photo_grid(arrays["depth"])}
+
+
+def _photo_placement(folder: Path) -> tuple[tuple[int, int], Alignment]:
+    """``grid.json``'s photo (height, width) and its placement of the model grid, checked: two whole numbers
+    within the loader's limits (``MAX_PIXELS``, ``MAX_SIDE``), and a finite (2, 3) matrix."""
+    path = folder / "grid.json"
+    try:
+        place = json.loads(path.read_bytes()[:1 << 20])
+        h, w = (int(v) if isinstance(v, int) and not isinstance(v, bool) else -1 for v in place["photo"])
+        matrix = np.asarray(place["to_photo"], np.float64)
+    except (ValueError, TypeError, KeyError, OverflowError, RecursionError) as exc:
+        raise ValueError(f"{path}: not a grid.json shadowflow wrote ({' '.join(str(exc).split())})") from None
+    if not (0 < h <= MAX_SIDE and 0 < w <= MAX_SIDE and h * w <= MAX_PIXELS):
+        raise ValueError(f"{path}: photo {place['photo']} is not a photo within the {MAX_PIXELS // 1_000_000}-"
+                         f"megapixel, {MAX_SIDE}-pixel limits")
+    if matrix.shape != (2, 3) or not np.all(np.isfinite(matrix)):
+        raise ValueError(f"{path}: to_photo is not a finite 2 x 3 matrix")
+    return (h, w), Alignment(matrix, "grid.json")
+
+
+def _mask(folder: Path, shape: tuple[int, int]) -> np.ndarray:
+    """``mask.png`` as a boolean (H, W), once its header says it is the photo's ``shape``."""
+    from PIL import Image
+
+    path = folder / "mask.png"
+    try:
+        with Image.open(path) as probe:  # the header only
+            size = probe.size
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise ValueError(f"{path}: not a readable mask ({' '.join(str(exc).split())})") from None
+    if size != (shape[1], shape[0]):
+        raise ValueError(f"{path}: {size[0]}x{size[1]}, not the {shape[1]}x{shape[0]} photo grid.json gives")
+    mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if mask is None or mask.shape != shape:
+        raise ValueError(f"{path}: not a readable mask")
+    return mask > 0
 
 
 class WriteNode:

@@ -3,6 +3,7 @@
 file, and ``--resume`` completes the job. Moved here from the app's hostile suite (storage is its layer)."""
 import json
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -287,3 +288,40 @@ def test_an_out_made_unwritable_mid_run_stops_with_one_line_and_resume_finishes(
                              text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     assert len(json.loads((out / "summary.json").read_text())) == 3
+
+
+def _read_arrays_bounded(folder: Path, limit: int = 2 << 30) -> str:
+    """``read_arrays(folder, on_photo_grid=True)`` in a process of its own limited to ``limit`` bytes of address
+    space (a broken check then fails there, not on the machine): what it raised, or "read"."""
+    code = ("import sys, shadowflow\n"
+            "try:\n"
+            "    shadowflow.read_arrays(sys.argv[1], on_photo_grid=True)\n"
+            "    print('read')\n"
+            "except (ValueError, MemoryError) as exc:\n"
+            "    print(type(exc).__name__, exc)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True, timeout=300,
+                          preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+    return proc.stdout.strip() or proc.stderr.strip()[-500:]
+
+
+def test_read_arrays_of_a_hostile_grid_json_is_refused_before_anything_photo_sized(tmp_path, procedural_model):
+    """``read_arrays(folder, on_photo_grid=True)`` given a ``grid.json`` whose ``photo`` was ``[40000, 40000]`` tried
+    to allocate 6.4 GB an array, and more for the warp's own (23 GB when tried here unbounded). The photo must be
+    within the loader's limits and be ``mask.png``'s size, its placement a finite matrix; what is brought to the
+    photo is brought into the face's box only (checked here under a 2 GiB address-space limit)."""
+    import shadowflow
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(3), light_from_angles(30))
+    shadowflow.run([src], tmp_path / "out", model=procedural_model, record=())
+    folder = tmp_path / "out" / "face"
+    good = json.loads((folder / "grid.json").read_text())
+    assert _read_arrays_bounded(folder) == "read"
+    cases = [("photo", [40000, 40000], r"grid.json: photo \[40000, 40000\] is not a photo within the 40-megapixel"),
+             ("photo", [6000, 6000], r"mask.png: 128x128, not the 6000x6000 photo grid.json gives"),
+             ("to_photo", [[1e308, 0, 0], [0, "x", 0]], "grid.json: not a grid.json shadowflow wrote")]
+    for field, value, says in cases:
+        (folder / "grid.json").write_text(json.dumps({**good, field: value}))
+        said = _read_arrays_bounded(folder)
+        assert said.startswith("ValueError") and re.search(says, said), said
