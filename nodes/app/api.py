@@ -27,7 +27,7 @@ from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, checked_light, parse_light
 from .inputs import expand_inputs
-from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
+from .outputs import OUTPUT_FILES, checked_view_size, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
 from .runner import RunOptions, RunResult, out_folder, run_stream, say
 
@@ -108,6 +108,7 @@ def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
 
 def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     opts = options or MethodOptions()
+    checked_view_size(opts.novel_size)
     changes = {}
     if isinstance(light, str) and light.strip().lower() in ("auto", "yaleb"):
         changes["light"] = light.strip().lower()
@@ -181,4 +182,5 @@ def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: Shap
     paths = expand_inputs([os.fsdecode(i) for i in inputs], note=(lambda msg: None) if quiet else say)
     run_options = RunOptions(record=tuple(record), record_options=RecordOptions(every=record_every),
                              fit_workers=workers, resume=resume, quiet=quiet, silent=quiet, dask=dask)
-    return run_stream(paths, out_folder(out), _model(model), options or MethodOptions(), run_options, total=len(paths))
+    return run_stream(paths, out_folder(out), _model(model), _options(options, None, None), run_options,
+                      total=len(paths))

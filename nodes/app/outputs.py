@@ -40,6 +40,18 @@ FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json"
 # 4-megapixel photo, holding the same 128 x 128 fit resampled)
 ARRAYS = ("grid", "photo")
 OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
+# novel_view.png's largest side (``--view-size``): the surface it shows is the fit's (128^2 by default, at most the
+# largest model grid's 512^2), and rendering it costs memory and time with the square of the side, every face of a
+# photo (one face at 2048: +1 GB and 10 s; a photo of 49 faces at 1024: 116 s, 1.0 GB; docs/faults.md)
+MAX_VIEW_SIZE = 512
+
+
+def checked_view_size(px: int | None) -> int | None:
+    """``novel_view.png``'s side as asked (None: the model grid's); ``ValueError`` outside 32 to ``MAX_VIEW_SIZE``."""
+    if px is not None and not 32 <= px <= MAX_VIEW_SIZE:
+        raise ValueError(f"--view-size is a side of 32 to {MAX_VIEW_SIZE} pixels (the fit's surface holds no more "
+                         f"detail), not {px}")
+    return px
 
 
 def real_path(path: str | Path) -> Path:

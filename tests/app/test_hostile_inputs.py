@@ -295,3 +295,26 @@ def test_demo_inputs_are_never_written_through_a_link(tmp_path, capsys):
     written = write_demo_inputs(out, count=1)
     assert victim.read_bytes() == b"keep me" and list(elsewhere.iterdir()) == [victim]
     assert not Path(written[0]).is_symlink() and Path(written[0]).stat().st_size > 1000
+
+
+def test_a_novel_view_larger_than_the_surface_it_shows_is_refused(tmp_path, capsys):
+    """``--view-size 4096`` cost 4.4 GB for one face, ``--view-size 2048`` on a photo of 49 faces ran past the frame
+    timeout in the novel view and lost all 49 faces: rendering costs memory and time with the square of the side,
+    and the surface shown is the fit's (128^2, at most 512^2). Over 512 is refused in one line before any work,
+    by the command line and the API alike."""
+    import cv2
+
+    import shadowflow
+    from shadowflow.nodes.method.nodes import MethodOptions
+
+    photo = _face(tmp_path / "face.png")
+    for size in ("513", "2048", "4096"):
+        assert main(["run", str(photo), "--out", str(tmp_path / f"out{size}"), "--view-size", size]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--view-size is a side of 32 to 512 pixels" in err[0], err
+        assert not (tmp_path / f"out{size}").exists()
+    with pytest.raises(ValueError, match="--view-size is a side of 32 to 512"):
+        shadowflow.run([photo], tmp_path / "api", options=MethodOptions(novel_size=4096))
+    assert main(["run", str(photo), "--out", str(tmp_path / "out"), "--view-size", "512", "--quiet", "--record",
+                 "none"]) == 0
+    assert cv2.imread(str(tmp_path / "out" / "face" / "novel_view.png")).shape[:2] == (512, 512)

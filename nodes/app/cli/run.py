@@ -21,7 +21,7 @@ from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..inputs import FolderWatch, expand_inputs
-from ..outputs import real_path
+from ..outputs import MAX_VIEW_SIZE, checked_view_size, real_path
 from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
@@ -53,7 +53,7 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
-    _view_size(args.view_size)
+    checked_view_size(args.view_size)
     _strength("--eye-contrast", args.eye_contrast)
     _strength("--fill-detail", args.fill_detail)
     _strength("--mirror-lift", args.mirror_lift)
@@ -82,12 +82,6 @@ def _max_pixels(megapixels: float) -> int | None:
     if not 0.1 <= megapixels <= 40:
         raise ValueError(f"--max-megapixels is 0 (never reduce) or 0.1 to 40, not {megapixels:g}")
     return int(megapixels * 1_000_000)
-
-
-def _view_size(px: int | None) -> int | None:
-    if px is not None and not 32 <= px <= 4096:
-        raise ValueError(f"--view-size is a side of 32 to 4096 pixels, not {px}")
-    return px
 
 
 def write_demo_inputs(out: Path, count: int = 3) -> list[str]:
@@ -143,7 +137,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          find_faces=args.eyes == "auto", shadows=args.shadows,
                          face_length=face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
-                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
+                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=checked_view_size(args.view_size),
                          eye_contrast=_strength("--eye-contrast", args.eye_contrast),
                          fill_detail=_strength("--fill-detail", args.fill_detail),
                          mirror_lift=_strength("--mirror-lift", args.mirror_lift),
@@ -269,7 +263,7 @@ def add_parser(sub) -> None:
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
-                   help="novel_view.png's height and width in pixels (default: the model grid's)")
+                   help=f"novel_view.png's height and width in pixels, 32 to {MAX_VIEW_SIZE} (default: the model grid's)")
     r.add_argument("--encoding", choices=CHOICES["encoding"], default=MethodOptions.encoding,
                    help="how the photos' values relate to light: auto (default; colour photos are sRGB, grey ones "
                         "linear), srgb or linear; the method works in linear light, outputs keep the photo's encoding")
