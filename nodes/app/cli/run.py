@@ -189,15 +189,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     if why is not None:
         say(f"shadowflow run: no input image: {why}")
         return 2
+    if not args.inputs and not args.demo and not args.watch:
+        say("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)")
+        return 2
+    run = run_options(args)
+    model = model_arg(args.model)  # a model file that cannot be used is refused before anything is written
     if args.demo:  # (run_stream checks --out itself, after what the inputs are)
         check_out(out)  # before the demo's inputs are written there
     inputs = (write_demo_inputs(out) if args.demo else []) + list(args.inputs)
-    if not inputs and not args.watch:
-        say("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)")
-        return 2
     note = (lambda msg: None) if args.quiet else say
-    run = run_options(args)
-    model = model_arg(args.model)
     stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
