@@ -301,6 +301,9 @@ def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np
     pickles; ``grid.json`` and ``mask.png`` are checked before anything photo-sized is made (``ValueError``
     naming the file): a photo within the loader's limits, of ``mask.png``'s size, the arrays of one grid."""
     folder = Path(folder)
+    for name in ("normals.npy", "weights.npy", "depth.npy", *(("grid.json", "mask.png") if on_photo_grid else ())):
+        if not (folder / name).is_file():  # (a pipe would never let the read end)
+            raise ValueError(f"{folder / name}: " + ("not a regular file" if (folder / name).exists() else "missing"))
     arrays = {name: np.load(folder / f"{name}.npy", allow_pickle=False) for name in ("normals", "weights", "depth")}
     if not on_photo_grid:
         return arrays
@@ -381,6 +384,8 @@ class WriteNode:
             raise OSError(errno.ESTALE, "removed or replaced during the run; nothing more is written there",
                           str(self.out_dir))
         folder = self.out_dir / frame.meta["stem"]
+        if not run_output_folder(folder):  # (made by someone else since the photo was named)
+            raise ValueError(f"{frame.source}: {folder} is not a folder a run made; refusing to write into it")
         targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light in relit_lights(frame)[1:]))]
         for face in faces_of(frame):
             sub = face_folder(frame, face)

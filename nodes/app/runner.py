@@ -532,9 +532,12 @@ class StoredRun:
                 return None
             name, fid = given[:2]  # changed since this run took it (a watched folder): redone
             earlier = None
-        elif earlier is not None:
+        elif earlier is not None and run_output_folder(self.out / earlier.name):
             name, fid = earlier.name, earlier.frame
             self.store.names.add(name.lower())
+        elif earlier is not None:  # its folder is someone else's now (replaced since): redone under another name
+            name, fid, earlier = safe_stem(path, self.store.names, lambda n: run_output_folder(self.out / n)), \
+                earlier.frame, None
         else:
             name, fid = safe_stem(path, self.store.names, lambda n: run_output_folder(self.out / n)), self._next_id
             self._next_id += 1

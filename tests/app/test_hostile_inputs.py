@@ -221,6 +221,11 @@ def test_a_users_file_or_folder_named_like_an_output_folder_is_left_alone(tmp_pa
     assert (src / "notes").read_text() == "my notes" and sorted(p.name for p in (src / "README").iterdir()) == \
         ["relit.png", "todo.txt"]
     assert all((src / f"{n}-2" / "normals.npy").is_file() for n in ("README", "notes", "plain"))
+    shutil.rmtree(src / "plain-2")  # and a folder a run made, replaced by the user's own: --resume goes elsewhere
+    (src / "plain-2").mkdir()
+    (src / "plain-2" / "relit.png").write_bytes(b"mine now")
+    assert main(["run", str(src), "--out", str(src), "--quiet", "--record", "none", "--resume"]) == 0
+    assert (src / "plain-2" / "relit.png").read_bytes() == b"mine now" and (src / "plain-3" / "relit.png").is_file()
 
 
 @pytest.mark.slow

@@ -290,7 +290,7 @@ def test_an_out_made_unwritable_mid_run_stops_with_one_line_and_resume_finishes(
     assert len(json.loads((out / "summary.json").read_text())) == 3
 
 
-def _read_arrays_bounded(folder: Path, limit: int = 2 << 30) -> str:
+def _read_arrays_bounded(folder: Path, limit: int = 2 << 30, timeout: float = 300) -> str:
     """``read_arrays(folder, on_photo_grid=True)`` in a process of its own limited to ``limit`` bytes of address
     space (a broken check then fails there, not on the machine): what it raised, or "read"."""
     code = ("import sys, shadowflow\n"
@@ -299,7 +299,7 @@ def _read_arrays_bounded(folder: Path, limit: int = 2 << 30) -> str:
             "    print('read')\n"
             "except (ValueError, MemoryError) as exc:\n"
             "    print(type(exc).__name__, exc)\n")
-    proc = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True, timeout=300,
+    proc = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True, timeout=timeout,
                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
     return proc.stdout.strip() or proc.stderr.strip()[-500:]
 
@@ -325,3 +325,7 @@ def test_read_arrays_of_a_hostile_grid_json_is_refused_before_anything_photo_siz
         (folder / "grid.json").write_text(json.dumps({**good, field: value}))
         said = _read_arrays_bounded(folder)
         assert said.startswith("ValueError") and re.search(says, said), said
+    (folder / "grid.json").unlink()
+    os.mkfifo(folder / "grid.json")  # a pipe is not read: it would wait for a writer
+    said = _read_arrays_bounded(folder, timeout=60)
+    assert said.startswith("ValueError") and "grid.json: not a regular file" in said, said

@@ -7,6 +7,7 @@ import json
 import time
 from contextlib import contextmanager
 
+from ....flow.replay.text import one_line
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
@@ -45,7 +46,7 @@ def _write_report(path: str | None, report: dict) -> None:
     """The JSON report of ``eval``, written atomically, if ``--json`` asked for one."""
     if path:
         atomic_write_bytes(path, (json.dumps(report, indent=2) + "\n").encode())
-        print(f"written: {path}")
+        print(one_line(f"written: {path}"))
 
 
 @contextmanager
@@ -83,8 +84,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
                             integrator=args.integrator, shadows=args.shadows, **fit_variant(args, args.fit),
                             face_length=face_length(args.face_length))
     t0 = time.perf_counter()
-    print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
-          "ground truth: photometric stereo of each subject's exposures")
+    print(one_line(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
+                   "ground truth: photometric stereo of each subject's exposures"))
     lights = yaleb_lights(args.lights)
     with _mapper(args.dask) as mapper:
         # the lights the method was tuned on must all be found; others include photos the finder misses
