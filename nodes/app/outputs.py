@@ -119,7 +119,7 @@ def run_output_folder(path: Path) -> bool:
     return not ours or "normals.npy" in ours
 
 
-_LOCK_HOLDER = re.compile(rb"pid [0-9]+ on .*, started ")  # what a run writes in its folder's ``.lock``
+_LOCK_HOLDER = re.compile(rb"pid [0-9]+ on \S")  # what a run writes in its folder's ``.lock``: pid N on HOST, ...
 _SEGMENT = re.compile(r"run(\.part[0-9]+)?\.s[0-9]+\.rrd")  # a long run's Rerun files after its first
 
 
