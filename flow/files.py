@@ -61,9 +61,26 @@ class FolderBusy(RuntimeError):
     """Another process holds the folder's lock."""
 
 
+class FolderLock:
+    """The lock ``exclusive_folder`` holds: ``held()`` says whether it still guards the folder, i.e. the file at
+    ``folder/.lock`` is still the one it locked (removing the folder, or the lock file, under a run lets a second
+    run lock a new one)."""
+
+    def __init__(self, fd: int, path: Path):
+        self.fd, self.path = fd, path
+
+    def held(self) -> bool:
+        try:
+            here, own = os.lstat(self.path), os.fstat(self.fd)
+        except OSError:
+            return False
+        return (here.st_dev, here.st_ino) == (own.st_dev, own.st_ino)
+
+
 @contextmanager
-def exclusive_folder(folder: str | os.PathLike, holder: str) -> Iterator[None]:
-    """Hold an exclusive lock on ``folder`` (``folder/.lock``, ``flock``) for the ``with`` body.
+def exclusive_folder(folder: str | os.PathLike, holder: str) -> Iterator[FolderLock]:
+    """Hold an exclusive lock on ``folder`` (``folder/.lock``, ``flock``) for the ``with`` body, which gets
+    the ``FolderLock``.
 
     ``holder`` (e.g. a process id and command line) is written into the lock file so that a
     second process is told who holds it: ``FolderBusy`` with that text, at once (never waits).
@@ -86,6 +103,6 @@ def exclusive_folder(folder: str | os.PathLike, holder: str) -> Iterator[None]:
                              "or choose another --out") from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, holder.encode("utf-8", "replace")[:4000], 0)
-        yield
+        yield FolderLock(fd, path)
     finally:
         os.close(fd)  # closing the descriptor releases the lock

@@ -116,7 +116,7 @@ def _entry(obj) -> InputEntry | None:
         v = obj.get(key)
         if not isinstance(v, kind) or isinstance(v, bool):
             return None
-    if obj["frame"] < 0 or not _is_name(obj["name"]) or "\x00" in obj["name"]:
+    if not 0 <= obj["frame"] < 1 << 53 or not _is_name(obj["name"]) or "\x00" in obj["name"]:
         return None
     record, sha = obj.get("record"), obj.get("sha256")
     return InputEntry(obj["path"], obj["size"], obj["mtime_ns"], obj["name"], obj["frame"], obj["config"],

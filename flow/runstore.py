@@ -34,7 +34,7 @@ _SCHEMA = (
     "CREATE INDEX entries_by_frame ON entries (frame, key)",
     "CREATE TABLE names (name BLOB PRIMARY KEY)",
     "CREATE TABLE assigned (key BLOB PRIMARY KEY, name BLOB NOT NULL, frame INTEGER NOT NULL, size INTEGER, "
-    "mtime_ns INTEGER)",
+    "mtime_ns INTEGER, fingerprint TEXT NOT NULL DEFAULT '')",
 )
 
 
@@ -97,10 +97,15 @@ class RunStore:
             after = rows[-1][:len(start)]
 
     def close(self, remove: bool = True) -> None:
+        """Close the store, and remove its file (``remove``) if the folder lets it: a folder that takes no more
+        keeps it (the run has said why already), and the next run replaces it."""
         with self._lock:
             self._db.close()
         if remove:
-            self.path.unlink(missing_ok=True)
+            try:
+                self.path.unlink(missing_ok=True)
+            except OSError:
+                pass
 
 
 class RecordView:
@@ -190,7 +195,7 @@ class NameSet(MutableSet):
 
 class Assigned:
     """What this run gave each input key: its output name, frame id and file identity
-    (``(size, mtime_ns)`` or None)."""
+    (``(size, mtime_ns)`` or None), and the caller's fingerprint of what it was made of then."""
 
     def __init__(self, store: RunStore):
         self._store = store
@@ -202,7 +207,11 @@ class Assigned:
         name, frame, size, mtime = rows[0]
         return _text(name), frame, None if size is None else (size, mtime)
 
-    def put(self, key: str, name: str, frame: int, identity: tuple[int, int] | None) -> None:
+    def fingerprint(self, key: str) -> str:
+        rows = self._store._execute("SELECT fingerprint FROM assigned WHERE key = ?", (_blob(key),))
+        return rows[0][0] if rows else ""
+
+    def put(self, key: str, name: str, frame: int, identity: tuple[int, int] | None, fingerprint: str = "") -> None:
         size, mtime = identity if identity is not None else (None, None)
-        self._store._execute("INSERT OR REPLACE INTO assigned (key, name, frame, size, mtime_ns) VALUES (?, ?, ?, ?, ?)",
-                             (_blob(key), _blob(name), frame, size, mtime))
+        self._store._execute("INSERT OR REPLACE INTO assigned (key, name, frame, size, mtime_ns, fingerprint) "
+                             "VALUES (?, ?, ?, ?, ?, ?)", (_blob(key), _blob(name), frame, size, mtime, fingerprint))

@@ -48,6 +48,7 @@ class McapSink(Sink):
         self._w = Writer(self._file, compression=comp, chunk_size=4 << 20,
                          index_types=IndexType.ALL & ~IndexType.MESSAGE)
         self._w.start(profile="", library="shadowflow")
+        self._w.flush()  # its magic and header on disk at once: a run's manifest lists the file before any frame
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}

@@ -39,7 +39,7 @@ class JobStream:
         owner: dict[int, tuple[int, bool]] = {}  # frame id -> (part, finished there)
         cut: set[int] = set()  # parts that ended early
         for k, part in enumerate(self.parts):
-            stream = FrameStream(part, arrays=False)
+            stream = FrameStream(part, arrays=False, part=True)
             for fr in stream:
                 if fr.finished or fr.frame not in owner or not owner[fr.frame][1]:
                     owner[fr.frame] = (k, fr.finished)
@@ -48,7 +48,7 @@ class JobStream:
         self.truncated = any(k in cut and not done for k, done in owner.values())
 
         def part_frames(k: int) -> Iterator[tuple[int, int, int, FrameRecording]]:
-            for n, fr in enumerate(FrameStream(self.parts[k], self.arrays)):
+            for n, fr in enumerate(FrameStream(self.parts[k], self.arrays, part=True)):
                 if owner.get(fr.frame, (k,))[0] == k:
                     yield fr.frame, k, n, fr
 

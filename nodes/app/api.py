@@ -29,9 +29,9 @@ from ..photo.loader import InputError, checked_light, parse_light
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .inputs import expand_inputs
-from .outputs import OUTPUT_FILES, face_record, faces_of, real_path, write_outputs
+from .outputs import OUTPUT_FILES, checked_view_size, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
-from .runner import RunOptions, RunResult, run_stream
+from .runner import RunOptions, RunResult, out_folder, run_stream, say
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 
@@ -110,6 +110,7 @@ def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
 
 def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     opts = options or MethodOptions()
+    checked_view_size(opts.novel_size)
     changes = {}
     if isinstance(light, str) and light.strip().lower() in ("auto", "yaleb"):
         changes["light"] = light.strip().lower()
@@ -120,7 +121,7 @@ def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     if eyes is not None:
         try:
             given = np.asarray(eyes, np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             given = np.empty(0)
         if given.size != 4:
             raise ValueError(f"eyes {eyes!r}: give the two eye centres [[x1, y1], [x2, y2]] in pixels")
@@ -175,8 +176,13 @@ def run(inputs: Iterable[str | os.PathLike], out: str | os.PathLike, model: Shap
     ``shadowflow run`` does: ``out/<stem>/`` per image, ``out/summary.json``, and the recordings
     named in ``record`` (``run.rrd``, ``run.mcap``). A bad input fails its own frame only (its
     record in the result says why). ``dask``: run the frames on a Dask cluster (``--dask``: local,
-    local:N, tcp://HOST:PORT). Returns the ``RunResult`` (summary records in input order)."""
-    paths = expand_inputs([str(i) for i in inputs], note=lambda msg: None if quiet else print(msg))
+    local:N, tcp://HOST:PORT). ``inputs`` may be one file or folder, as a string or path. ``quiet``: nothing is
+    printed (the result and its records say everything); else notes and errors on stderr, as the command line
+    says them. Returns the ``RunResult`` (summary records in input order)."""
+    if isinstance(inputs, (str, bytes, os.PathLike)):  # one input, not the characters of its name
+        inputs = [inputs]
+    paths = expand_inputs([os.fsdecode(i) for i in inputs], note=(lambda msg: None) if quiet else say)
     run_options = RunOptions(record=tuple(record), record_options=RecordOptions(every=record_every),
-                             fit_workers=workers, resume=resume, quiet=quiet, dask=dask)
-    return run_stream(paths, Path(out), _model(model), options or MethodOptions(), run_options, total=len(paths))
+                             fit_workers=workers, resume=resume, quiet=quiet, silent=quiet, dask=dask)
+    return run_stream(paths, out_folder(out), _model(model), _options(options, None, None), run_options,
+                      total=len(paths))

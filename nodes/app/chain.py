@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import MutableSet
+from typing import Callable, MutableSet
 
 from ...flow.recording import Recorder
 from ..method.nodes import MethodOptions
@@ -13,10 +13,11 @@ from .record import FitRecorder, RecordNode
 
 
 def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: MutableSet[Path],
-              recorder: Recorder | None = None) -> list:
+              recorder: Recorder | None = None, still_ours: Callable[[], bool] | None = None) -> list:
     """A photo's nodes in a run: load, find its faces, the method on each face (``photo_nodes``), each
     fit's iterations and each face's products recorded when there is a ``recorder``, and the outputs
-    written under ``out`` (never over a path in ``protected``)."""
+    written under ``out`` (never over a path in ``protected``, nor once ``still_ours`` says ``out`` is not
+    the run's any more)."""
     observer = FitRecorder(model, recorder) if recorder is not None else None
     after = (RecordNode(model, recorder),) if recorder is not None else ()
-    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected, options.arrays)]
+    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected, options.arrays, still_ours)]

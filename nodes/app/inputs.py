@@ -46,10 +46,10 @@ def expand_inputs(items: list[str], note=print) -> list[str]:
 class FolderWatch:
     """Image files in ``folder`` (sorted), then each new one as it appears; iterate it for paths.
 
-    A file is taken once its size and mtime have stayed the same for ``settle`` seconds (or its
-    mtime is already that old), so a file still being copied in is not read half-written. A
-    file taken before is taken again when it changes (replaced, or completed after a stalled
-    copy was read and failed). Ends after ``idle_exit`` seconds with nothing new handed on and
+    A file is taken once its size and mtime, and its sidecar's (``<stem>.json``), have stayed the same for
+    ``settle`` seconds (or their mtimes are already that old), so a file still being copied in is not read
+    half-written. A file taken before is taken again when it or its sidecar changes (replaced, completed
+    after a stalled copy was read and failed, or its sidecar arriving after it). Ends after ``idle_exit`` seconds with nothing new handed on and
     nothing waiting to settle (None: never, until Ctrl-C), or when the folder goes away: ``error``
     then says why (one line)."""
 
@@ -58,8 +58,9 @@ class FolderWatch:
         self.folder, self.suffixes, self.idle_exit, self.poll, self.settle = folder, suffixes, idle_exit, poll, settle
         self.error: str | None = None
 
-    def _listing(self) -> dict[Path, tuple[int, int, float]] | None:
-        """path -> (size, mtime_ns, mtime in s) of the image files now in the folder; None when it is gone."""
+    def _listing(self) -> dict[Path, tuple[tuple, int, float]] | None:
+        """path -> (identity: its and its sidecar's size and mtime_ns, size, the later mtime in s) of the image
+        files now in the folder; None when it is gone."""
         try:
             names = sorted(self.folder.iterdir())
         except OSError as exc:
@@ -74,12 +75,14 @@ class FolderWatch:
             except OSError:
                 continue  # gone again, or a dangling link: nothing to take yet
             if stat.S_ISREG(st.st_mode):
-                found[f] = (st.st_size, st.st_mtime_ns, st.st_mtime)
+                side = _sidecar_stat(f)
+                ident = (st.st_size, st.st_mtime_ns, *(side[:2] if side else ()))
+                found[f] = (ident, st.st_size, max(st.st_mtime, side[2] if side else 0.0))
         return found
 
     def __iter__(self) -> Iterator[str]:
-        taken: dict[Path, tuple[int, int]] = {}  # identity when last taken
-        since: dict[Path, tuple[tuple[int, int], float]] = {}  # identity first seen unchanged, and when
+        taken: dict[Path, tuple] = {}  # identity when last taken
+        since: dict[Path, tuple[tuple, float]] = {}  # identity first seen unchanged, and when
         last_new = time.monotonic()
         while True:
             listing = self._listing()
@@ -87,8 +90,7 @@ class FolderWatch:
                 return
             now, wall = time.monotonic(), time.time()
             waiting = False  # a file seen but not yet taken (being copied in): not idle
-            for f, (size, mtime_ns, mtime) in listing.items():
-                ident = (size, mtime_ns)
+            for f, (ident, size, mtime) in listing.items():
                 if taken.get(f) == ident:
                     continue
                 if since.get(f, (None,))[0] != ident:
@@ -104,6 +106,15 @@ class FolderWatch:
             if self.idle_exit is not None and not waiting and time.monotonic() - last_new > self.idle_exit:
                 return
             time.sleep(self.poll)
+
+
+def _sidecar_stat(image: Path) -> tuple[int, int, float] | None:
+    """(size, mtime_ns, mtime in s) of the image's sidecar when it has one (a regular file), else None."""
+    try:
+        st = sidecar_path(image).stat()
+    except (OSError, ValueError):
+        return None
+    return (st.st_size, st.st_mtime_ns, st.st_mtime) if stat.S_ISREG(st.st_mode) else None
 
 
 def input_fingerprint(path: str | os.PathLike) -> str:

@@ -2,6 +2,7 @@
 ``conventions.md`` (``OUT/<stem>/...`` and ``OUT/summary.json``), every file atomically."""
 from __future__ import annotations
 
+import errno
 import io
 import itertools
 import json
@@ -10,7 +11,7 @@ import re
 import unicodedata
 from collections.abc import MutableSet
 from pathlib import Path
-from typing import Iterable
+from typing import Callable, Iterable
 
 import cv2
 import numpy as np
@@ -18,6 +19,7 @@ import numpy as np
 from ...flow.files import atomic_write_bytes, atomic_write_chunks, json_array_chunks
 from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
+from ...flow.manifest import RunManifest
 from ..geometry.reflectance import light_tag
 from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
                                photo_mesh)
@@ -25,8 +27,9 @@ from ..relight.products import relit_lights, relit_photo_8bit
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..method.quality import NO_FACE
 from ..photo.align import Alignment, scalar_to_input
+from ..photo.loader import MAX_PIXELS, MAX_SIDE
 from ..photo.encoding import swapped_rb
-from ..model.shape_model import ShapeModel
+from ..model.shape_model import MAX_GRID_SIDE, ShapeModel
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
 
@@ -38,6 +41,18 @@ FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json"
 # 4-megapixel photo, holding the same 128 x 128 fit resampled)
 ARRAYS = ("grid", "photo")
 OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
+# novel_view.png's largest side (``--view-size``): the surface it shows is the fit's (128^2 by default, at most the
+# largest model grid's 512^2), and rendering it costs memory and time with the square of the side, every face of a
+# photo (one face at 2048: +1 GB and 10 s; a photo of 49 faces at 1024: 116 s, 1.0 GB; docs/faults.md)
+MAX_VIEW_SIZE = 512
+
+
+def checked_view_size(px: int | None) -> int | None:
+    """``novel_view.png``'s side as asked (None: the model grid's); ``ValueError`` outside 32 to ``MAX_VIEW_SIZE``."""
+    if px is not None and not 32 <= px <= MAX_VIEW_SIZE:
+        raise ValueError(f"--view-size is a side of 32 to {MAX_VIEW_SIZE} pixels (the fit's surface holds no more "
+                         f"detail), not {px}")
+    return px
 
 
 def real_path(path: str | Path) -> Path:
@@ -61,24 +76,79 @@ def reserved(name: str) -> bool:
     return low in RUN_FILES or _RUN_PART.fullmatch(low) is not None
 
 
-def safe_stem(path: str, taken: MutableSet[str]) -> str:
+def safe_stem(path: str, taken: MutableSet[str], free: Callable[[str], bool] = lambda name: True) -> str:
     """A file-system-safe, unique output folder name for an input path.
 
     Keeps letters, digits, ``.``, ``_``, ``+`` and ``-`` (after Unicode NFKD folding: a +50 and a
     -50 photo of one face stay a pair), never starts with ``.``, ``+`` or ``-``, and appends ``-2``,
     ``-3``... when the name is already in ``taken`` (lower-case names, a set or one on disk; the name
-    then joins it) or is one of the run's own files (``reserved``: an input called
-    ``summary.json.png`` gets ``summary.json-2``).
+    then joins it), is one of the run's own files (``reserved``: an input called
+    ``summary.json.png`` gets ``summary.json-2``) or is not ``free`` (a user's own file or folder there).
     """
     stem = Path(path).stem
     stem = unicodedata.normalize("NFKD", stem).encode("ascii", "ignore").decode("ascii")
     stem = re.sub(r"[^A-Za-z0-9._+-]+", "_", stem).lstrip(".-_+") or "input"
     stem = stem[:120]
     name, k = stem, 2
-    while name.lower() in taken or reserved(name):
+    while name.lower() in taken or reserved(name) or not free(name):
         name, k = f"{stem}-{k}", k + 1
     taken.add(name.lower())
     return name
+
+
+_FACE_FOLDER = re.compile(r"face-[0-9]+")
+_RELIT_FILE = re.compile(r"relit_A[+-][0-9]{3}E[+-][0-9]{2}\.png")
+_TEMPORARY = re.compile(r"\..+\.tmp")  # an atomic write's, left by a kill
+
+
+def run_output_folder(path: Path) -> bool:
+    """Whether ``path`` may be written as a photo's output folder, being nobody else's: absent; or a real folder
+    holding nothing but what a run writes there (its files, ``face-<k>/`` folders, a killed write's temporary
+    files), with the first file a run writes (``normals.npy``) among them unless it holds none. A user's own file
+    or folder of that name (``README/`` beside ``README.png``, holding a ``relit.png`` of their own) is not."""
+    if not os.path.lexists(path):
+        return True
+    if path.is_symlink() or not path.is_dir():
+        return False
+    try:
+        names = [entry.name for entry in os.scandir(path)]
+    except OSError:
+        return False
+    ours = [n for n in names if not _TEMPORARY.fullmatch(n)]
+    if any(n not in OUTPUT_FILES and not _RELIT_FILE.fullmatch(n) and not _FACE_FOLDER.fullmatch(n) for n in ours):
+        return False
+    return not ours or "normals.npy" in ours
+
+
+_LOCK_HOLDER = re.compile(rb"pid [0-9]+ on \S")  # what a run writes in its folder's ``.lock``: pid N on HOST, ...
+_SEGMENT = re.compile(r"run(\.part[0-9]+)?\.s[0-9]+\.rrd")  # a long run's Rerun files after its first
+
+
+def foreign_run_files(out: Path) -> list[str]:
+    """The files in ``out`` that a run writes over (``summary.json``, ``report.html``, ``run.mcap``...; never a
+    resumed run's parts, which take free names) when ``out`` is not a run's folder: it has neither the ``.lock``
+    every run leaves (``pid N on HOST, started ...``) nor a manifest of shadowflow's. Empty for a run's folder,
+    or one holding none of those names."""
+    try:
+        names = [entry.name for entry in os.scandir(out)]
+    except OSError:  # absent, or not a folder: check_writable says what is wrong
+        return []
+    clashing = sorted(n for n in names if n in RUN_FILES or _SEGMENT.fullmatch(n))
+    holder = b""
+    if ".lock" in clashing:
+        try:
+            with open(out / ".lock", "rb", opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW | os.O_NONBLOCK)) as fh:
+                holder = fh.read(4096)
+        except OSError:
+            holder = b"?"
+        if _LOCK_HOLDER.match(holder):
+            return []
+        if not holder:  # (a run killed before it said who it was)
+            clashing.remove(".lock")
+    if not clashing:
+        return []
+    manifest = RunManifest.load(out)
+    return [] if manifest is not None and manifest.config.get("tool") == "shadowflow" else clashing
 
 
 def _npy_bytes(arr: np.ndarray) -> bytes:
@@ -229,36 +299,94 @@ def read_arrays(folder: str | Path, on_photo_grid: bool = False) -> dict[str, np
     ``on_photo_grid`` on its photo's pixel grid (H, W[, 3]) whichever way they were written: model-grid
     arrays are brought there through ``grid.json`` as ``--arrays photo`` brings them (``align.scalar_to_input``:
     bilinear, renormalised at the face's edge; normals made unit again), NaN off ``mask.png``. Read without
-    pickles."""
+    pickles; ``grid.json`` and ``mask.png`` are checked before anything photo-sized is made (``ValueError``
+    naming the file): a photo within the loader's limits, of ``mask.png``'s size, the arrays of one grid."""
     folder = Path(folder)
+    for name in ("normals.npy", "weights.npy", "depth.npy", *(("grid.json", "mask.png") if on_photo_grid else ())):
+        if not (folder / name).is_file():  # (a pipe would never let the read end)
+            raise ValueError(f"{folder / name}: " + ("not a regular file" if (folder / name).exists() else "missing"))
     arrays = {name: np.load(folder / f"{name}.npy", allow_pickle=False) for name in ("normals", "weights", "depth")}
     if not on_photo_grid:
         return arrays
-    place = json.loads((folder / "grid.json").read_text())
-    h, w = place["photo"]
+    (h, w), al = _photo_placement(folder)
     if arrays["depth"].shape == (h, w):  # written on the photo's grid already
         return arrays
-    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
-    al, known = Alignment(np.asarray(place["to_photo"], np.float64), "grid.json"), np.isfinite(arrays["depth"])
+    grid = arrays["depth"].shape
+    if arrays["weights"].shape != grid or arrays["normals"].shape != (*grid, 3) or max(grid) > MAX_GRID_SIDE:
+        raise ValueError(f"{folder}: normals.npy {arrays['normals'].shape}, weights.npy {arrays['weights'].shape} "
+                         f"and depth.npy {grid} are not the arrays of one model grid, nor of the photo ({h}, {w})")
+    mask = _mask(folder, (h, w))
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    y0, y1, x0, x1 = (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1) if rows.size else (0, 0, 0, 0)
+    box, known = al.cropped(x0, y0), np.isfinite(arrays["depth"])
 
     def on_photo_grid(values: np.ndarray) -> np.ndarray:  # (the grid's vectors are the photo's already)
-        return np.where(mask, scalar_to_input(values, known, al, (h, w)), np.nan).astype(np.float32)
+        out = np.full((h, w), np.nan, np.float32)  # brought into the face's box only: the rest is off the face
+        if y1 > y0:
+            out[y0:y1, x0:x1] = np.where(mask[y0:y1, x0:x1], scalar_to_input(values, known, box, (y1 - y0, x1 - x0)),
+                                         np.nan)
+        return out
 
     normals = np.stack([on_photo_grid(arrays["normals"][..., i]) for i in range(3)], axis=-1)
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     return {"normals": normals, "weights": on_photo_grid(arrays["weights"]), "depth": on_photo_grid(arrays["depth"])}
 
 
+def _photo_placement(folder: Path) -> tuple[tuple[int, int], Alignment]:
+    """``grid.json``'s photo (height, width) and its placement of the model grid, checked: two whole numbers
+    within the loader's limits (``MAX_PIXELS``, ``MAX_SIDE``), and a finite (2, 3) matrix."""
+    path = folder / "grid.json"
+    try:
+        place = json.loads(path.read_bytes()[:1 << 20])
+        h, w = (int(v) if isinstance(v, int) and not isinstance(v, bool) else -1 for v in place["photo"])
+        matrix = np.asarray(place["to_photo"], np.float64)
+    except (ValueError, TypeError, KeyError, OverflowError, RecursionError) as exc:
+        raise ValueError(f"{path}: not a grid.json shadowflow wrote ({' '.join(str(exc).split())})") from None
+    if not (0 < h <= MAX_SIDE and 0 < w <= MAX_SIDE and h * w <= MAX_PIXELS):
+        raise ValueError(f"{path}: photo {place['photo']} is not a photo within the {MAX_PIXELS // 1_000_000}-"
+                         f"megapixel, {MAX_SIDE}-pixel limits")
+    if matrix.shape != (2, 3) or not np.all(np.isfinite(matrix)):
+        raise ValueError(f"{path}: to_photo is not a finite 2 x 3 matrix")
+    return (h, w), Alignment(matrix, "grid.json")
+
+
+def _mask(folder: Path, shape: tuple[int, int]) -> np.ndarray:
+    """``mask.png`` as a boolean (H, W), once its header says it is the photo's ``shape``."""
+    from PIL import Image
+
+    path = folder / "mask.png"
+    try:
+        with Image.open(path) as probe:  # the header only
+            size = probe.size
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise ValueError(f"{path}: not a readable mask ({' '.join(str(exc).split())})") from None
+    if size != (shape[1], shape[0]):
+        raise ValueError(f"{path}: {size[0]}x{size[1]}, not the {shape[1]}x{shape[0]} photo grid.json gives")
+    mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if mask is None or mask.shape != shape:
+        raise ValueError(f"{path}: not a readable mask")
+    return mask > 0
+
+
 class WriteNode:
-    """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file."""
+    """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file, or into ``out_dir`` once
+    ``still_ours`` (the run's lock) says it was removed or replaced under the run (an ``OSError`` of ``ESTALE``,
+    which stops the run)."""
 
     name = "write"
 
-    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid"):
+    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid",
+                 still_ours: Callable[[], bool] | None = None):
         self.model, self.out_dir, self.protected, self.arrays = model, out_dir, protected, arrays
+        self.still_ours = still_ours
 
     def __call__(self, frame: Frame) -> Frame:
+        if self.still_ours is not None and not self.still_ours():
+            raise OSError(errno.ESTALE, "removed or replaced during the run; nothing more is written there",
+                          str(self.out_dir))
         folder = self.out_dir / frame.meta["stem"]
+        if not run_output_folder(folder):  # (made by someone else since the photo was named)
+            raise ValueError(f"{frame.source}: {folder} is not a folder a run made; refusing to write into it")
         targets = [folder / n for n in (*OUTPUT_FILES, *(relit_name(light) for light in relit_lights(frame)[1:]))]
         for face in faces_of(frame):
             sub = face_folder(frame, face)

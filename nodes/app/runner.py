@@ -8,6 +8,7 @@ import functools
 import json
 import math
 import os
+import re
 import socket
 import sys
 import time
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ...flow.files import atomic_write_bytes, exclusive_folder
+from ...flow.files import FolderLock, atomic_write_bytes, exclusive_folder
 from ...flow.frame import Frame
 from ...flow.manifest import (
     JOURNAL_NAME,
@@ -33,12 +34,16 @@ from ...flow.runstore import RunStore
 from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, ScalarsTap
 from ...flow.jsonsafe import jsonable
 from ...flow.recording.process import renewed_sink
+from ...flow.replay.text import one_line
 from ..method.nodes import MethodOptions
 from ..model.shape_model import ShapeModel
 from .outputs import (
+    FACE_FILES,
     OUTPUT_FILES,
     RUN_FILES,
+    foreign_run_files,
     real_path,
+    run_output_folder,
     relit_name,
     safe_stem,
     status_lines,
@@ -61,7 +66,8 @@ DEFAULT_FRAME_TIMEOUT = 120.0
 @dataclass
 class RunOptions:
     """record: subset of {"rerun", "mcap"}; fit_workers: threads for the fit node (local engine);
-    resume: skip inputs whose outputs are complete; quiet: no progress or notes;
+    resume: skip inputs whose outputs are complete; quiet: no progress or notes (errors still said);
+    silent: nothing said at all (the API's ``quiet``: its ``RunResult`` and records say everything);
     frame_timeout: seconds any one node may spend on one frame before the frame fails; in_flight: the
     most frames in the local pipeline at once (None: ``frames_in_flight``)."""
 
@@ -72,6 +78,7 @@ class RunOptions:
     in_flight: int | None = None
     resume: bool = False
     quiet: bool = False
+    silent: bool = False
     frame_timeout: float | None = DEFAULT_FRAME_TIMEOUT
     dask: str | None = None  # ``--dask``: local, local:N, tcp://HOST:PORT or env (None: threads here)
 
@@ -94,8 +101,9 @@ def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
     return path
 
 
-# errors that fail every later write too: the run stops instead of failing frame after frame
-STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+# errors that fail every later write too: the run stops instead of failing frame after frame (EPERM, EACCES: the
+# folder made immutable or read-only under the run; ESTALE: removed or replaced under it, ``FolderLock``)
+STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EPERM, errno.EACCES, errno.ESTALE}
 # the Rerun sink's process is made anew every this many frames (five of its 100-frame segments): the SDK
 # keeps a few hundred bytes for every entity path a process has logged, for the life of the process
 # (docs/tuning.md, "Streaming")
@@ -118,6 +126,27 @@ def cannot_write(path, exc: OSError) -> str:
     return f"{path}: cannot be written ({exc.strerror or exc})"
 
 
+def out_folder(text: str | os.PathLike) -> Path:
+    """``--out`` (or the API's ``out``) as a folder; ``ValueError`` for an empty name, which would be the working
+    folder (and a run writes over its ``report.html``, ``summary.json`` and ``manifest.json``)."""
+    if not os.fspath(text).strip():
+        raise ValueError(f"--out {os.fspath(text)!r}: an empty name; name a folder (--out . for this one)")
+    return Path(text)
+
+
+def check_out(out: Path) -> None:
+    """``check_writable``, once ``out`` is known to hold no file of a run's names that a run did not write
+    (``outputs.foreign_run_files``); else ``ValueError`` naming the first."""
+    foreign = foreign_run_files(out)
+    if foreign:
+        more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
+        if (out / foreign[0]).is_symlink():
+            refuse_link(out / foreign[0])
+        raise ValueError(f"--out {out}: holds {foreign[0]}, which no shadowflow run wrote, and a run writes over "
+                         f"it{more}; choose another --out")
+    check_writable(out)
+
+
 def check_writable(out: Path) -> None:
     """Create ``out`` if needed and prove a file can be written there; else ``StorageError``."""
     try:
@@ -132,27 +161,40 @@ def _storage_failure(exc: BaseException | None) -> bool:
     return isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS
 
 
-def complete(folder: Path, extra_lights: Iterable = ()) -> bool:
-    """All output files of a frame exist (each was written by an atomic rename), a relit photo for each
-    of ``extra_lights`` (``--relight``) among them."""
+def complete(out: Path, name: str, record: dict, extra_lights: Iterable = ()) -> bool:
+    """All output files of a frame named ``name`` whose summary record is ``record`` exist (each was written by an
+    atomic rename): the photo's folder's, a relit photo for each of ``extra_lights`` (``--relight``) among them,
+    and each other face's folder the record lists (``face-<k>/``)."""
     names = (*OUTPUT_FILES, *(relit_name(light) for light in extra_lights))
-    return all((folder / name).is_file() for name in names)
+    if not all((out / name / n).is_file() for n in names):
+        return False
+    for face in record.get("faces") or ():
+        sub = face.get("dir") if isinstance(face, dict) else None
+        if sub is None or sub == name:
+            continue
+        if not (isinstance(sub, str) and re.fullmatch(re.escape(name) + r"/face-[0-9]+", sub)):
+            return False  # not a folder this run writes: the frame is redone
+        if not all((out / sub / n).is_file() for n in FACE_FILES):
+            return False
+    return True
 
 
 def say(line: str) -> None:
-    """``line`` on stderr in one write: ``print`` writes the text and its newline apart, and a writer on another
-    thread between the two runs two lines into one."""
-    sys.stderr.write(line + "\n")
+    """``line`` on stderr in one write (``print`` writes the text and its newline apart, and a writer on another
+    thread between the two runs two lines into one), on one line: its control characters (a file name's escape
+    sequences, BEL, C1 codes, newlines) written as Python escapes, so a name can neither drive the terminal nor
+    forge a line of its own."""
+    sys.stderr.write(one_line(line) + "\n")
     sys.stderr.flush()
 
 
 class Progress:
     """One status line on a terminal (tqdm): done / total, frames per second, ETA, failures."""
 
-    def __init__(self, total: int | None, enabled: bool):
+    def __init__(self, total: int | None, enabled: bool, silent: bool = False):
         from tqdm import tqdm
 
-        self.failed = 0
+        self.failed, self.silent = 0, silent
         self.bar = tqdm(total=total, unit="frame", disable=not (enabled and sys.stderr.isatty()),
                         dynamic_ncols=True, leave=True, file=sys.stderr)
 
@@ -163,11 +205,14 @@ class Progress:
         self.bar.update(1)
 
     def write(self, line: str) -> None:
-        """A line on stderr above the status line (which is redrawn below it), in one write (``say``)."""
+        """A line on stderr above the status line (which is redrawn below it), in one write (``say``); none when
+        ``silent``."""
+        if self.silent:
+            return
         if self.bar.disable:
             say(line)
         else:
-            self.bar.write(line, file=sys.stderr)
+            self.bar.write(one_line(line), file=sys.stderr)
 
     def close(self) -> None:
         self.bar.close()
@@ -260,22 +305,22 @@ def run_stream(paths: Iterable[str], out: Path, model: ShapeModel, options: Meth
             clash = run_file_clash(path, written)
             if clash:
                 raise ValueError(clash)
-    check_writable(out)
+    check_out(out)
     release_large_frees()
     holder = f"pid {os.getpid()} on {socket.gethostname()}, started {time.strftime('%Y-%m-%d %H:%M:%S')}"
-    with exclusive_folder(out, holder):
+    with exclusive_folder(out, holder) as lock:
         if not run.dask:
-            return _run_locked(paths, out, model, options, run, total)
+            return _run_locked(paths, out, model, options, run, total, lock=lock)
         from .cluster import dask_client
 
         with dask_client(run.dask) as client:
-            return _run_locked(paths, out, model, options, run, total, client)
+            return _run_locked(paths, out, model, options, run, total, client, lock)
 
 
 def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions,
-                run: RunOptions, total: int | None, client=None) -> RunResult:
-    """The run, once ``out`` is locked: on this machine's threads, or on ``client``'s Dask cluster."""
-    note = (lambda msg: None) if run.quiet else say
+                run: RunOptions, total: int | None, client=None, lock: FolderLock | None = None) -> RunResult:
+    """The run, once ``out`` is locked (``lock``): on this machine's threads, or on ``client``'s Dask cluster."""
+    note = (lambda msg: None) if run.quiet or run.silent else say
     config = run_config(model, options)
     config_id = config_hash(config)
     previous = RunManifest.load(out) if run.resume else None
@@ -291,23 +336,27 @@ def _run_locked(paths: Iterable[str], out: Path, model: ShapeModel, options: Met
         store.entries.update(previous.entries if previous else {})
         manifest = RunManifest(config, list(previous.recordings) if previous else [], store.entries)
         return StoredRun(paths, out, model, options, run, total, client, manifest, previous is not None,
-                         store).execute()
+                         store, lock).execute()
     finally:
-        store.close()
+        store.close(remove=lock is None or lock.held())  # (in a folder made anew under the run: not ours)
 
 
 class StoredRun:
     """One run into a locked ``out`` whose manifest's entries and records are in ``store``: its state and
     its steps as methods. ``execute()`` streams the inputs through the pipeline; each finished frame comes
     to ``done``, which keeps its record, journal entry, summary and progress; a full disk (or any storage
-    failure) stops the run through ``out_of_storage``. ``resumed``: it goes on from an earlier run's
+    failure) stops the run through ``out_of_storage``, as ``out`` removed or replaced under the run does (its
+    ``lock`` no longer held: nothing more is written there). ``resumed``: it goes on from an earlier run's
     manifest."""
 
     def __init__(self, paths: Iterable[str], out: Path, model: ShapeModel, options: MethodOptions, run: RunOptions,
-                 total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore):
+                 total: int | None, client, manifest: RunManifest, resumed: bool, store: RunStore,
+                 lock: FolderLock | None = None):
         self.paths, self.out, self.model, self.options, self.run = paths, out, model, options, run
         self.total, self.client, self.manifest, self.resumed, self.store = total, client, manifest, resumed, store
-        self.note = (lambda msg: None) if run.quiet else say
+        self.lock = lock
+        self.note = (lambda msg: None) if run.quiet or run.silent else say
+        self.shout = (lambda msg: None) if run.silent else say  # errors, and what --quiet still says
         self.config_id = manifest.config_id
         self.storage: str | None = None  # the first storage failure, which stops the run
         self.summary_clock = {"last": -math.inf, "cost": 0.0}  # the first frame's record is written at once
@@ -318,7 +367,7 @@ class StoredRun:
         self._open_recordings()
         manifest.save(out)  # the job's parts and inputs so far, before any frame
         self.journal = Journal(out)
-        self.progress = Progress(total, not run.quiet)
+        self.progress = Progress(total, not run.quiet, run.silent)
         self.trim_heap = HeapTrimmer()
 
     def _open_recordings(self) -> None:
@@ -367,7 +416,8 @@ class StoredRun:
         """The engine: this machine's threads, or the Dask cluster of ``client``."""
         run = self.run
         if self.client is None:
-            nodes = run_nodes(self.model, self.options, self.out, self.protected, self.recorder)
+            still_ours = self.lock.held if self.lock is not None else None
+            nodes = run_nodes(self.model, self.options, self.out, self.protected, self.recorder, still_ours)
             stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
             return Pipeline(stages, queue_size=run.queue_size, on_done=self.done, frame_timeout=run.frame_timeout,
                             in_flight=run.in_flight or frames_in_flight(run.fit_workers))
@@ -380,10 +430,19 @@ class StoredRun:
 
     # -- storage: the first failure stops the run -------------------------------------------------
 
+    def folder_lost(self) -> bool:
+        """``out`` was removed or replaced under the run (its ``.lock`` is not the one this run holds): said once,
+        and the run stops writing there (a run started into it since holds it now)."""
+        if self.lock is None or self.lock.held():
+            return False
+        self.out_of_storage(f"{self.out}: removed or replaced during the run (its .lock is not this run's); "
+                            "nothing more is written there")
+        return True
+
     def out_of_storage(self, why: str) -> None:
         if self.storage is None:
             self.storage = why
-            print(f"error: {why}; stopping (free space, then run again with --resume)", file=sys.stderr)
+            self.shout(f"error: {why}; stopping (free space or make it writable, then run again with --resume)")
         if self.pipeline is not None:
             self.pipeline.stop()
 
@@ -468,18 +527,21 @@ class StoredRun:
         if given is None and earlier is None:
             earlier = self._moved_here(key, identity, fingerprint)
         if given is not None:
-            if given[2] == identity:
+            if given[2] == identity and assigned.fingerprint(key) == fingerprint:  # (a sidecar come since: redone)
                 self.note(f"{path}: given more than once; processed once")
                 return None
             name, fid = given[:2]  # changed since this run took it (a watched folder): redone
             earlier = None
-        elif earlier is not None:
+        elif earlier is not None and run_output_folder(self.out / earlier.name):
             name, fid = earlier.name, earlier.frame
             self.store.names.add(name.lower())
+        elif earlier is not None:  # its folder is someone else's now (replaced since): redone under another name
+            name, fid, earlier = safe_stem(path, self.store.names, lambda n: run_output_folder(self.out / n)), \
+                earlier.frame, None
         else:
-            name, fid = safe_stem(path, self.store.names), self._next_id
+            name, fid = safe_stem(path, self.store.names, lambda n: run_output_folder(self.out / n)), self._next_id
             self._next_id += 1
-        assigned.put(key, name, fid, identity)
+        assigned.put(key, name, fid, identity, fingerprint)
         self.protected.add(real_path(path))
         return name, fid, earlier
 
@@ -513,7 +575,7 @@ class StoredRun:
         if reusable:  # (a changed configuration was said once, before the run)
             if not earlier.same_file(identity, fingerprint):
                 self.note(f"note: {path} changed since the earlier run: redone")
-            elif complete(self.out / name, self.options.extra_lights):
+            elif complete(self.out, name, earlier.record, self.options.extra_lights):
                 frame.skipped = True
                 frame.meta["previous"] = {**earlier.record, "source": str(path)}
         return frame
@@ -522,6 +584,8 @@ class StoredRun:
 
     def done(self, frame: Frame) -> None:
         """A frame the pipeline is done with, in input order: recorded, journaled, summarised."""
+        if self.storage is None:
+            self.folder_lost()
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
             frame.drop_data()
         elif frame.skipped:
@@ -593,8 +657,7 @@ class StoredRun:
             report = self._close()
         lost = getattr(self.pipeline, "lost", None)
         if lost:
-            print(f"error: {lost}; finished frames are written; run again with --resume to complete the job",
-                  file=sys.stderr)
+            self.shout(f"error: {lost}; finished frames are written; run again with --resume to complete the job")
         frames_done, not_ok = self.store.records.counts()
         stopped = self.pipeline.stopped and self.storage is None
         return RunResult(self.out, frames_done, not_ok, stopped, self.storage, lost, report)
@@ -606,11 +669,12 @@ class StoredRun:
             return write_report(out, self.store.records, out if "mcap" in self.run.record else None,
                                 series=self.tap.series() if self.tap is not None else None, cards=self.cards)
         except OSError as exc:  # the outputs and the summary are written: the report is a view of them
-            print(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})", file=sys.stderr)
+            self.shout(f"note: {out / REPORT_NAME}: not written ({exc.strerror or exc})")
             return None
 
     def _close(self) -> Path | None:
-        """The run's files closed and written, whatever ended it; the report's path, if it was written."""
+        """The run's files closed and written, whatever ended it; the report's path, if it was written. Into a
+        folder removed or replaced under the run, nothing (its summary and manifest would be another run's)."""
         out, manifest = self.out, self.manifest
         self.progress.close()
         self.journal.close()
@@ -620,7 +684,9 @@ class StoredRun:
             except RuntimeError as exc:
                 if self.storage is None:
                     raise
-                print(f"note: {exc}", file=sys.stderr)
+                self.shout(f"note: {exc}")
+        if self.folder_lost():
+            return None
         self.save_summary(force=True)
         for sink in self.sinks:  # a long run's .rrd goes on in segment files: the job's parts too
             for path in sink.paths:
@@ -629,9 +695,8 @@ class StoredRun:
         try:
             manifest.save(out)
         except OSError as exc:  # the journal keeps what it could not fold in: --resume reads both
-            print(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})", file=sys.stderr)
+            self.shout(f"note: {out / MANIFEST_NAME}: not compacted ({exc.strerror or exc})")
         report = self._report() if self.storage is None else None
         if self.pipeline.stopped and self.storage is None:  # shown even under --quiet: the job is not complete
-            print("stopped: finished frames are written; run again with --resume to complete the job",
-                  file=sys.stderr)
+            self.shout("stopped: finished frames are written; run again with --resume to complete the job")
         return report

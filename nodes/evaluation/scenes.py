@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ...flow.files import atomic_write_bytes
 from ..geometry.integrate import fill_holes
 from ..geometry.normals import normals_from_depth
 from ..geometry.reflectance import lambertian
@@ -69,11 +70,15 @@ def write_shadowed_face(path: str | Path, rng: np.random.Generator, light: np.nd
                         grid: tuple[int, int] = (128, 128), source: str = "procedural") -> Path:
     """Draw a face from ``rng`` (``draw_face``), render it under ``light`` (3,) with its cast and
     attached shadows and its albedo, and write ``path`` (8-bit PNG) with ``<stem>.json``
-    holding ``{"light": [x, y, z], "eyes": [[x1, y1], [x2, y2]]}``."""
+    holding ``{"light": [x, y, z], "eyes": [[x1, y1], [x2, y2]]}``, each atomically (a link at either name is
+    replaced, never written through: ``--demo`` writes these into ``--out``)."""
     depth, mask, albedo = draw_face(rng, grid, source)
     image = render_scene(depth, albedo, light, mask).image
     path = Path(path)
-    cv2.imwrite(str(path), (np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8))
+    ok, encoded = cv2.imencode(path.suffix or ".png", (np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8))
+    if not ok:
+        raise ValueError(f"{path}: cannot encode an image of this kind")
+    atomic_write_bytes(path, encoded.tobytes())
     eyes = canonical_eyes(grid).tolist()  # the generator knows where it put them
-    path.with_suffix(".json").write_text(json.dumps({"light": [float(x) for x in light], "eyes": eyes}))
+    atomic_write_bytes(path.with_suffix(".json"), json.dumps({"light": [float(x) for x in light], "eyes": eyes}).encode())
     return path

@@ -334,6 +334,27 @@ def _check_shapes(path, data: dict[str, np.ndarray], mask: np.ndarray) -> None:
             raise ValueError(f"{path}: '{name}' holds NaN or infinite values")
 
 
+# a model's eyes on one row of its grid, as an upright face's: within this slope (14 degrees); every built-in model's,
+# the turned views' too, are level
+MAX_EYE_SLOPE = 0.25
+
+
+def _check_eyes(path, eyes: np.ndarray, mouth: np.ndarray | None, shape: tuple[int, int]) -> None:
+    """``ValueError`` unless the model's eyes are an upright face's on its grid: image-left first, on one row, apart,
+    inside the grid, above its mouth. A model whose eyes were swapped placed every face mirrored about the vertical
+    and upside down, and its fits came back ``ok``."""
+    (x1, y1), (x2, y2) = eyes
+    if x2 - x1 < 2.0:
+        raise ValueError(f"{path}: 'eyes' {eyes.tolist()} must be the two eye centres image-left first "
+                         "[[x1, y1], [x2, y2]], x1 < x2 (these are swapped or on one point)")
+    if abs(y2 - y1) > MAX_EYE_SLOPE * (x2 - x1):
+        raise ValueError(f"{path}: 'eyes' {eyes.tolist()} are not on one row of the grid, as an upright face's")
+    if not (np.all(eyes >= 0) and np.all(eyes[:, 0] < shape[1]) and np.all(eyes[:, 1] < shape[0])):
+        raise ValueError(f"{path}: 'eyes' {eyes.tolist()} lie outside the {shape[1]} x {shape[0]} grid")
+    if mouth is not None and not mouth[1] > max(y1, y2):
+        raise ValueError(f"{path}: 'mouth' {mouth.tolist()} is not below the eyes {eyes.tolist()}")
+
+
 def load_model(path: str | os.PathLike) -> ShapeModel:
     """Read a model written by ``save_model`` without trusting it: a regular file, an intact zip
     whose members declare no more than ``MAX_MODEL_BYTES`` in all, numeric arrays (no pickles) of
@@ -345,6 +366,7 @@ def load_model(path: str | os.PathLike) -> ShapeModel:
     mouth = data.get("mouth")
     if mouth is not None and (mouth.shape != (2,) or not np.all(np.isfinite(mouth))):
         raise ValueError(f"{path}: 'mouth' must be two finite numbers [x, y]")
+    _check_eyes(path, data["eyes"].astype(np.float64), mouth, mask.shape)
     view = data.get("view", np.zeros(2))
     if view.shape != (2,) or not np.all(np.abs(view) <= 90.0):
         raise ValueError(f"{path}: 'view' must be two angles [yaw, pitch] within 90 degrees")

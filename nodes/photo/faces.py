@@ -22,6 +22,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from .encoding import decode_samples
 from .mediapipe import Roi, detect_faces, face_mesh, mesh_mirror, roi_from_detection, roi_from_mesh
 
 # outlines, in order around each part
@@ -67,6 +68,12 @@ SETTLED = 0.05
 # the photo as one face's crop when the detector finds none: the face mesh's crop this many times the photo's
 # long side (a tight crop under a side light: one size or the other finds the face, docs/tuning.md)
 TIGHT_CROPS = (1.15, 1.5)
+# a face the detector is not sure of (under SURE_DETECTION, or found by the mesh alone) must show a feature: one of its
+# eyes or its mouth darker than the skin around it (``feature_darkness``) by at least this share of the light there.
+# A featureless shaded ball meshed as a face (presence up to 0.81, in 7 of 108 framings) shows none: its shading is
+# concave, every point brighter than its surround, -0.08 to -0.02; faces the detector was unsure of (98 of Yale B's,
+# the held-out photos' and the project's renders, in deep shadow too) 0.18 and more (docs/tuning.md)
+MIN_FEATURE_DARKNESS = 0.05
 
 
 @dataclass(frozen=True)
@@ -224,20 +231,62 @@ def upright_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:
     filling the frame in deep shadow). A mesh of a part of a found face (its eyes inside the face's
     outline) is not a face."""
     faces: list[FoundFace] = []
+    featured = _Features(rgb)
     for d in detect_faces(rgb, min_iod):  # largest first: a part of a found face is not looked at again
         centre = (float(d.box[0] + d.box[2]) / 2.0, float(d.box[1] + d.box[3]) / 2.0)
         if any(cv2.pointPolygonTest(f.oval.astype(np.float32), centre, False) >= 0 for f in faces):
             continue
-        _add(faces, _confirmed(rgb, roi_from_detection(d), d.score))
+        _add(faces, featured(_confirmed(rgb, roi_from_detection(d), d.score)))
     if not faces:  # a tight crop, or a face the detector missed in the dark: the photo as its crop (score 0)
         h, w = rgb.shape[:2]
         for side in TIGHT_CROPS:
-            _add(faces, _confirmed(rgb, Roi(np.array([(w - 1) / 2.0, (h - 1) / 2.0]), side * max(h, w), 0.0), 0.0))
+            _add(faces, featured(_confirmed(rgb, Roi(np.array([(w - 1) / 2.0, (h - 1) / 2.0]), side * max(h, w), 0.0),
+                                            0.0)))
             if faces:
                 break
     faces = [f for f in faces if abs(f.roll) <= MAX_ROLL]  # others: the turn of the photo that shows them upright
     faces.sort(key=lambda f: -f.iod)
     return [f for k, f in enumerate(faces) if not any(_inside(f, g) for g in faces[:k])]
+
+
+def feature_darkness(linear: np.ndarray, face: FoundFace) -> float:
+    """How much darker than the skin around it a face's darkest feature is: the most, over its two eyes and its mouth,
+    of the photo blurred at 0.2 of the eye distance less the photo blurred at 0.05 (a dark blob's centre is darker
+    than its surround; pixel noise and slow shading left out), within a tenth of the eye distance of the landmark, as
+    a share of the light there; ``linear``: the photo's grey in linear light. An eye or a mouth, lit or in shadow,
+    is darker than its surround; a convex, evenly coloured surface under one light nowhere is."""
+    iod = face.iod
+    centres = np.vstack([face.eyes, np.vstack(face.outlines()["lips"]).mean(axis=0)])
+    lo = np.floor(np.maximum(centres.min(axis=0) - iod, 0)).astype(int)
+    hi = np.ceil(np.minimum(centres.max(axis=0) + iod + 1, linear.shape[::-1])).astype(int)
+    if np.any(hi - lo < 3):
+        return 0.0
+    crop = linear[lo[1]:hi[1], lo[0]:hi[0]]
+    darker = cv2.GaussianBlur(crop, (0, 0), max(0.2 * iod, 2.0)) - cv2.GaussianBlur(crop, (0, 0), max(0.05 * iod, 0.8))
+    light = cv2.GaussianBlur(crop, (0, 0), 0.5 * iod)
+    rows, cols = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+    best = -np.inf
+    for x, y in centres:
+        near = (cols - x) ** 2 + (rows - y) ** 2 <= max(0.1 * iod, 1.0) ** 2
+        if near.any():
+            best = max(best, float(darker[near].max() / (light[near].mean() + 0.02)))
+    return best if np.isfinite(best) else 0.0
+
+
+class _Features:
+    """``featured(face)``: ``face`` (or None), unless the detector is unsure of it (under ``SURE_DETECTION``) and it
+    shows no feature (``feature_darkness`` under ``MIN_FEATURE_DARKNESS``): a featureless shaded ball, meshed as a
+    face in some framings, is not one. The photo's grey in linear light is made once, when first asked."""
+
+    def __init__(self, rgb: np.ndarray):
+        self.rgb, self.linear = rgb, None
+
+    def __call__(self, face: FoundFace | None) -> FoundFace | None:
+        if face is None or face.score >= SURE_DETECTION:
+            return face
+        if self.linear is None:  # the nets' photo is as a camera encodes it (sRGB)
+            self.linear = decode_samples(cv2.cvtColor(self.rgb, cv2.COLOR_RGB2GRAY), 255.0)
+        return face if feature_darkness(self.linear, face) >= MIN_FEATURE_DARKNESS else None
 
 
 def _inside(face: FoundFace, larger: FoundFace) -> bool:

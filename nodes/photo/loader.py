@@ -8,6 +8,7 @@ import os
 import re
 import stat
 import warnings
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,11 +45,15 @@ MAX_ASPECT = 16  # a face photo is not a strip
 MAX_WORK_PIXELS = 4_000_000  # photos are processed at most this size (``read_photo``'s max_pixels)
 MAX_FILE_BYTES = 512 << 20
 MAX_PLAIN_PNM_PIXELS = 4_000_000  # a plain (ASCII) PNM is parsed token by token: a test file, not a camera's
+# a plain PNM is read no further than this: 4 megapixels of 16-bit colour written as numbers take 72 MB, and what
+# follows its samples is not part of the image
+MAX_PLAIN_PNM_BYTES = 96 << 20
 MAX_SIDECAR_BYTES = 64 << 10  # a sidecar holds a light and two eyes: a few dozen bytes
 
 
 def _read_file(p: Path) -> bytes:
-    """The bytes of a regular file, or ``InputError`` saying why not (one line)."""
+    """The bytes of a regular file (of a plain PNM, its first ``MAX_PLAIN_PNM_BYTES``), or ``InputError``
+    saying why not (one line)."""
     try:
         st = p.stat()
     except FileNotFoundError:
@@ -65,49 +70,93 @@ def _read_file(p: Path) -> bytes:
     if st.st_size > MAX_FILE_BYTES:
         raise InputError(f"{p}: file of {st.st_size >> 20} MiB exceeds the {MAX_FILE_BYTES >> 20} MiB input limit")
     try:
-        return p.read_bytes()
+        with p.open("rb") as fh:
+            plain = fh.read(2) in (b"P2", b"P3")
+            fh.seek(0)
+            return fh.read(MAX_PLAIN_PNM_BYTES if plain else -1)
     except OSError as exc:
         raise InputError(f"{p}: cannot be read ({exc.strerror or exc})") from None
 
 
-def _read_binary_pnm(data: bytes) -> tuple[np.ndarray, int] | None:
+# a PNM header's next number: whitespace and comments (to the end of their line) before it, taken possessively so that
+# a header of megabytes of comments is scanned once, and no more digits than a 32-bit number has
+_PNM_FIELD = re.compile(rb"(?:\s|#[^\r\n]*+)*+(\d{1,10}+)(?!\d)")
+
+
+def _pnm_header(data: bytes) -> tuple[int, int, int, int] | None:
+    """A PNM's (width, height, maxval, where its samples start) after its magic, its comments any length
+    (a 14-bit PGM's 2,000-byte comment made the first 1,024 bytes a header without its numbers); None when
+    it is malformed."""
+    pos, values = 2, []
+    for _ in range(3):
+        m = _PNM_FIELD.match(data, pos)
+        if m is None:
+            return None
+        values.append(int(m.group(1)))
+        pos = m.end()
+    if not data[pos:pos + 1].isspace():  # one whitespace character ends the header
+        return None
+    return values[0], values[1], values[2], pos + 1
+
+
+def _read_binary_pnm(p: Path, data: bytes) -> tuple[np.ndarray, int]:
     """A binary PGM (P5) or PPM (P6) as ``(samples (H, W) or (H, W, 3) BGR as OpenCV gives them,
     uint8 or uint16, maxval)``, read by the format's own rules (samples over 255 are two bytes,
-    big-endian, on the scale 0..maxval); None when the header or the data is malformed."""
-    m = re.match(rb"(P[56])(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)(?:\s+(?:#[^\n]*\n\s*)*)(\d+)\s",
-                  data[:1024])
-    if m is None:
-        return None
-    width, height, maxval = int(m.group(2)), int(m.group(3)), int(m.group(4))
+    big-endian, on the scale 0..maxval); ``InputError`` when the header or the data is malformed."""
+    header = _pnm_header(data)
+    if header is None:
+        raise InputError(f"{p}: corrupt PNM header (its width, height and maxval)")
+    width, height, maxval, start = header
     if not 0 < maxval < 65536:
-        return None
-    channels = 3 if m.group(1) == b"P6" else 1
+        raise InputError(f"{p}: PNM maxval {maxval} is outside 1-65535")
+    channels = 3 if data[:2] == b"P6" else 1
     dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
     count = width * height * channels
-    body = data[m.end():m.end() + count * dtype.itemsize]
+    body = data[start:start + count * dtype.itemsize]
     if len(body) < count * dtype.itemsize:
-        return None
+        raise InputError(f"{p}: truncated PNM data ({len(body)} of the {count * dtype.itemsize} bytes its header "
+                         "declares)")
     samples = np.frombuffer(body, dtype).reshape((height, width, channels) if channels == 3 else (height, width))
     samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
     return (swapped_rb(samples) if channels == 3 else samples), maxval
+
+
+_PLAIN_BLOCK = 1 << 22  # bytes of a plain PNM's samples split into numbers at a time
+
+
+def _plain_samples(data: bytes, start: int, count: int) -> np.ndarray | None:
+    """The first ``count`` numbers of a plain PNM's samples from ``start``, split a block at a time (whatever
+    follows them, megabytes of more numbers too, is never read); None when there are fewer, or one is not a
+    number of at most five digits."""
+    parts, got, pos, carry = [], 0, start, b""
+    while got < count and (pos < len(data) or carry):
+        block = data[pos:pos + _PLAIN_BLOCK]
+        pos += len(block)
+        tokens = (carry + block).split()
+        carry = tokens.pop() if tokens and block and not block[-1:].isspace() else b""
+        if len(carry) > 5:
+            return None
+        take = tokens[:count - got]
+        if take:
+            digits = np.array(take)
+            if digits.dtype.itemsize > 5 or not all(t.isdigit() for t in take):
+                return None
+            parts.append(digits.astype(np.int64))
+            got += len(take)
+    return np.concatenate(parts) if got == count else None
 
 
 def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, int] | None:
     """A plain (ASCII) PGM (P2) or PPM (P3), already checked to be ``width`` x ``height``, as
     ``_read_binary_pnm`` gives a binary one (its samples on the scale 0..maxval, whatever the maxval);
     None when it is malformed (too few samples, one over maxval)."""
-    text = re.sub(rb"#[^\n]*", b" ", data)  # comments may sit anywhere between tokens
-    tokens = text.split()
-    channels = 3 if tokens[0] == b"P3" else 1
-    try:
-        maxval = int(tokens[3])
-        count = width * height * channels
-        if not 0 < maxval < 65536 or len(tokens) < 4 + count:
-            return None
-        samples = np.array(tokens[4:4 + count], dtype=np.int64)
-    except (ValueError, IndexError):
+    header = _pnm_header(data)
+    if header is None or header[:2] != (width, height) or not 0 < header[2] < 65536:
         return None
-    if samples.min() < 0 or samples.max() > maxval:
+    maxval = header[2]
+    channels = 3 if data[:2] == b"P3" else 1
+    samples = _plain_samples(data, header[3], width * height * channels)
+    if samples is None or samples.max() > maxval:
         return None
     samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
     samples = samples.reshape((height, width, 3) if channels == 3 else (height, width))
@@ -277,10 +326,14 @@ def _header(p: Path, data: bytes) -> _Header:
                 header = _Header(width, height, "TIFF", dtype, planar)
             else:
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
-                    header = _Header(*probe.size, probe.format or "image")
+                    # a JPEG by its bytes, whatever Pillow calls it: one with an MPF segment is an "MPO"
+                    kind = "JPEG" if data[:3] == b"\xff\xd8\xff" else probe.format or "image"
+                    header = _Header(*probe.size, kind)
     except Image.DecompressionBombError:
         raise InputError(f"{p}: far more than the {MAX_PIXELS // 1_000_000}-megapixel limit; "
                          "downscale it first") from None
+    except TiffBomb as exc:
+        raise InputError(f"{p}: {exc}") from None
     except (OSError, ValueError, SyntaxError, IndexError, KeyError):
         raise InputError(f"{p}: not a recognised image (PNG, JPEG, PNM, TIFF, BMP, WebP or GIF)") from None
     check_size(p, header.width, header.height)
@@ -316,10 +369,10 @@ def _decoded(p: Path, data: bytes, header: _Header, max_pixels: int | None) -> n
 
 
 def _pnm(p: Path, data: bytes, header: _Header) -> tuple[np.ndarray, int] | None:
-    """A binary or plain (ASCII) PNM's samples and maxval, read here whatever its maxval; None for a binary
-    one this cannot read (OpenCV then says what is wrong with it)."""
+    """A binary or plain (ASCII) PNM's samples and maxval, read here whatever its maxval (OpenCV swaps the
+    bytes of 10- and 12-bit ones); ``InputError`` saying what is wrong with a malformed one."""
     if data[:2] in (b"P5", b"P6"):
-        return _read_binary_pnm(data)
+        return _read_binary_pnm(p, data)
     if header.width * header.height > MAX_PLAIN_PNM_PIXELS:
         raise InputError(f"{p}: a plain (ASCII) PNM of {header.width}x{header.height} pixels; over "
                          f"{MAX_PLAIN_PNM_PIXELS // 1_000_000} megapixels, save it as a binary one")
@@ -424,19 +477,90 @@ def shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
     return cv2.resize(np.ascontiguousarray(samples), size, interpolation=cv2.INTER_AREA)
 
 
+# what one tile or strip of a TIFF may hold: a tile larger than its image is decoded whole before it is cropped (a
+# 64 x 64 image declaring one 16384^2 float64 tile took 4.3 GB); encoders tile at 256-1024 pixels a side
+MAX_TILE_PIXELS = 4_000_000
+# TIFF compressions tifffile decodes without a bound on what they inflate to (zlib, Adobe deflate, LZMA, zstd): each
+# segment is inflated first, no further than its geometry allows
+_INFLATING = {8: "zlib", 32946: "zlib", 34925: "lzma", 50000: "zstd"}
+
+
 def _tiff_header(data: bytes) -> tuple[int, int, np.dtype, bool]:
-    """(width, height, sample type, planar: one plane a channel) of a TIFF's first image, from its header only."""
+    """(width, height, sample type, planar: one plane a channel) of a TIFF's first image, from its header only;
+    ``ValueError`` for a tile (or strip) over ``MAX_TILE_PIXELS`` and larger than the image."""
     import tifffile
 
     try:
         with tifffile.TiffFile(io.BytesIO(data)) as tif:
             page = tif.pages[0]
             planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and page.samplesperpixel > 1
-            return int(page.imagewidth), int(page.imagelength), np.dtype(page.dtype), planar
+            width, height = int(page.imagewidth), int(page.imagelength)
+            tile = (int(page.tilewidth) * int(page.tilelength) * max(1, int(page.tiledepth)) if page.is_tiled
+                    else width * min(int(page.rowsperstrip) or height, height))
+            dtype = np.dtype(page.dtype)
     except MemoryError:
         raise
     except Exception as exc:  # noqa: BLE001 - struct, index, type errors...: a damaged header, whatever the kind
         raise ValueError(f"damaged TIFF header ({type(exc).__name__})") from None
+    if tile > max(MAX_TILE_PIXELS, width * height):
+        raise TiffBomb(f"one TIFF tile of {tile} pixels for an image of {width}x{height}; over the "
+                       f"{MAX_TILE_PIXELS // 1_000_000}-megapixel limit of a tile larger than its image")
+    return width, height, dtype, planar
+
+
+class TiffBomb(InputError):
+    """A TIFF whose tiles or strips would decode to far more than its image (the message says how)."""
+
+
+def _inflation_checked(p: Path, data: bytes, page) -> None:
+    """``InputError`` when a segment (tile or strip) of ``page`` inflates past what its geometry holds: each is
+    inflated in pieces and let go, before tifffile inflates them whole."""
+    kind = _INFLATING.get(int(page.compression))
+    if kind is None:
+        return
+    size = int(np.prod(page.chunks)) * max(1, page.dtype.itemsize)
+    for offset, count in zip(page.dataoffsets, page.databytecounts):
+        segment = data[offset:offset + count]
+        if kind == "zlib":
+            inflate = zlib.decompressobj()
+        elif kind == "lzma":
+            import lzma
+
+            inflate = lzma.LZMADecompressor()
+        else:
+            import zstandard
+
+            inflate = zstandard.ZstdDecompressor().decompressobj()
+        got = _inflated_size(inflate, segment, size)
+        if got > size:
+            raise InputError(f"{p}: a TIFF strip or tile inflates past the {size} bytes its geometry holds "
+                             "(a decompression bomb)")
+
+
+def _inflated_size(inflate, segment: bytes, size: int) -> int:
+    """How many bytes ``inflate`` (a zlib, LZMA or zstd decompressor) makes of ``segment``, counted no further
+    than ``size`` + 1, a megabyte at a time."""
+    got, step = 0, 1 << 20
+    try:
+        if hasattr(inflate, "unconsumed_tail"):  # zlib: max_length, then its unconsumed tail
+            out = inflate.decompress(segment, step)
+            while out and got <= size:
+                got += len(out)
+                out = inflate.decompress(inflate.unconsumed_tail, step) if inflate.unconsumed_tail else b""
+        elif hasattr(inflate, "needs_input"):  # lzma
+            out = inflate.decompress(segment, step)
+            while out and got <= size:
+                got += len(out)
+                out = inflate.decompress(b"", step)
+        else:  # zstd's decompressobj has no output bound: read from a stream instead
+            import zstandard
+
+            reader = zstandard.ZstdDecompressor().stream_reader(io.BytesIO(segment))
+            while got <= size and (out := reader.read(step)):
+                got += len(out)
+    except Exception:  # noqa: BLE001 - a damaged stream: tifffile's decoding says so
+        return 0
+    return got
 
 
 def _read_tiff(p: Path, data: bytes) -> np.ndarray | None:
@@ -447,8 +571,11 @@ def _read_tiff(p: Path, data: bytes) -> np.ndarray | None:
     try:
         with tifffile.TiffFile(io.BytesIO(data)) as tif:
             page = tif.pages[0]
+            _inflation_checked(p, data, page)
             arr = page.asarray()
             planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE
+    except InputError:
+        raise
     except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds for damaged files
         if isinstance(exc, MemoryError):
             raise
@@ -501,7 +628,10 @@ def checked_light(v: np.ndarray, what: str) -> np.ndarray:
     """Validate and normalise a light: three numbers are a vector toward it (camera frame), two are
     its azimuth and elevation in degrees (the Yale B convention, ``light_from_angles``: azimuth > 0
     toward the image's left, elevation > 0 up); raise ``ValueError`` naming ``what``."""
-    v = np.asarray(v, np.float64).reshape(-1)
+    try:
+        v = np.asarray(v, np.float64).reshape(-1)
+    except (OverflowError, TypeError, ValueError):  # a 400-digit integer, a string, a ragged list
+        raise ValueError(f"{what}: must be two angles (azimuth, elevation in degrees) or three finite numbers") from None
     if v.shape == (2,) and np.all(np.isfinite(v)):
         if abs(v[0]) > MAX_AZIMUTH or abs(v[1]) > MAX_ELEVATION:
             raise ValueError(f"{what}: azimuth must be within +-{MAX_AZIMUTH:g} and elevation within "
@@ -550,7 +680,7 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             eyes = np.asarray(data["eyes"], np.float64)
             if eyes.shape != (2, 2) or not np.all(np.isfinite(eyes)):
                 raise ValueError("eyes must be [[x1, y1], [x2, y2]]")
-    except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
+    except (ValueError, TypeError, OverflowError, UnicodeDecodeError, RecursionError) as exc:
         raise InputError(f"{p}: malformed sidecar {side.name} ({' '.join(str(exc).split())})") from None
     return Sidecar(light=light, eyes=eyes)
 

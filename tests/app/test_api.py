@@ -150,3 +150,21 @@ def test_fit_of_a_colour_array_is_fit_of_the_file_holding_it(tmp_path):
     assert np.array_equal(from_file.relit, from_array.relit)
     assert np.array_equal(from_file.normals, from_array.normals, equal_nan=True)
     assert from_file.faces == from_array.faces
+
+
+def test_run_given_one_path_runs_that_file_and_quiet_says_nothing(tmp_path, procedural_model, monkeypatch, capfd):
+    """``shadowflow.run("face.png", out)`` iterated the string's characters: ``.`` expanded to the working folder
+    and every photo in it was run, and ``quiet=True`` (the default) still printed an ``error:`` line for each of
+    ``f``, ``a``, ``c``... Now one path (a string or a ``Path``) is one input, and quiet prints nothing."""
+    monkeypatch.chdir(tmp_path)
+    write_shadowed_face("face.png", np.random.default_rng(4), light_from_angles(30))
+    write_shadowed_face("other.png", np.random.default_rng(5), light_from_angles(30))
+    for given in ("face.png", Path("face.png")):
+        result = shadowflow.run(given, tmp_path / "out", model=procedural_model, record=())
+        assert [(r["source"], r["status"]) for r in result.records] == [("face.png", "ok")]
+    (tmp_path / "bad.png").write_bytes(b"not an image")
+    result = shadowflow.run(["bad.png", "face.png"], tmp_path / "out2", model=procedural_model, record=())
+    assert result.not_ok == 1 and "not a recognised image" in result.records[0]["status"]
+    assert capfd.readouterr() == ("", "")
+    shadowflow.run(["bad.png"], tmp_path / "out3", model=procedural_model, record=(), quiet=False)
+    assert "error: bad.png: not a recognised image" in capfd.readouterr().err

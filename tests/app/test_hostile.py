@@ -20,6 +20,8 @@ from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 
+from conftest import run_cli
+
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
 REPO = Path(__file__).resolve().parents[2]
 
@@ -295,8 +297,8 @@ def test_resume_over_a_mangled_summary_redoes_what_it_cannot_trust(tmp_path, sum
 
     write_shadowed_face(face, np.random.default_rng(1), light_from_angles(30))
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "summary.json").write_text(summary)
+    assert run_cli(["run", str(src), "--out", str(out), "--quiet", "--record", "none"]).returncode == 0
+    (out / "summary.json").write_text(summary)  # (a summary.json no run wrote is refused: test_hostile_inputs)
     proc = subprocess.run(CLI + ["run", str(src), "--out", str(out), "--resume", "--quiet", "--record", "none"],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr

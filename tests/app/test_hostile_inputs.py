@@ -3,6 +3,7 @@
 before its fix."""
 import json
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -74,7 +75,9 @@ def test_out_in_the_input_folder_never_writes_over_a_photos_sidecar(tmp_path, ca
 
 
 def test_relight_files_are_never_written_over_an_input(tmp_path, capsys):
-    """A photo sitting where a ``--relight`` file goes (``OUT/<stem>/relit_A+030E+00.png``) was overwritten."""
+    """A photo sitting where a ``--relight`` file goes (``OUT/<stem>/relit_A+030E+00.png``) was overwritten. In a
+    folder no run made (it holds the photo's sidecar) the photo's outputs go elsewhere (``face-2``); in an earlier
+    run's output folder the frame fails rather than write over it."""
     out = tmp_path / "out"
     (out / "face").mkdir(parents=True)
     photo = _face(out / "face" / "relit_A+030E+00.png")
@@ -82,8 +85,16 @@ def test_relight_files_are_never_written_over_an_input(tmp_path, capsys):
     src.mkdir()
     _face(src / "face.png", seed=4)
     before = photo.read_bytes()
-    assert main(["run", str(src / "face.png"), str(photo), "--out", str(out), "--quiet", "--record", "none",
-                 "--relight=30,0"]) == 1
+    args = [str(src / "face.png"), str(photo), "--out", str(out), "--quiet", "--record", "none", "--relight=30,0"]
+    assert main(["run", *args]) == 0
+    assert photo.read_bytes() == before and (out / "face-2" / "relit.png").is_file()
+    assert not (out / "face" / "relit.png").exists()
+    shutil.rmtree(out)
+    assert main(["run", str(src / "face.png"), "--out", str(out), "--quiet", "--record", "none"]) == 0
+    photo = _face(out / "face" / "relit_A+030E+00.png")
+    photo.with_suffix(".json").unlink()
+    before = photo.read_bytes()
+    assert main(["run", *args]) == 1
     assert photo.read_bytes() == before
     assert "would overwrite an input" in capsys.readouterr().err
 
@@ -154,3 +165,161 @@ def test_junk_photos_are_refused_before_the_fit_and_record_no_iteration(tmp_path
     assert [fr.record["status"].endswith("no face found") for fr in rec.finished_frames()] == [True] * 3
     assert all(not fr.scalars and not fr.arrays for fr in rec.finished_frames())
     assert (tmp_path / "out" / "run.mcap").stat().st_size < 20_000
+
+
+# -- the fourth round (issue 64) ------------------------------------------------------------------
+
+
+def test_an_empty_out_is_refused_and_a_folder_no_run_made_keeps_its_files(tmp_path, monkeypatch, capsys):
+    """``--out ""`` wrote into the working folder and overwrote the ``report.html``, ``manifest.json`` and
+    ``summary.json`` that were there (exit 0); so did ``--out .`` or any folder holding files of those names that
+    no run wrote. A run's own folder (its ``.lock``, its manifest) is still written over, as before."""
+    photo = _face(tmp_path / "in" / "face.png") if (tmp_path / "in").mkdir() is None else None
+    work = tmp_path / "work"
+    work.mkdir()
+    mine = {"report.html": "<p>my report</p>", "manifest.json": '{"mine": 1}', "summary.json": "[1, 2]",
+            "run.mcap": "my recording"}
+    for name, text in mine.items():
+        (work / name).write_text(text)
+    monkeypatch.chdir(work)
+    for out in ("", "  ", ".", str(work)):
+        assert main(["run", str(photo), "--out", out, "--quiet", "--record", "none"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and ("an empty name" in err[0] if not out.strip() else "which no shadowflow run wrote"
+                                  in err[0] and "manifest.json" in err[0]), err
+    assert {p.name: p.read_text() for p in work.iterdir()} == mine
+    with pytest.raises(ValueError, match="an empty name"):
+        import shadowflow
+        shadowflow.run([photo], "")
+    out = tmp_path / "out"  # a run's own folder: run again over it, with or without its manifest
+    for _ in range(2):
+        assert main(["run", str(photo), "--out", str(out), "--quiet", "--record", "none"]) == 0
+        (out / "manifest.json").unlink()
+    assert json.loads((out / "summary.json").read_text())[0]["status"] == "ok"
+
+
+def test_a_users_file_or_folder_named_like_an_output_folder_is_left_alone(tmp_path):
+    """``--out`` the input folder: a user's own folder ``README/`` beside ``README.png`` had its ``relit.png``
+    overwritten without a word, and a user's file ``notes`` beside ``notes.png`` made that photo fail every run
+    (``FileExistsError``). Each photo takes another name now, on every run, and what was there is left as it was."""
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ("README", "notes", "plain"):
+        _face(src / f"{name}.png")
+    (src / "README").mkdir()
+    (src / "README" / "relit.png").write_bytes(b"my own picture")
+    (src / "README" / "todo.txt").write_text("mine")
+    (src / "notes").write_text("my notes")
+    (src / "plain").mkdir()
+    (src / "plain" / "relit.png").write_bytes(b"my own picture")  # holds only a name a run writes, but no run made it
+    for _ in range(2):  # and the names stay the same on the next run
+        assert main(["run", str(src), "--out", str(src), "--quiet", "--record", "none"]) == 0
+        records = json.loads((src / "summary.json").read_text())
+        assert sorted((r["stem"], r["status"]) for r in records) == [("README-2", "ok"), ("notes-2", "ok"),
+                                                                      ("plain-2", "ok")]
+    assert (src / "README" / "relit.png").read_bytes() == b"my own picture" == (src / "plain" / "relit.png").read_bytes()
+    assert (src / "notes").read_text() == "my notes" and sorted(p.name for p in (src / "README").iterdir()) == \
+        ["relit.png", "todo.txt"]
+    assert all((src / f"{n}-2" / "normals.npy").is_file() for n in ("README", "notes", "plain"))
+    shutil.rmtree(src / "plain-2")  # and a folder a run made, replaced by the user's own: --resume goes elsewhere
+    (src / "plain-2").mkdir()
+    (src / "plain-2" / "relit.png").write_bytes(b"mine now")
+    assert main(["run", str(src), "--out", str(src), "--quiet", "--record", "none", "--resume"]) == 0
+    assert (src / "plain-2" / "relit.png").read_bytes() == b"mine now" and (src / "plain-3" / "relit.png").is_file()
+
+
+@pytest.mark.slow
+def test_a_sidecar_arriving_after_its_photo_is_applied_by_the_watch(tmp_path):
+    """``--watch``: a sidecar arriving 3 s after its photo was never applied (the watch knew the photo by its own
+    size and time, and the run took it again only if those changed); only a later ``--resume`` noticed. The photo
+    is taken again when its sidecar comes or changes, and redone under its name."""
+    import threading
+
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    src, out = tmp_path / "watched", tmp_path / "out"
+    src.mkdir()
+    sidecar = json.loads(_face(tmp_path / "face.png", az=-40).with_suffix(".json").read_text())
+    (tmp_path / "face.png").rename(src / "face.png")  # the photo alone first
+    given = light_from_angles(-40).tolist()
+
+    def sidecar_later():
+        deadline = time.time() + 120
+        while time.time() < deadline and not (out / "summary.json").is_file():
+            time.sleep(0.1)
+        (src / "face.json").write_text(json.dumps(sidecar))
+
+    writer = threading.Thread(target=sidecar_later)
+    writer.start()
+    code = main(["run", "--watch", str(src), "--idle-exit", "10", "--settle", "0.2", "--out", str(out), "--quiet",
+                 "--record", "none"])
+    writer.join()
+    assert code == 0
+    records = json.loads((out / "summary.json").read_text())
+    assert [r["stem"] for r in records] == ["face"] and records[0]["light_source"] == "sidecar"
+    np.testing.assert_allclose(records[0]["light"], given, atol=1e-6)
+
+
+def test_file_names_cannot_drive_the_terminal_or_forge_a_line(tmp_path, capsys):
+    """Escape sequences in file names (ESC, OSC, BEL, C1) were printed raw on the terminal by ``run``: a name could
+    retitle or recolour it, or forge an ``error:`` line with a newline (``replay`` already escaped them)."""
+    src = tmp_path / "in"
+    src.mkdir()
+    names = ["\x1b]0;owned\x07title.png", "\x1b[31mred\x1b[0m.png", "\x9b2Jclear.png", "two\nerror: forged.png",
+             "bell\x07.txt"]
+    for name in names:
+        (src / name).write_bytes(b"not an image")
+    assert main(["run", str(src), "--out", str(tmp_path / "out"), "--record", "none"]) == 1
+    assert main(["run", str(src / "\x1b[2Jnone*.png"), "--out", str(tmp_path / "out2")]) == 2  # an argument's too
+    err = capsys.readouterr().err
+    assert not any(c in err for c in "\x1b\x07\x9b"), repr(err)
+    lines = err.splitlines()
+    assert sum(line.startswith("error: ") for line in lines) == 4, lines  # one a bad file: none forged
+    assert not any(line.startswith("error: forged") for line in lines)
+    assert any("\\x1b]0;owned\\x07title.png" in line for line in lines)
+
+
+def test_demo_inputs_are_never_written_through_a_link(tmp_path, capsys):
+    """``--demo`` with ``OUT/demo-inputs`` a symbolic link out of ``--out`` wrote the demo's photos and sidecars
+    where it pointed; a link at one of the demo's file names was written through the same way."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    (out / "demo-inputs").symlink_to(elsewhere, target_is_directory=True)
+    assert main(["run", "--demo", "--out", str(out), "--quiet", "--record", "none"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "demo-inputs: is a symbolic link" in err[0], err
+    assert list(elsewhere.iterdir()) == []
+    from shadowflow.nodes.app.cli.run import write_demo_inputs
+
+    (out / "demo-inputs").unlink()
+    (out / "demo-inputs").mkdir()
+    victim = elsewhere / "victim.png"
+    victim.write_bytes(b"keep me")
+    (out / "demo-inputs" / "demo-1_A+045E+00.png").symlink_to(victim)
+    written = write_demo_inputs(out, count=1)
+    assert victim.read_bytes() == b"keep me" and list(elsewhere.iterdir()) == [victim]
+    assert not Path(written[0]).is_symlink() and Path(written[0]).stat().st_size > 1000
+
+
+def test_a_novel_view_larger_than_the_surface_it_shows_is_refused(tmp_path, capsys):
+    """``--view-size 4096`` cost 4.4 GB for one face, ``--view-size 2048`` on a photo of 49 faces ran past the frame
+    timeout in the novel view and lost all 49 faces: rendering costs memory and time with the square of the side,
+    and the surface shown is the fit's (128^2, at most 512^2). Over 512 is refused in one line before any work,
+    by the command line and the API alike."""
+    import cv2
+
+    import shadowflow
+    from shadowflow.nodes.method.nodes import MethodOptions
+
+    photo = _face(tmp_path / "face.png")
+    for size in ("513", "2048", "4096"):
+        assert main(["run", str(photo), "--out", str(tmp_path / f"out{size}"), "--view-size", size]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--view-size is a side of 32 to 512 pixels" in err[0], err
+        assert not (tmp_path / f"out{size}").exists()
+    with pytest.raises(ValueError, match="--view-size is a side of 32 to 512"):
+        shadowflow.run([photo], tmp_path / "api", options=MethodOptions(novel_size=4096))
+    assert main(["run", str(photo), "--out", str(tmp_path / "out"), "--view-size", "512", "--quiet", "--record",
+                 "none"]) == 0
+    assert cv2.imread(str(tmp_path / "out" / "face" / "novel_view.png")).shape[:2] == (512, 512)

@@ -146,3 +146,27 @@ def test_a_model_grid_past_the_side_limit_is_refused_before_its_arrays_are_used(
     assert path.stat().st_size < 2_000_000
     with pytest.raises(ValueError, match=r"'grid' 5000 x 5000 is over the 512-pixel limit of a side"):
         load_model(path)
+
+
+@pytest.mark.parametrize("eyes, says", [
+    ([[82.0, 48.0], [46.0, 48.0]], "image-left first"),  # swapped
+    ([[64.0, 30.0], [64.0, 70.0]], "image-left first"),  # one above the other
+    ([[46.0, 40.0], [82.0, 60.0]], "not on one row"),
+    ([[46.0, 48.0], [182.0, 48.0]], "outside the 128 x 128 grid"),
+    ([[46.0, 98.0], [82.0, 98.0]], "is not below the eyes"),  # under the mouth
+])
+def test_a_model_whose_eyes_are_not_an_upright_faces_is_refused(tmp_path, procedural_model, eyes, says):
+    """A model file whose eyes were swapped (image-right first) loaded, placed every face mirrored and upside
+    down, and fitted it ``ok`` without a flag; eyes one above the other, off the grid or under the mouth were
+    taken too. The model's own face must be an upright one."""
+    from shadowflow.nodes.app.cli import main
+
+    arrays = _model_arrays(procedural_model.truncated(6), tmp_path)
+    arrays["eyes"] = np.array(eyes)
+    arrays["mouth"] = np.array([64.0, 87.0])
+    path = tmp_path / "odd.npz"
+    np.savez(path, **arrays)
+    with pytest.raises(ValueError, match=f"odd.npz: .*{says}"):
+        load_model(path)
+    assert main(["run", "--demo", "--out", str(tmp_path / "out"), "--model", str(path)]) == 2
+    assert not (tmp_path / "out").exists()

@@ -184,3 +184,138 @@ def test_the_decoders_own_lines_are_dropped_and_nothing_else_is(capfd, tmp_path)
     with pytest.raises(InputError, match="cut.png: corrupt or truncated PNG data"):
         read_photo(tmp_path / "cut.png")
     assert capfd.readouterr().err == ""
+
+
+# -- the fourth round (issue 64) ------------------------------------------------------------------
+
+
+def _traced_peak(fn) -> int:
+    """The most bytes Python and numpy held at once while ``fn`` ran (``tracemalloc``)."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("bits", [10, 12, 14, 16])
+def test_a_binary_pgm_with_a_long_header_comment_is_read_on_its_own_scale(tmp_path, bits):
+    """A 14-bit binary PGM with a 2,000-byte comment in its header was read at a quarter of its level (the header
+    was looked for in its first 1,024 bytes, and OpenCV read the file instead); 10- and 12-bit ones as dark."""
+    ramp = np.tile(np.linspace(0, 1, 64), (48, 1))
+    top = 2**bits - 1
+    path = tmp_path / f"deep{bits}.pgm"
+    path.write_bytes(b"P5\n# " + b"a camera's notes " * 120 + b"\n64 48\n# and more\n" + str(top).encode() + b"\n"
+                     + np.round(ramp * top).astype(">u2").tobytes())
+    np.testing.assert_allclose(read_photo(path).grey, ramp, atol=1e-3)
+
+
+def test_a_plain_pgm_followed_by_megabytes_of_numbers_is_read_in_bounded_memory(tmp_path):
+    """A plain (ASCII) PGM of 100 x 100 followed by 66 MB of numbers took 1.3-1.4 GB (every number in the file was
+    split out as an object; a 512 MB file would have taken about 11 GB). Its 10,000 samples are read, the rest
+    never split."""
+    ramp = np.round(np.tile(np.linspace(0, 255, 100), (100, 1)))
+    path = tmp_path / "padded.pgm"
+    body = " ".join(str(int(v)) for v in ramp.reshape(-1)).encode()
+    path.write_bytes(b"P2\n100 100\n255\n" + body + b"\n" + b"123 45 6 7 " * 4_000_000)
+    assert path.stat().st_size > 40_000_000
+    photo = []
+    peak = _traced_peak(lambda: photo.append(read_photo(path)))
+    np.testing.assert_allclose(photo[0].grey, ramp / 255, atol=1e-6)
+    assert peak < 150 << 20, peak  # the file's bytes (44 MB) and a few blocks of numbers
+
+
+def _jpeg_with_mpf(jpeg: bytes) -> bytes:
+    """``jpeg`` with the APP2 "MPF" segment of a two-image MPO (as a camera's), right after its start marker:
+    Pillow calls such a file an "MPO", not a "JPEG"."""
+    import io
+
+    from PIL import Image
+
+    im = Image.fromarray(np.zeros((40, 40), np.uint8))
+    buf = io.BytesIO()
+    im.save(buf, format="MPO", save_all=True, append_images=[im])
+    mpo, i = buf.getvalue(), 2
+    while mpo[i + 4:i + 8] != b"MPF\x00":  # walk the segments to the MPF one
+        i += 2 + int.from_bytes(mpo[i + 2:i + 4], "big")
+    segment = mpo[i:i + 2 + int.from_bytes(mpo[i + 2:i + 4], "big")]
+    return jpeg[:2] + segment + jpeg[2:]
+
+
+def test_a_jpeg_with_an_mpf_segment_is_a_jpeg(tmp_path):
+    """A JPEG with an MPF segment (an "MPO", as many cameras write) was not taken for a JPEG: a grey one was read as
+    linear, not sRGB, and a progressive one of thousands of scans got past the scan limit (13 s to decode)."""
+    import cv2
+    from PIL import Image
+
+    from shadowflow.nodes.photo.loader import MAX_JPEG_SCANS
+
+    grey = np.tile(np.linspace(0, 255, 96), (80, 1)).astype(np.uint8)
+    ok, buf = cv2.imencode(".jpg", grey, [cv2.IMWRITE_JPEG_QUALITY, 100])
+    path = tmp_path / "grey.jpg"
+    path.write_bytes(_jpeg_with_mpf(bytes(buf)))
+    assert Image.open(path).format == "MPO"
+    photo = read_photo(path, encoding="auto")
+    assert photo.encoding == "srgb" and photo.grey[40, 48] == pytest.approx(0.214, abs=0.01)  # sRGB 128: 0.216
+    rng = np.random.default_rng(0)
+    img = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (0, 0), 3)
+    good = bytes(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1])
+    start, end = _jpeg_scans_cut(good)[-1]
+    (tmp_path / "scans.jpg").write_bytes(_jpeg_with_mpf(good[:end] + good[start:end] * 3000 + good[end:]))
+    with pytest.raises(InputError, match=rf"scans.jpg: a progressive JPEG of 3010 scans, over the {MAX_JPEG_SCANS}"):
+        read_photo(tmp_path / "scans.jpg")
+
+
+def _tiff_bomb(path, tile: int, rows: int) -> None:
+    """A 64 x 64 float64 TIFF whose one segment is ``rows`` rows of zeros ``tile`` wide, deflated (a few hundred kB):
+    a tile of ``tile`` x ``rows`` when ``tile`` > 64, else a strip of 64 x 64 whose data inflates to ``rows``."""
+    import struct
+    import zlib
+
+    import tifffile
+
+    tiled = tile > 64
+    tifffile.imwrite(path, np.random.default_rng(0).random((64, 64)), compression="zlib",
+                     **({"tile": (64, 64)} if tiled else {"rowsperstrip": 64}))
+    data = bytearray(path.read_bytes())
+    page = tifffile.TiffFile(path).pages[0]
+    z = zlib.compressobj(9)
+    blob = b"".join(z.compress(bytes(max(tile, 64) * 8)) for _ in range(rows)) + z.flush()
+    fields = (("TileWidth", tile), ("TileLength", rows), ("TileOffsets", len(data)), ("TileByteCounts", len(blob))) \
+        if tiled else (("StripOffsets", len(data)), ("StripByteCounts", len(blob)))
+    for name, value in fields:
+        tag = page.tags[name]
+        struct.pack_into({3: "<H", 4: "<I", 16: "<Q"}[tag.dtype], data, tag.valueoffset, value)
+    path.write_bytes(bytes(data) + blob)
+
+
+@pytest.mark.parametrize("tile, rows, says", [(8192, 8192, "one TIFF tile of 67108864 pixels"),
+                                              (64, 1 << 20, "inflates past the 32768 bytes")])
+def test_a_tiff_whose_tile_or_strip_inflates_far_past_its_image_is_refused(tmp_path, tile, rows, says):
+    """A 64 x 64 TIFF whose one tile was 16384^2 float64 took 4.3 GB (8192^2: 1.1 GB): the tile is decoded whole
+    before it is cropped. A strip whose deflated data inflates to 512 MiB did the same (tifffile inflates it
+    whole, its declared size unused)."""
+    path = tmp_path / "bomb.tif"
+    _tiff_bomb(path, tile, rows)
+    assert path.stat().st_size < 1_000_000
+
+    def refused():
+        with pytest.raises(InputError, match=f"bomb.tif: .*{says}"):
+            read_photo(path)
+
+    assert _traced_peak(refused) < 40 << 20
+
+
+def test_a_sidecar_with_a_400_digit_number_is_malformed_and_named(tmp_path):
+    """A sidecar whose light or eye held a 400-digit integer failed its frame with ``OverflowError: int too large to
+    convert to float``, naming neither the photo nor the sidecar."""
+    photo = tmp_path / "face.png"
+    photo.write_bytes(b"")
+    huge = "9" * 400
+    for text in (f'{{"light": [{huge}, 0, 1]}}', f'{{"eyes": [[{huge}, 0], [1, 2]]}}', f'{{"light": [0, -{huge}]}}'):
+        (tmp_path / "face.json").write_text(text)
+        with pytest.raises(InputError, match=r"face.png: malformed sidecar face.json \(.*\)$"):
+            read_sidecar(photo)

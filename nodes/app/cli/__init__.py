@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from ..process import one_blas_thread
-from ..runner import tool_version
+from ..runner import say, tool_version
 from . import evaluate, recordings, run, train
 from .run import method_options, run_options
 
@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
         with one_blas_thread():  # train, eval: the same small matrices
             return int(args.func(args) or 0)
     except (ValueError, OSError, RuntimeError) as exc:
-        print(f"shadowflow {args.command}: {exc}", file=sys.stderr)
+        say(f"shadowflow {args.command}: {exc}")  # one line, whatever the exception's text holds
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -9,6 +9,7 @@ from contextlib import contextmanager
 
 import cv2
 
+from ....flow.replay.text import one_line
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ...evaluation.people import contact_sheet, evaluate_people, format_table, json_rows, people_inputs, summarise as people_summary
@@ -48,7 +49,7 @@ def _write_report(path: str | None, report: dict) -> None:
     """The JSON report of ``eval``, written atomically, if ``--json`` asked for one."""
     if path:
         atomic_write_bytes(path, (json.dumps(report, indent=2) + "\n").encode())
-        print(f"written: {path}")
+        print(one_line(f"written: {path}"))
 
 
 @contextmanager
@@ -86,8 +87,8 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
                             integrator=args.integrator, shadows=args.shadows, **fit_variant(args, args.fit),
                             face_length=face_length(args.face_length))
     t0 = time.perf_counter()
-    print(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
-          "ground truth: photometric stereo of each subject's exposures")
+    print(one_line(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
+                   "ground truth: photometric stereo of each subject's exposures"))
     lights = yaleb_lights(args.lights)
     with _mapper(args.dask) as mapper:
         # the lights the method was tuned on must all be found; others include photos the finder misses
@@ -116,8 +117,10 @@ def cmd_eval_people(args: argparse.Namespace) -> int:
         sheet = contact_sheet(rows, args.worst)
         if sheet is not None:
             ok, png = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+            if not ok:
+                raise ValueError(f"{args.sheet}: the contact sheet could not be encoded as PNG")
             atomic_write_bytes(args.sheet, png.tobytes())
-            print(f"written: {args.sheet}")
+            print(one_line(f"written: {args.sheet}"))
     _write_report(args.json, {"data": str(args.data), "rows": json_rows(rows), "summary": people_summary(rows),
                               "seconds": time.perf_counter() - t0})
     return 0

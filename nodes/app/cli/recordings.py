@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
+from ....flow.replay.text import one_line
 from ....flow.replay import (
     convergence_row,
     diff_streams,
@@ -25,21 +27,32 @@ from ..record import (
 )
 
 
-def _refuse_overwriting_the_recording(target: Path, recording: Path) -> None:
-    """``ValueError`` when ``replay --rrd`` would write over the recording it reads: the file given, or
-    in a run's folder, any file of it."""
-    real = real_path(target)
-    sources = {real_path(recording)}
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: one inode, whatever the names (a symbolic or a hard link)."""
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def _refuse_overwriting_the_recording(target: Path, recording: Path, flag: str) -> None:
+    """``ValueError`` when ``replay --rrd`` or ``--plot`` (``flag``) would write over the recording it reads:
+    the file given, its MCAP twin, or in a run's folder any file of it, by any name that reaches it (a hard
+    link too); or into something that is not a file (a pipe would never let the write end)."""
+    sources = [recording, recording.with_suffix(".mcap")]
     if recording.is_dir():
-        sources |= {real_path(p) for p in recording.iterdir()}
-    if real in sources:
-        raise ValueError(f"--rrd {target}: is the recording being read (or a file of its run); write it elsewhere")
+        sources += [p for p in recording.iterdir()]
+    if real_path(target) in {real_path(s) for s in sources} or any(_same_file(target, s) for s in sources):
+        raise ValueError(f"{flag} {target}: is the recording being read (or a file of its run); write it elsewhere")
+    if target.exists() and not target.is_file():
+        raise ValueError(f"{flag} {target}: is not a regular file; name a file to write")
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
 
-    if args.rrd:
-        _refuse_overwriting_the_recording(Path(args.rrd), Path(args.recording))
+    for flag, target in (("--rrd", args.rrd), ("--plot", args.plot)):
+        if target:
+            _refuse_overwriting_the_recording(Path(target), Path(args.recording), flag)
     stream = open_frames(args.recording, arrays=bool(args.rrd))  # one frame in memory at a time
     rows, series = [], []
 
@@ -57,12 +70,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
             pass
     print(format_table(sorted(rows, key=lambda r: r.frame), CONVERGENCE_TABLE))
     if stream.truncated:
-        print(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut")
+        print(one_line(f"note: {args.recording} ends early (a killed run?); shown: everything before the cut"))
     if args.plot:
         plot = plot_convergence(series, args.plot, CONVERGENCE_PLOTS, CONVERGENCE_LABELS, marks=CONVERGENCE_MARKS)
-        print(f"plot: {plot}")
+        print(one_line(f"plot: {plot}"))
     if args.rrd:
-        print(f"rerun: {args.rrd}")
+        print(one_line(f"rerun: {args.rrd}"))
     return 0
 
 
@@ -79,11 +92,11 @@ def cmd_diff(args: argparse.Namespace) -> int:
     diffs = report.differences
     first = diffs[0]
     it = "-" if first.iteration is None else first.iteration
-    print(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
-          f"{first.what}, max |difference| {first.max_abs:.6g}")
+    print(one_line(f"first divergence: frame {first.frame}, iteration {it}, channel {first.channel}: "
+                   f"{first.what}, max |difference| {first.max_abs:.6g}"))
     frames = {str(d.frame) for d in diffs}
     channels = sorted({d.channel for d in diffs})
-    print(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}")
+    print(one_line(f"{len(diffs)} differing items in {len(frames)} frame(s) over channel(s): {', '.join(channels)}"))
     return 1
 
 

@@ -19,7 +19,8 @@ from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..inputs import FolderWatch, expand_inputs
-from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream, say
+from ..outputs import MAX_VIEW_SIZE, checked_view_size, real_path
+from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
     CONE_TRUST_HELP,
@@ -50,7 +51,7 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
     if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
     _view_angle(args.view_angle)
-    _view_size(args.view_size)
+    checked_view_size(args.view_size)
     _strength("--eye-contrast", args.eye_contrast)
     _strength("--fill-detail", args.fill_detail)
     _strength("--mirror-lift", args.mirror_lift)
@@ -81,17 +82,16 @@ def _max_pixels(megapixels: float) -> int | None:
     return int(megapixels * 1_000_000)
 
 
-def _view_size(px: int | None) -> int | None:
-    if px is not None and not 32 <= px <= 4096:
-        raise ValueError(f"--view-size is a side of 32 to 4096 pixels, not {px}")
-    return px
-
-
-def write_demo_inputs(folder: Path, count: int = 3) -> list[str]:
-    """Synthetic shadowed faces with sidecar lights, as PNGs: random ICT-FaceKit identities (drawn
-    apart from the default model's training faces, seed 2024 vs 0) under side lights."""
-
+def write_demo_inputs(out: Path, count: int = 3) -> list[str]:
+    """Synthetic shadowed faces with sidecar lights, as PNGs in ``out/demo-inputs``: random ICT-FaceKit identities
+    (drawn apart from the default model's training faces, seed 2024 vs 0) under side lights. Never through a
+    link: a ``demo-inputs`` that is one, or leads out of ``out``, is refused (``ValueError``), and each file
+    replaces whatever link is at its name."""
+    folder = out / "demo-inputs"
+    refuse_link(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    if real_path(folder).parent != real_path(out):
+        raise ValueError(f"{folder}: leads out of --out; shadowflow writes nothing outside it")
     rng = np.random.default_rng(2024)
     lights = [(45, 0), (-60, 0), (30, 25), (-75, 0), (60, -10)]
     paths = []
@@ -135,7 +135,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          find_faces=args.eyes == "auto", shadows=args.shadows,
                          face_length=face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
-                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=_view_size(args.view_size),
+                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=checked_view_size(args.view_size),
                          eye_contrast=_strength("--eye-contrast", args.eye_contrast),
                          fill_detail=_strength("--fill-detail", args.fill_detail),
                          mirror_lift=_strength("--mirror-lift", args.mirror_lift),
@@ -172,7 +172,7 @@ def _run_exit_code(result, watch_error: str | None) -> int:
     """130 stopped by a signal; 0 every frame done; 1 a frame failed or is doubtful, the folder took no more,
     the cluster or the watched folder went away (said here for the watch)."""
     if watch_error:
-        print(f"error: {watch_error}", file=sys.stderr)
+        say(f"error: {watch_error}")
     if result.stopped:
         return 130
     fine = result.not_ok == 0 and result.storage_error is None and result.cluster_error is None and not watch_error
@@ -180,21 +180,22 @@ def _run_exit_code(result, watch_error: str | None) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+    out = out_folder(args.out)
     _check_run_arguments(args)  # before any work or any file is written
     options = method_options(args)
     why = _no_input(args)
     if why is not None:
-        print(f"shadowflow run: no input image: {why}", file=sys.stderr)
+        say(f"shadowflow run: no input image: {why}")
         return 2
-    check_writable(out)
-    inputs = (write_demo_inputs(out / "demo-inputs") if args.demo else []) + list(args.inputs)
-    if not inputs and not args.watch:
-        print("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)", file=sys.stderr)
+    if not args.inputs and not args.demo and not args.watch:
+        say("shadowflow run: no input given (name images or folders, use --demo or --watch DIR)")
         return 2
-    note = (lambda msg: None) if args.quiet else say
     run = run_options(args)
-    model = model_arg(args.model)
+    model = model_arg(args.model)  # a model file that cannot be used is refused before anything is written
+    if args.demo:  # (run_stream checks --out itself, after what the inputs are)
+        check_out(out)  # before the demo's inputs are written there
+    inputs = (write_demo_inputs(out) if args.demo else []) + list(args.inputs)
+    note = (lambda msg: None) if args.quiet else say
     stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
@@ -203,7 +204,7 @@ def cmd_run(args: argparse.Namespace) -> int:
          + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
     code = _run_exit_code(result, watch.error if watch is not None else None)
     if wait_for_abandoned(30.0):  # a step that overran --frame-timeout still runs: do not wait on it
-        print("note: a step abandoned by --frame-timeout is still running; exiting without it", file=sys.stderr)
+        say("note: a step abandoned by --frame-timeout is still running; exiting without it")
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
@@ -260,7 +261,7 @@ def add_parser(sub) -> None:
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",
-                   help="novel_view.png's height and width in pixels (default: the model grid's)")
+                   help=f"novel_view.png's height and width in pixels, 32 to {MAX_VIEW_SIZE} (default: the model grid's)")
     r.add_argument("--encoding", choices=CHOICES["encoding"], default=MethodOptions.encoding,
                    help="how the photos' values relate to light: auto (default; colour photos are sRGB, grey ones "
                         "linear), srgb or linear; the method works in linear light, outputs keep the photo's encoding")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from ....flow.replay.text import one_line
 from ...model.default_model import train_from_recipe
 from ...model.shape_model import save_model
 from ...model.sources import SOURCES_HELP
@@ -24,8 +25,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     model = train_from_recipe(recipe)
     save_model(model, args.out)
-    print(f"trained {model.n_modes} modes over {model.n_pixels} pixels from {args.n} faces of {args.source} "
-          f"in {time.perf_counter() - t0:.1f} s -> {args.out}")
+    print(one_line(f"trained {model.n_modes} modes over {model.n_pixels} pixels from {args.n} faces of {args.source} "
+                   f"in {time.perf_counter() - t0:.1f} s -> {args.out}"))
     return 0
 
 
