@@ -20,6 +20,7 @@ from ...method.face_relight import FILL_DETAIL
 from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
+from ..counts import tally_text
 from ..inputs import FolderWatch, expand_inputs
 from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_writable, run_stream, say
 from .arguments import (
@@ -200,7 +201,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
-    note(f"{result.frames - result.not_ok} of {result.frames} done in {time.perf_counter() - t0:.1f} s"
+    done = tally_text(result.counts) if result.counts else f"{result.frames - result.not_ok} of {result.frames} done"
+    note(f"{done} in {time.perf_counter() - t0:.1f} s"
          + (f"; report: {result.report}" if result.report is not None else "")
          + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
     code = _run_exit_code(result, watch.error if watch is not None else None)
