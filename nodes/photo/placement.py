@@ -39,6 +39,7 @@ MIN_FIT_IOD_SHARE = 0.45
 # a face's eyes, brows and lips may run past the frame by this share of their outline points: a tight crop
 # cuts the brows' ends
 MAX_CUT = 0.1
+CUT_BY_FRAME = "the face is cut by the frame"  # its doubt begins so: a face all the same (``method.quality``)
 
 
 @dataclass(frozen=True)
@@ -160,7 +161,7 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     h, w = shape
     cut = np.mean((core[:, 0] < 0) | (core[:, 0] > w - 1) | (core[:, 1] < 0) | (core[:, 1] > h - 1))
     if cut > MAX_CUT:
-        doubts.append(f"the face is cut by the frame ({100 * cut:.0f} % of its eyes, brows and lips outside)")
+        doubts.append(f"{CUT_BY_FRAME} ({100 * cut:.0f} % of its eyes, brows and lips outside)")
     refused, turned = pose_doubts(pose, model.view == (0.0, 0.0))
     doubts += turned
     if rms > MAX_PLACEMENT_RMS:
