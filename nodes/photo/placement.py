@@ -20,6 +20,9 @@ from ..geometry.raster import polygon_mask
 from ..model.shape_model import ShapeModel
 from .align import Alignment, centred_alignment, eyes_alignment, inside_input, stretch_vertically, to_model_grid
 from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
+from .mediapipe import OUTER_CORNERS
+
+NOSE_TIP = 1  # the face mesh's vertex at the tip of the nose
 
 # the frontal model's reach in yaw: turned further, a face fitted with it (a model without turned views, a
 # model file) is doubtful (docs/accuracy.md, "Pose")
@@ -40,6 +43,13 @@ MIN_FIT_IOD_SHARE = 0.45
 # cuts the brows' ends
 MAX_CUT = 0.1
 CUT_BY_FRAME = "the face is cut by the frame"  # its doubt begins so: a face all the same (``method.quality``)
+# a face-like thing the face mesh doubts is refused, left as the photo has it (docs/accuracy.md, "Faces"): real faces
+# (79 of the people set's, Yale B) and the turned renders are meshed with a presence of 0.997 or more (the mesh's
+# own threshold, 0.5, lets a pattern through), their noses 0.35-0.89 of the eye distance out of the face, and
+# their skin no greener nor bluer than red (grey in a grey or faded photo)
+DOUBTED_PRESENCE = 0.9
+FLAT_NOSE = 0.2
+SKIN_REDDER = -0.02  # a face's red share of its inner skin's chromaticity less its green's or blue's, at least
 
 
 @dataclass(frozen=True)
@@ -143,10 +153,48 @@ def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
     return refused, doubts
 
 
-def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face_length: str | float) -> FacePlacement:
+def not_a_face(face: FoundFace, rgb: np.ndarray | None = None) -> str:
+    """Why the face mesh doubts ``face`` is a face ("" when it does not): its presence under ``DOUBTED_PRESENCE``,
+    a flat mesh (its nose under ``FLAT_NOSE`` eye distances out of the eye corners' depth), or, in a colour photo
+    ``rgb`` (H, W, 3) uint8, no skin's colour inside its outline (``SKIN_REDDER``): a painted or printed face."""
+    if face.presence < DOUBTED_PRESENCE:
+        return f"not a face: the face mesh doubts it (presence {face.presence:.2f})"
+    nose = (face.mesh[NOSE_TIP, 2] - face.mesh[list(OUTER_CORNERS), 2].mean()) / max(face.iod, 1e-9)
+    if nose < FLAT_NOSE:
+        return f"not a face: the face mesh finds it flat (its nose {nose:.2f} of the eye distance out)"
+    redder = _redder(face, rgb)
+    if redder < SKIN_REDDER:
+        return f"not a face: no skin's colour on it (red {100 * redder:+.0f} % of green or blue)"
+    return ""
+
+
+def _redder(face: FoundFace, rgb: np.ndarray | None) -> float:
+    """The red share of the chromaticity of ``face``'s inner skin (its outline shrunk by 0.15 eye distances, its
+    eyes, brows and lips left out) less the larger of green's and blue's (0 for a grey photo or too few pixels)."""
+    if rgb is None or rgb.ndim != 3:
+        return 0.0
+    h, w = rgb.shape[:2]
+    x0, y0, x1, y1 = np.clip(np.concatenate([face.oval.min(axis=0), face.oval.max(axis=0)]).astype(int),
+                             0, [w - 1, h - 1, w - 1, h - 1])
+    inner = np.zeros((y1 - y0 + 1, x1 - x0 + 1), np.uint8)
+    cv2.fillPoly(inner, [np.round(face.oval - [x0, y0]).astype(np.int32)], 1)
+    for part in face.outlines()["eyes"] + face.outlines()["brows"] + face.outlines()["lips"]:
+        cv2.fillPoly(inner, [np.round(part - [x0, y0]).astype(np.int32)], 0)
+    k = max(1, int(0.15 * face.iod))
+    inner = cv2.erode(inner, np.ones((k, k), np.uint8)) > 0
+    if inner.sum() < 50:
+        return 0.0
+    px = rgb[y0:y1 + 1, x0:x1 + 1][inner].astype(np.float64) + 1.0
+    share = np.median(px / px.sum(axis=1, keepdims=True), axis=0)
+    return float(share[0] - max(share[1], share[2]))
+
+
+def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face_length: str | float,
+                doubted: str = "") -> FacePlacement:
     """A face found by the face mesh, placed by its landmarks (``faces.place_on_grid``) on ``model``'s
     grid, seen at the model's ``view``; with ``face_length`` "off" the stretch is 1, with a number it is
-    that. Turned or tilted too far (``pose_doubts``), it is refused or doubtful."""
+    that. Turned or tilted too far (``pose_doubts``), it is refused or doubtful; ``doubted``: why it is not a
+    face (``not_a_face``), refused for that first."""
     mouth = model.mouth if face_length == "auto" else None
     matrix, stretch, rms = place_on_grid(face, model.grid, model.eyes, mouth, model.view)
     how = f"landmarks; face length x{stretch:.3f}"
@@ -178,7 +226,7 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
     o = outlines["oval"][0]
     box = np.clip(np.concatenate([o.min(axis=0), o.max(axis=0)]), 0.0, [w - 1, h - 1, w - 1, h - 1])
     return FacePlacement(al, found, face.eyes, box, pose, outlines, tuple(doubts), stretch, face.presence,
-                         rms <= MAX_PLACEMENT_RMS, face, model.view, refused)
+                         rms <= MAX_PLACEMENT_RMS, face, model.view, doubted or refused)
 
 
 def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | None = None, eyes_how: str = "given eyes",
@@ -193,7 +241,7 @@ def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | Non
         al = centred_alignment(shape, model.grid)
         al = Alignment(al.matrix, "centred crop (asked)")
         return [FacePlacement(al, "centre asked", al.points_to_input(model.eyes), model_box(model, al, shape))]
-    return [place_found(model, f, shape, face_length) for f in find_faces(photo_rgb)]
+    return [place_found(model, f, shape, face_length, not_a_face(f, photo_rgb)) for f in find_faces(photo_rgb)]
 
 
 def outline_mask(placement: FacePlacement, grid: tuple[int, int], name: str = "oval") -> np.ndarray | None:
