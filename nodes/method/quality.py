@@ -154,14 +154,19 @@ def _no_face(eyes: str, explained: float, doubts: tuple[str, ...], plausible: bo
              detection: float | None) -> bool:
     """Whether a frame holds no face (``assess``'s arguments)."""
     # a face cut by the frame is a face, doubtful for it: the frame takes its shading and the detector's sureness
-    cut = any(d.startswith(CUT_BY_FRAME) for d in doubts)
-    doubts = tuple(d for d in doubts if not d.startswith(CUT_BY_FRAME))
+    cut, doubts = _cut(doubts)
     # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
     # mesh saw or whose placement is in doubt too, is none
     unexplained = explained < (MIN_EXPLAINED if eyes == "mesh only" or doubts else LEAST_EXPLAINED)
     # ... but one both nets are sure of, in a face's proportions, with nothing else in doubt, is a face: doubtful
-    confirmed = (eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE
-                 and ((detection or 0.0) >= CONFIDENT_DETECTION or cut))
+    sure = (detection or 0.0) >= CONFIDENT_DETECTION or cut
+    confirmed = eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE and sure
     # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
     implausible = not plausible and explained < NO_FACE_EXPLAINED
     return (eyes == "none" and explained < NO_FACE_EXPLAINED) or (unexplained and not confirmed) or implausible
+
+
+def _cut(doubts: tuple[str, ...]) -> tuple[bool, tuple[str, ...]]:
+    """Whether a face is cut by the frame (``placement.CUT_BY_FRAME``), and its other doubts."""
+    others = tuple(d for d in doubts if not d.startswith(CUT_BY_FRAME))
+    return len(others) < len(doubts), others
