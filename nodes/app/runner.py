@@ -176,7 +176,8 @@ class Progress:
 @dataclass
 class RunResult:
     """out: the output folder; frames: how many frames have a summary record; not_ok: how many of
-    those are not "ok" (failed, or a face doubtful or refused: ``counts.photo_status``); stopped: a stop (signal) cut the run short;
+    those are not "ok" (failed, or a face doubtful or refused: ``counts.photo_status``); stopped: a stop (signal)
+    cut the run short;
     storage_error: why the output folder stopped taking data, if it did (the run stopped then);
     cluster_error: why a Dask cluster was lost mid-run, if it was (the run stopped then); report: the
     ``report.html`` written, or None (none was: the folder took no more); counts: the photos and faces ok, doubtful,

@@ -15,7 +15,7 @@ from ...flow.parts import EachPart
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
 from ..geometry.reflectance import light_tag
 from ..model.shape_model import ShapeModel
-from ..photo.align import IDENTITY, Alignment, to_model_grid
+from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
 from ..photo.cover import covered_on_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.given import given_eyes, known_light
@@ -642,7 +642,8 @@ class QualityNode:
                    explained=explained_variance(d["remapped"][m.mask], shading, use, weights),
                    downweighted=float(np.mean(weights[seen] < 0.5)) if seen.any() else 1.0,
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
-                   inside=float(np.mean(seen[core_face(m)[m.mask]])),
+                   # the frame's share of the core, not the fit's: a turned face's far cheek lies past its fit's oval
+                   inside=float(np.mean(inside_input(d["alignment"], d["image"].shape, m.grid)[core_face(m)])),
                    doubts=placement.doubts if placement is not None else (),
                    plausible=placement.plausible if placement is not None else True,
                    presence=placement.presence if placement is not None else None,
@@ -682,6 +683,6 @@ def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver
     (``products.relit_photo``)."""
     faces = FacesNode(model, options)
     # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
-    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3])
+    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3], model, options.face_length)
     per_face = [choice, *method_nodes(model, options, observer, with_views), *after]
     return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]

@@ -28,7 +28,7 @@ NOSE_TIP = 1  # the face mesh's vertex at the tip of the nose
 # model file) is doubtful (docs/accuracy.md, "Pose")
 MAX_FRONTAL_YAW = 15.0
 # turned further than this, a face is refused: the far half of the face is hidden (docs/accuracy.md, "Turned heads")
-MAX_YAW = 35.0
+MAX_YAW = 50.0
 # the frontal model's reach in pitch (a model without pitched views), and the pitched views': tilted further, a face
 # is doubtful (docs/accuracy.md, "Turned heads": renders read at 39-42 deg fitted within 12-14 deg, at 48 deg 19-20)
 MAX_FRONTAL_PITCH = 20.0
@@ -50,6 +50,7 @@ CUT_BY_FRAME = "the face is cut by the frame"  # its doubt begins so: a face all
 # 0.90 (the detector missed it): a mesh this unsure of a face the detector is not sure of either is refused
 DOUBTED_PRESENCE = 0.75
 DOUBTED_DETECTION = 0.5
+TURN_DOUBT = "the head is "  # how the doubts of a head's turn and tilt begin (``pose_doubts``)
 FLAT_NOSE = 0.2
 SKIN_REDDER = -0.02  # a face's red share of its inner skin's chromaticity less its green's or blue's, at least
 
@@ -143,7 +144,8 @@ def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
     yaw, pitch = pose.view
     refused, doubts = "", []
     if abs(yaw) > MAX_YAW:
-        refused = f"the head is turned {yaw:+.0f} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
+        said = f"{yaw:+.0f}" if round(abs(yaw)) > MAX_YAW else f"{yaw:+.1f}"  # not "+50" past a reach of 50
+        refused = f"the head is turned {said} deg (yaw); faces turned up to {MAX_YAW:.0f} deg are fitted"
     elif frontal and abs(yaw) > MAX_FRONTAL_YAW:
         doubts.append(f"the head is turned {yaw:+.0f} deg (yaw); the frontal model fits up to "
                       f"{MAX_FRONTAL_YAW:.0f} deg")
@@ -157,7 +159,8 @@ def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
 
 def not_a_face(face: FoundFace, rgb: np.ndarray | None = None) -> str:
     """Why the face mesh doubts ``face`` is a face ("" when it does not): its presence under ``DOUBTED_PRESENCE``
-    where the detector scored it under ``DOUBTED_DETECTION`` (or did not find it), a flat mesh (its nose under ``FLAT_NOSE`` eye distances out of the eye corners' depth), or, in a colour photo
+    where the detector scored it under ``DOUBTED_DETECTION`` (or did not find it), a flat mesh (its nose under
+    ``FLAT_NOSE`` eye distances out of the eye corners' depth), or, in a colour photo
     ``rgb`` (H, W, 3) uint8, no skin's colour inside its outline (``SKIN_REDDER``): a painted or printed face."""
     if face.presence < DOUBTED_PRESENCE and face.score < DOUBTED_DETECTION:
         return f"not a face: the face mesh doubts it (presence {face.presence:.2f})"
