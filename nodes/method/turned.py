@@ -172,10 +172,13 @@ class ViewChoiceNode:
         return out
 
     def _placed(self, frame: Frame, found: FacePlacement, view: tuple[float, float]) -> FacePlacement:
-        """``found``'s face placed for ``view``'s model."""
+        """``found``'s face placed for ``view``'s model (a model built here is added to the frame's
+        ``meta["models_built"]``, for the run to say)."""
         if view == (0.0, 0.0):
             return place_found(self.model, found.face, frame.data["image"].shape, self.face_length)
-        return place_found(turned_model(self.model, view), found.face, frame.data["image"].shape, self.face_length)
+        built = frame.meta.setdefault("models_built", [])
+        model = turned_model(self.model, view, lambda path: built.append(str(path)))
+        return place_found(model, found.face, frame.data["image"].shape, self.face_length)
 
     def _chosen(self, frame: Frame, first: FacePlacement, scores: dict[float, float]) -> Frame:
         """The face made again with the view of the yaw read (landmarks and fit), its pose so, or refused."""
@@ -195,6 +198,8 @@ class ViewChoiceNode:
         doubts = tuple(d for d in placement.doubts if not d.startswith(TURN_DOUBT)) + tuple(turned)
         placement = dataclasses.replace(placement, pose=read, refused=refused, doubts=doubts)
         made = self.make_face(frame, placement)
+        if frame.meta.get("models_built"):
+            made.meta["models_built"] = frame.meta["models_built"]
         made.meta["view_choice"] = {f"{y:+.0f},{first.view[1]:+.0f}": round(v, 6) for y, v in sorted(scores.items())}
         made.meta["yaw_read"] = {"landmarks": round(pose.yaw, 2), "fit": round(fitted, 2)}
         return made

@@ -23,6 +23,7 @@ from .faces import FoundFace, Pose, find_faces, head_pose, place_on_grid
 from .mediapipe import OUTER_CORNERS
 
 NOSE_TIP = 1  # the face mesh's vertex at the tip of the nose
+MOUTH_CORNERS = (61, 291)
 
 # the frontal model's reach in yaw: turned further, a face fitted with it (a model without turned views, a
 # model file) is doubtful (docs/accuracy.md, "Pose")
@@ -45,14 +46,15 @@ MAX_CUT = 0.1
 CUT_BY_FRAME = "the face is cut by the frame"  # its doubt begins so: a face all the same (``method.quality``)
 # a face-like thing the face mesh doubts is refused, left as the photo has it (docs/accuracy.md, "Turned heads"): real
 # faces (79 of the people set's, 317 of 319 Yale B photos) and the turned renders are meshed with a presence of 0.987
-# or more, their noses 0.35-0.89 of the eye distance out of the face, and their skin no greener nor bluer than red
-# (grey in a grey or faded photo). Two Yale B exposures striped by interference read 0.57 (the detector 0.72) and
+# or more, their noses 0.35-0.54 of the eyes' width out of the face (``_nose_out``; renders turned 50 deg or tilted 50
+# deg among them), and their skin's red share at most 0.019 under
+# its green's or blue's (a bluish indoor frame; grey in a grey or faded photo; a painted face's 0.05-0.11). Two Yale B exposures striped by interference read 0.57 (the detector 0.72) and
 # 0.90 (the detector missed it): a mesh this unsure of a face the detector is not sure of either is refused
 DOUBTED_PRESENCE = 0.75
 DOUBTED_DETECTION = 0.5
 TURN_DOUBT = "the head is "  # how the doubts of a head's turn and tilt begin (``pose_doubts``)
-FLAT_NOSE = 0.2
-SKIN_REDDER = -0.02  # a face's red share of its inner skin's chromaticity less its green's or blue's, at least
+FLAT_NOSE = 0.15
+SKIN_REDDER = -0.035  # a face's red share of its inner skin's chromaticity less its green's or blue's, at least
 
 
 @dataclass(frozen=True)
@@ -160,17 +162,26 @@ def pose_doubts(pose: Pose, frontal: bool) -> tuple[str, list[str]]:
 def not_a_face(face: FoundFace, rgb: np.ndarray | None = None) -> str:
     """Why the face mesh doubts ``face`` is a face ("" when it does not): its presence under ``DOUBTED_PRESENCE``
     where the detector scored it under ``DOUBTED_DETECTION`` (or did not find it), a flat mesh (its nose under
-    ``FLAT_NOSE`` eye distances out of the eye corners' depth), or, in a colour photo
+    ``FLAT_NOSE`` of the eyes' width out of the face, ``_nose_out``), or, in a colour photo
     ``rgb`` (H, W, 3) uint8, no skin's colour inside its outline (``SKIN_REDDER``): a painted or printed face."""
     if face.presence < DOUBTED_PRESENCE and face.score < DOUBTED_DETECTION:
         return f"not a face: the face mesh doubts it (presence {face.presence:.2f})"
-    nose = (face.mesh[NOSE_TIP, 2] - face.mesh[list(OUTER_CORNERS), 2].mean()) / max(face.iod, 1e-9)
+    nose = _nose_out(face.mesh)
     if nose < FLAT_NOSE:
-        return f"not a face: the face mesh finds it flat (its nose {nose:.2f} of the eye distance out)"
+        return f"not a face: the face mesh finds it flat (its nose {nose:.2f} of the eyes' width out)"
     redder = _redder(face, rgb)
     if redder < SKIN_REDDER:
         return f"not a face: no skin's colour on it (red {100 * redder:+.0f} % of green or blue)"
     return ""
+
+
+def _nose_out(mesh: np.ndarray) -> float:
+    """How far the mesh's (468, 3) nose tip stands out of the plane through its outer eye corners and its mouth
+    corners' midpoint, over the outer eye corners' distance (3-D: the same whichever way the head is turned)."""
+    a, b = mesh[OUTER_CORNERS[0]], mesh[OUTER_CORNERS[1]]
+    normal = np.cross(b - a, mesh[list(MOUTH_CORNERS)].mean(axis=0) - a)
+    normal /= max(float(np.linalg.norm(normal)), 1e-12)
+    return float(abs((mesh[NOSE_TIP] - a) @ normal) / max(float(np.linalg.norm(b - a)), 1e-12))
 
 
 def _redder(face: FoundFace, rgb: np.ndarray | None) -> float:

@@ -67,20 +67,22 @@ def test_a_head_turned_45_degrees_is_fitted_as_well_as_a_frontal_one_and_one_tur
         shadowflow.fit(render.photo, light=LIGHT)
 
 
+@pytest.mark.slow
 def test_the_yaw_is_read_within_3_degrees_under_a_light_from_either_side(identities):
-    """The landmarks' yaw leans away from a side light (held-out identities turned 20 deg: 3-5 deg), the fit's toward
-    it; their mean is read within 3 deg on average under a light from either side, the landmarks alone not."""
+    """The landmarks' yaw leans away from a side light, the fit's toward it: their mean is read within 3 deg on
+    average under a light from either side (held-out identities turned -20...+20: measured +1.1 and -1.8 deg
+    against the landmarks' +2.9 and -3.6)."""
     basis, ids = identities
     for azimuth in (45.0, -45.0):
         light = light_from_angles(azimuth, 0.0)
         read, landmarks = [], []
-        for yaw in (20.0, -20.0):
+        for yaw in (-20.0, -10.0, 10.0, 20.0):
             for w in ids:
                 result = shadowflow.fit(render_turned(basis, w, (yaw, 0.0), light, default_model()).photo, light=light)
                 read.append(result.faces[0]["pose"]["yaw"] - yaw)
                 landmarks.append(result.frame.meta["yaw_read"]["landmarks"] - yaw)
         assert abs(np.mean(read)) <= 3.0, (azimuth, read)
-        assert np.mean(np.abs(read)) < np.mean(np.abs(landmarks)), (azimuth, read, landmarks)
+        assert abs(np.mean(landmarks)) >= abs(np.mean(read)) + 1.0, (azimuth, read, landmarks)  # 1.8 both
 
 
 def test_the_frontal_model_alone_cannot_fit_a_turned_head(identities, monkeypatch):

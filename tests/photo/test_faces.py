@@ -287,8 +287,8 @@ def test_a_face_like_thing_the_mesh_doubts_is_refused_and_left_as_the_photo_has_
     herself: the painting is refused, "not a face: no skin's colour", and the photo relit from 60 degrees keeps it
     bit for bit while her face is relit; the terminal's and the report's count says 1 ok, 1 refused. A mesh the
     face mesh is unsure of (and the detector too), or a flat one, is refused too; real faces (79 of the people set's,
-    317 of 319 Yale B photos, the turned renders) are meshed 0.987 sure or more, their noses 0.35-0.89 of the eye
-    distance out."""
+    317 of 319 Yale B photos, the turned renders) are meshed 0.987 sure or more, their noses 0.35-0.54 of the eyes'
+    width out."""
     import shadowflow
     from shadowflow.nodes.app.counts import tally
     from shadowflow.nodes.geometry.reflectance import light_from_angles
