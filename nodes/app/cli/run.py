@@ -201,7 +201,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
-    done = tally_text(result.counts) if result.counts else f"{result.frames - result.not_ok} of {result.frames} done"
+    done = (f"{tally_text(result.counts)}; done" if result.counts
+            else f"{result.frames - result.not_ok} of {result.frames} done")
     note(f"{done} in {time.perf_counter() - t0:.1f} s"
          + (f"; report: {result.report}" if result.report is not None else "")
          + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
