@@ -25,11 +25,11 @@ from ..method.products import (face_products, grid_placement, grid_products, in_
                                photo_mesh)
 from ..relight.products import relit_lights, relit_photo_8bit
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
-from ..method.quality import NO_FACE
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.loader import MAX_PIXELS, MAX_SIDE
 from ..photo.encoding import swapped_rb
 from ..model.shape_model import MAX_GRID_SIDE, ShapeModel
+from .counts import status_lines  # noqa: F401 (the tests take it from here)
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
 
@@ -454,22 +454,3 @@ def write_summary(out_dir: Path, records: Iterable[dict]) -> None:
     record by record (a run's records come from its store on disk, never all in memory)."""
     chunks = json_array_chunks(records, indent=2)
     atomic_write_chunks(out_dir / "summary.json", itertools.chain(chunks, [b"\n"]))
-
-
-def status_lines(rec: dict) -> list[str]:
-    """What the terminal says of a finished input (its ``summary_record``): nothing when every face is
-    ok, else one line per face (or for the input) that failed or is doubtful, naming its file."""
-    if rec.get("failed_in") or not rec.get("faces"):  # the input failed as a whole
-        return [] if rec["status"] == "ok" else [f"error: {rec['status']}"]
-    lines = []
-    has_face = any(f["status"] == "ok" or f["status"].startswith("doubtful: ") for f in rec["faces"])
-    for k, face in enumerate(rec["faces"], start=1):
-        status = face["status"]
-        if status == "ok" or (has_face and f": {NO_FACE}" in status):  # a candidate beside a real face that
-            continue  # the fit found no face in (listed in summary.json with its reason): not the photo's error
-        name = rec["source"] if k == 1 else f"{rec['source']} (face {k})"
-        if status.startswith("doubtful: "):
-            lines.append(f"doubtful: {name}: {status[len('doubtful: '):]}")
-        else:
-            lines.append(f"error: {status}")
-    return lines

@@ -29,6 +29,7 @@ from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
 from ..photo.encoding import swapped_rb
 from ..photo.loader import InputError, read_photo
+from .counts import photo_status, tally, tally_text
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
 from .view import SLIDER_SCRIPT, SLIDER_STYLE, VIEW_NAME, face_marks, faces_crop
@@ -52,15 +53,13 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
     run made (``card_pictures``); a photo without them is read back from its input and relit file.
     Returns the report's path."""
     cards = cards or {}
-    frames = n_ok = doubtful = 0
+    n_ok = 0
     failed = []  # (input, step, reason) of each frame without outputs
     odd = set()  # the file names of doubtful frames: drawn in colour in a crowded convergence plot
     for r in records:
-        frames += 1
         if _written(out, r):
             n_ok += 1
             if _frame_status(r) == "doubtful":  # as its row says: any face doubtful, not the largest only
-                doubtful += 1
                 odd.add(_file_name(r.get("source")))
         else:
             failed.append((r.get("source"), r.get("failed_in", ""), r.get("status")))
@@ -69,9 +68,9 @@ def write_report(out: Path, records: Iterable[dict], recording: Path | None = No
     plot = _convergence_png(series, odd) if series else None
     parts = [_HEAD.format(title=html.escape(title)),
              f"<h1>{html.escape(title)}</h1>",
-             f"<p class=meta>{frames} frames: {n_ok - doubtful} ok, {doubtful} doubtful (outputs written, "
-             f"look before trusting them), {len(failed)} failed. Written {time.strftime('%Y-%m-%d %H:%M')}; "
-             f"<a href=summary.json>summary.json</a>.</p>"]
+             # counted as the terminal counts them (``counts.tally``): doubtful photos and faces have their outputs
+             f"<p class=meta>{tally_text(tally(records))}; doubtful ones are written, look before trusting them. "
+             f"Written {time.strftime('%Y-%m-%d %H:%M')}; <a href=summary.json>summary.json</a>.</p>"]
     parts.append("<h2>Convergence</h2>")
     if plot:
         parts.append(f'<img class=plot alt="convergence of the fit" src="data:image/png;base64,{plot}">')
@@ -115,8 +114,8 @@ def _written(out: Path, record: dict) -> bool:
 
 
 def _frame_status(r: dict) -> str:
-    """"ok" when every face of a frame's record is ok (a record without faces: its own status), else "doubtful"."""
-    return "ok" if all(str(f.get("status", "ok")) == "ok" for f in r.get("faces") or [r]) else "doubtful"
+    """"ok" when every face of a frame's record that counts is ok (``counts.photo_status``), else "doubtful"."""
+    return "ok" if photo_status(r) == "ok" else "doubtful"
 
 
 def _row(out: Path, r: dict, thumb: np.ndarray | None = None) -> str:

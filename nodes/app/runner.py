@@ -46,10 +46,10 @@ from .outputs import (
     run_output_folder,
     relit_name,
     safe_stem,
-    status_lines,
     summary_record,
     write_summary,
 )
+from .counts import status_lines, tally
 from .process import HeapTrimmer, one_blas_thread, release_large_frees
 from .blueprint import rerun_sink
 from .chain import run_nodes
@@ -221,10 +221,12 @@ class Progress:
 @dataclass
 class RunResult:
     """out: the output folder; frames: how many frames have a summary record; not_ok: how many of
-    those are not "ok" (failed or doubtful); stopped: a stop (signal) cut the run short;
+    those are not "ok" (failed, or a face doubtful or refused: ``counts.photo_status``); stopped: a stop (signal)
+    cut the run short;
     storage_error: why the output folder stopped taking data, if it did (the run stopped then);
     cluster_error: why a Dask cluster was lost mid-run, if it was (the run stopped then); report: the
-    ``report.html`` written, or None (none was: the folder took no more)."""
+    ``report.html`` written, or None (none was: the folder took no more); counts: the photos and faces ok, doubtful,
+    failed and refused (``counts.tally``, as the report says them)."""
 
     out: Path
     frames: int
@@ -233,6 +235,7 @@ class RunResult:
     storage_error: str | None = None
     cluster_error: str | None = None
     report: Path | None = None
+    counts: dict[str, int] | None = None
 
     @functools.cached_property
     def records(self) -> list[dict]:
@@ -658,9 +661,10 @@ class StoredRun:
         lost = getattr(self.pipeline, "lost", None)
         if lost:
             self.shout(f"error: {lost}; finished frames are written; run again with --resume to complete the job")
-        frames_done, not_ok = self.store.records.counts()
+        counts = tally(self.store.records)  # as the report counts them
         stopped = self.pipeline.stopped and self.storage is None
-        return RunResult(self.out, frames_done, not_ok, stopped, self.storage, lost, report)
+        return RunResult(self.out, counts["photos"], counts["photos"] - counts["ok"], stopped, self.storage, lost,
+                         report, counts)
 
     def _report(self) -> Path | None:
         """``report.html`` written, or None (with a note) when it could not be."""

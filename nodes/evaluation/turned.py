@@ -203,6 +203,9 @@ def _arguments(argv: list[str] | None, doc: str | None):
     ap.add_argument("--frontal-pitch", type=float, metavar="DEG",
                     help="a face within 7.5 deg of frontal in yaw is fitted at a pitched view from this pitch on")
     ap.add_argument("--max-view-pitch", type=float, metavar="DEG", help="the pitched views' reach")
+    ap.add_argument("--lights", default="45", metavar="A,A,...",
+                    help="the lights' azimuths in degrees (toward the image's left), each a table's rows; several: "
+                         "also the yaw read against the truth, true yaw x light (default 45)")
     args = ap.parse_args(argv)
     if args.frontal_only:
         turned.views_near = lambda yaw, pitch: [(0.0, 0.0)]
@@ -222,7 +225,7 @@ def main(argv: list[str] | None = None) -> None:
     from ..model.sources import eos_samples
 
     args = _arguments(argv, main.__doc__)
-    basis, model, light = shipped_basis(), default_model(), light_from_angles(45.0, 0.0)
+    basis, model = shipped_basis(), default_model()
     if args.surrey:
         faces = eos_samples(args.surrey, args.identities, 1000)
     else:
@@ -233,13 +236,40 @@ def main(argv: list[str] | None = None) -> None:
             faces.append((verts, basis.triangles, eyes, verts[list(LANDMARKS)]))
     views = [tuple(int(float(a)) for a in v.split(",")) for v in args.views] if args.views else [
         (0, 0), (-10, 0), (10, 0), (20, 0), (-20, 0), (30, 0), (-30, 0), (0, 10), (0, -10), (50, 0), (-50, 0)]
-    print("| view | normals | coverage | read yaw | read pitch | status |\n|---|---|---|---|---|---|")
+    azimuths = [int(float(a)) for a in args.lights.split(",")]
+    print("| view | light | normals | coverage | read yaw | read pitch | status |\n|---|---|---|---|---|---|---|")
+    read = {}
     for view in views:
-        rows = score_view(faces, view, light, model)
-        err = [x[0] for x in rows if np.isfinite(x[0])]
-        print(f"| {view[0]:+d}, {view[1]:+d} | {np.mean(err) if err else float('nan'):.2f} | "
-              f"{np.mean([x[1] for x in rows]):.3f} | {', '.join(f'{x[2]:+.0f}' for x in rows)} | "
-              f"{', '.join(f'{x[3]:+.0f}' for x in rows)} | {'; '.join(sorted({x[4] for x in rows}))} |", flush=True)
+        for azimuth in azimuths:
+            rows = score_view(faces, view, light_from_angles(float(azimuth), 0.0), model)
+            read[view, azimuth] = [x[2] for x in rows]
+            print(_row(view, azimuth, rows), flush=True)
+    if len(azimuths) > 1:
+        print(yaw_table(read, azimuths))
+
+
+def _row(view: tuple[int, int], azimuth: int, rows: list) -> str:
+    """One row of ``main``'s table: the means over the faces, each face's read yaw and pitch, the statuses."""
+    err = [x[0] for x in rows if np.isfinite(x[0])]
+    return (f"| {view[0]:+d}, {view[1]:+d} | {azimuth:+d} | {np.mean(err) if err else float('nan'):.2f} | "
+            f"{np.mean([x[1] for x in rows]):.3f} | {', '.join(f'{x[2]:+.0f}' for x in rows)} | "
+            f"{', '.join(f'{x[3]:+.0f}' for x in rows)} | {'; '.join(sorted({x[4] for x in rows}))} |")
+
+
+def yaw_table(read: dict, azimuths: list[int]) -> str:
+    """The yaw read against the truth: a row per true view, a column per light's azimuth, each cell the mean read
+    over the faces and its difference from the truth (refused faces left out, and counted)."""
+    lines = ["| true yaw | " + " | ".join(f"light {a:+d}" for a in azimuths) + " |",
+             "|---|" + "---|" * len(azimuths)]
+    for view in dict.fromkeys(v for v, _ in read):
+        cells = []
+        for a in azimuths:
+            got = [y for y in read[view, a] if np.isfinite(y)]
+            mean = float(np.mean(got)) if got else float("nan")
+            refused = len(read[view, a]) - len(got)
+            cells.append(f"{mean:+.1f} ({mean - view[0]:+.1f})" + (f", {refused} refused" if refused else ""))
+        lines.append(f"| {view[0]:+d}" + (f", {view[1]:+d}" if view[1] else "") + " | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -74,9 +74,11 @@ META: dict[str, tuple[str, str]] = {
     "model_view": ("[yaw, pitch] degrees of the turned model the face is fitted with (absent: frontal)",
                    "faces, view_choice"),
     "models_built": ("[path] the turned models this face's views built (their first use), for the run to say",
-                     "faces"),
-    "view_choice": ("{\"yaw,pitch\": final sigma} of each view a turned face was fitted with; the least won",
-                    "view_choice"),
+                     "faces, view_choice"),
+    "view_choice": ("{\"yaw,pitch\": misfit} of each view a turned face (or one near frontal under a side light) "
+                    "was fitted with; the least fits it (``turned.misfits``)", "view_choice"),
+    "yaw_read": ("{\"landmarks\", \"fit\"}: the two yaws (degrees) whose mean is the face's pose's yaw "
+                 "(``turned.ViewChoiceNode``)", "view_choice"),
     "remap_scale": ("the brightness scale divided out", "remap"),
     "clipped_fraction": ("share of the seen face clipped (over-exposed photos)", "remap"),
     "iterations": ("fit iterations", "robust_fit"),

@@ -14,7 +14,7 @@ from ...flow.frame import Frame, FrameFailed
 from ..geometry.integrate import frankot_chellappa, masked_least_squares
 from ..geometry.reflectance import light_tag
 from ..model.shape_model import ShapeModel
-from ..photo.align import IDENTITY, Alignment, to_model_grid
+from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
 from ..photo.cover import covered_on_grid
 from ..photo.encoding import ENCODINGS, linear_to_srgb
 from ..photo.evenness import evenly_lit
@@ -556,7 +556,8 @@ class QualityNode:
                    explained=explained_variance(d["remapped"][m.mask], shading, use, weights),
                    downweighted=float(np.mean(weights[seen] < 0.5)) if seen.any() else 1.0,
                    clipped=float(np.mean(saturated[seen])) if seen.any() else 0.0,
-                   inside=float(np.mean(seen[core_face(m)[m.mask]])),
+                   # the frame's share of the core, not the fit's: a turned face's far cheek lies past its fit's oval
+                   inside=float(np.mean(inside_input(d["alignment"], d["image"].shape, m.grid)[core_face(m)])),
                    doubts=placement.doubts if placement is not None else (),
                    plausible=placement.plausible if placement is not None else True,
                    presence=placement.presence if placement is not None else None,

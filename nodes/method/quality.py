@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ..photo.placement import CUT_BY_FRAME
 from .robust_fit.robust import huber_weights
 
 NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
@@ -160,12 +161,20 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
 def _no_face(eyes: str, explained: float, doubts: tuple[str, ...], plausible: bool, presence: float | None,
              detection: float | None) -> bool:
     """Whether a frame holds no face (``assess``'s arguments)."""
+    # a face cut by the frame is a face, doubtful for it: the frame takes its shading and the detector's sureness
+    cut, doubts = _cut(doubts)
     # the face mesh sees faces in some patterns (concentric rings): a face its fit does not explain, that only the
     # mesh saw or whose placement is in doubt too, is none
     unexplained = explained < (MIN_EXPLAINED if eyes == "mesh only" or doubts else LEAST_EXPLAINED)
     # ... but one both nets are sure of, in a face's proportions, with nothing else in doubt, is a face: doubtful
-    confirmed = (eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE
-                 and (detection or 0.0) >= CONFIDENT_DETECTION)
+    sure = (detection or 0.0) >= CONFIDENT_DETECTION or cut
+    confirmed = eyes == "detected" and plausible and not doubts and (presence or 0.0) >= CONFIDENT_PRESENCE and sure
     # a mesh whose landmarks do not have a face's proportions must be a face the fit explains well
     implausible = not plausible and explained < NO_FACE_EXPLAINED
     return (eyes == "none" and explained < NO_FACE_EXPLAINED) or (unexplained and not confirmed) or implausible
+
+
+def _cut(doubts: tuple[str, ...]) -> tuple[bool, tuple[str, ...]]:
+    """Whether a face is cut by the frame (``placement.CUT_BY_FRAME``), and its other doubts."""
+    others = tuple(d for d in doubts if not d.startswith(CUT_BY_FRAME))
+    return len(others) < len(doubts), others

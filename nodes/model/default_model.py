@@ -133,7 +133,10 @@ def build_into(recipe: dict, path: str | os.PathLike) -> None:
 # a turned head is fitted with the model of its heads turned to the nearest view (docs/accuracy.md, "Turned
 # heads"): a view every VIEW_STEP degrees of yaw out to MAX_VIEW_YAW, and of pitch out to MAX_VIEW_PITCH
 VIEW_STEP = 5.0
-MAX_VIEW_YAW = 35.0
+MAX_VIEW_YAW = 50.0
+# ... and views measured (``method.turned.ViewChoiceNode``) out to this: a head turned 50 deg is read at 50 only
+# if the views either side of it are compared
+MEASURED_VIEW_YAW = 60.0
 PITCH_STEP = 10.0
 MAX_VIEW_PITCH = 30.0
 # a turned model's region: the pixels at least this share of its heads cover (the others' heights filled
@@ -155,10 +158,12 @@ def view_of(yaw: float, pitch: float) -> tuple[float, float]:
 
 
 def views_near(yaw: float, pitch: float) -> list[tuple[float, float]]:
-    """The views a head measured at ``yaw``, ``pitch`` degrees may be fitted with: ``view_of`` it and its
-    neighbours in yaw (the landmarks' yaw is good to a few degrees; the fit tells the rest apart)."""
-    y, p = view_of(yaw, pitch)
-    return [(y + k * VIEW_STEP + 0.0, p) for k in (0, -1, 1) if abs(y + k * VIEW_STEP) <= MAX_VIEW_YAW]
+    """The views a head measured at ``yaw``, ``pitch`` degrees is compared at: the nearest (out to
+    ``MEASURED_VIEW_YAW``) and its neighbours in yaw (the landmarks' yaw is good to a few degrees; the fit tells
+    the rest apart, ``method.turned.ViewChoiceNode``)."""
+    p = view_of(yaw, pitch)[1]
+    y = float(np.clip(VIEW_STEP * np.round(yaw / VIEW_STEP), -MEASURED_VIEW_YAW, MEASURED_VIEW_YAW))
+    return [(y + k * VIEW_STEP + 0.0, p) for k in (0, -1, 1) if abs(y + k * VIEW_STEP) <= MEASURED_VIEW_YAW]
 
 
 def turned_model(model: ShapeModel, view: tuple[float, float], note=None) -> ShapeModel | None:

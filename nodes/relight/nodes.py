@@ -192,6 +192,7 @@ def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver
     relit with every face is made from them when asked (``products.relit_photo``)."""
     faces = FacesNode(model, options)
     # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
-    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3])
+    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3], model,
+                            options.face_length)
     per_face = [choice, *face_nodes(model, options, observer, with_views), *after]
     return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]

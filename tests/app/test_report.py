@@ -31,7 +31,7 @@ def test_the_report_shows_every_frame_and_says_why_one_failed(run_with_a_failure
             assert f'src="{quote(stem)}/{name}"' in page and (out / stem / name).is_file()
     assert page.count('alt="input" src="data:image/jpeg;base64,') == 3
     assert page.count('alt="weights" src="data:image/jpeg;base64,') == 3
-    assert "4 frames: 3 ok, 0 doubtful" in page and "1 failed" in page
+    assert "4 photos (3 ok, 0 doubtful, 1 failed); 3 faces (3 ok, 0 doubtful, 0 refused)" in page
     assert "a&lt;b&gt;&amp;c.png" in page and "<b>&c" not in page  # the file name is text, never markup
     assert "not a recognised image" in page
     assert 'alt="convergence of the fit" src="data:image/png;base64,' in page
@@ -123,8 +123,39 @@ def test_the_reports_count_of_doubtful_photos_agrees_with_their_rows(tmp_path):
         cv2.imwrite(str(tmp_path / f"{stem}.png"), img)
         records.append({"stem": stem, "source": str(tmp_path / f"{stem}.png"), "status": "ok", "faces": faces})
     page = write_report(tmp_path, records).read_text()
-    assert "2 frames: 1 ok, 1 doubtful" in page
+    assert "2 photos (1 ok, 1 doubtful, 0 failed); 3 faces (2 ok, 1 doubtful, 0 refused)" in page
     assert page.count("<span class=doubtful>doubtful</span>") == 1
+
+
+def test_the_terminal_and_the_report_count_the_same_faces_the_same_way(tmp_path):
+    """A run's photos and faces are counted once (``counts.tally``) and said alike: the terminal said "17 of 23
+    done" (photos whose largest face was ok) where the report said 14 ok and 8 doubtful (any face not ok). A
+    refused face (turned too far) makes its photo doubtful; a candidate the fit found no face in beside a real
+    face is no face at all; a photo with no face failed."""
+    from shadowflow.nodes.app.counts import status_lines, tally, tally_text
+    from shadowflow.nodes.app.report import write_report
+
+    refused = "group.png (face 3): the head is turned -62 deg (yaw); faces turned up to 50 deg are fitted"
+    specs = {"group": [{"status": "ok"}, {"status": "doubtful: the face is small"}, {"status": refused},
+                       {"status": "group.png (face 4): no face found (a pattern)"}],
+             "portrait": [{"status": "portrait.png: no face found (rings)"}, {"status": "ok"}],
+             "wall": None}
+    records = []
+    for stem, faces in specs.items():
+        img = np.full((40, 40, 3), 128, np.uint8)
+        cv2.imwrite(str(tmp_path / f"{stem}.png"), img)
+        if faces is None:
+            records.append({"stem": stem, "source": str(tmp_path / f"{stem}.png"), "status": "no face found",
+                            "failed_in": "faces", "faces": []})
+            continue
+        (tmp_path / stem).mkdir()
+        cv2.imwrite(str(tmp_path / stem / "relit.png"), img)
+        records.append({"stem": stem, "source": str(tmp_path / f"{stem}.png"), "status": "ok", "faces": faces})
+    t = tally(records)
+    assert tally_text(t) == "3 photos (1 ok, 1 doubtful, 1 failed); 4 faces (2 ok, 1 doubtful, 1 refused)"
+    assert tally_text(t) in write_report(tmp_path, records).read_text()
+    lines = [line for r in records for line in status_lines(r)]  # what the terminal names, one line each
+    assert len(lines) == t["faces doubtful"] + t["refused"] + t["failed"] == 3
 
 
 def test_a_faces_line_says_how_far_it_is_turned_and_tilted_and_which_view_fitted_it():

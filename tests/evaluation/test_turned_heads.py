@@ -50,11 +50,39 @@ def test_a_head_turned_30_degrees_is_fitted_with_its_view_as_well_as_a_frontal_o
     assert all(f["coverage"] > 0.95 for f in frontal)
 
 
-def test_a_head_turned_50_degrees_is_refused_with_its_yaw(identities):
+def test_a_head_turned_45_degrees_is_fitted_as_well_as_a_frontal_one_and_one_turned_60_is_refused(identities):
+    """Views reach 50 deg of yaw (measured on three held-out identities under lights from -45, 0 and +45 deg: normals
+    9.5-9.9 deg at +-40 and +-50 against 9.5 frontal, 0.90-0.92 of the visible face covered); a head turned 60 deg
+    reads 50-53 and is refused with its yaw."""
     basis, ids = identities
-    render = render_turned(basis, ids[0], (50.0, 0.0), LIGHT, default_model())
-    with pytest.raises(ValueError, match=r"turned \+4\d deg \(yaw\); faces turned up to 35 deg"):
+    frontal = np.mean([_run(basis, w, (0.0, 0.0))[2]["error"] for w in ids])
+    for yaw in (45.0, -45.0):
+        runs = [_run(basis, w, (yaw, 0.0)) for w in ids]
+        assert all(result.faces[0]["status"] == "ok" for _, result, _ in runs)
+        assert all(abs(result.faces[0]["model_view"]["yaw"] - yaw) <= 5.0 for _, result, _ in runs)
+        assert np.mean([score["error"] for *_, score in runs]) <= frontal + 3.0
+        assert min(score["coverage"] for *_, score in runs) >= 0.85
+    render = render_turned(basis, ids[0], (60.0, 0.0), LIGHT, default_model())
+    with pytest.raises(ValueError, match=r"turned \+5\d(\.\d)? deg \(yaw\); faces turned up to 50 deg"):
         shadowflow.fit(render.photo, light=LIGHT)
+
+
+@pytest.mark.slow
+def test_the_yaw_is_read_within_3_degrees_under_a_light_from_either_side(identities):
+    """The landmarks' yaw leans away from a side light, the fit's toward it: their mean is read within 3 deg on
+    average under a light from either side (held-out identities turned -20...+20: measured +1.1 and -1.8 deg
+    against the landmarks' +2.9 and -3.6)."""
+    basis, ids = identities
+    for azimuth in (45.0, -45.0):
+        light = light_from_angles(azimuth, 0.0)
+        read, landmarks = [], []
+        for yaw in (-20.0, -10.0, 10.0, 20.0):
+            for w in ids:
+                result = shadowflow.fit(render_turned(basis, w, (yaw, 0.0), light, default_model()).photo, light=light)
+                read.append(result.faces[0]["pose"]["yaw"] - yaw)
+                landmarks.append(result.frame.meta["yaw_read"]["landmarks"] - yaw)
+        assert abs(np.mean(read)) <= 3.0, (azimuth, read)
+        assert abs(np.mean(landmarks)) >= abs(np.mean(read)) + 1.0, (azimuth, read, landmarks)  # 1.8 both
 
 
 def test_the_frontal_model_alone_cannot_fit_a_turned_head(identities, monkeypatch):
@@ -97,8 +125,9 @@ def test_a_head_tilted_20_degrees_is_fitted_with_its_pitched_view_and_one_tilted
 
 
 def test_turned_surrey_faces_held_out_from_the_model_source_are_fitted_too(sfm_path):
-    """Faces of another face model (the Surrey Face Model, evaluation only): 30 degrees within 3 of frontal
-    (measured 10.5-10.8 against 9.1 over three faces), 50 refused."""
+    """Faces of another face model (the Surrey Face Model, evaluation only): 30 and 45 degrees within 3 of frontal
+    (measured over three faces under lights from -45, 0 and +45: 10.0-10.1 at 30, 10.4-10.7 at 40, against 9.1),
+    60 refused."""
     from shadowflow.nodes.evaluation.turned import render_turned_mesh
     from shadowflow.nodes.model.sources import eos_samples
 
@@ -111,10 +140,10 @@ def test_turned_surrey_faces_held_out_from_the_model_source_are_fitted_too(sfm_p
         return score_turned(result.normals, render.normals, render.face)["error"]
 
     frontal = np.mean([error(f, (0.0, 0.0)) for f in faces])
-    for yaw in (30.0, -30.0):
+    for yaw in (30.0, -30.0, 45.0, -45.0):
         assert np.mean([error(f, (yaw, 0.0)) for f in faces]) <= frontal + 3.0
-    with pytest.raises(ValueError, match="faces turned up to 35 deg"):
-        shadowflow.fit(render_turned_mesh(*faces[0], (50.0, 0.0), LIGHT, default_model()).photo, light=LIGHT)
+    with pytest.raises(ValueError, match="faces turned up to 50 deg"):
+        shadowflow.fit(render_turned_mesh(*faces[0], (62.0, 0.0), LIGHT, default_model()).photo, light=LIGHT)
 
 
 def test_a_run_says_once_that_it_builds_a_views_model_and_is_quiet_when_asked(identities, tmp_path, monkeypatch, cli):

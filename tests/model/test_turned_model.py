@@ -53,12 +53,13 @@ def test_the_mirror_map_of_a_turned_face_is_its_own_inverse_where_both_sides_are
 def test_views_are_the_nearest_step_and_its_neighbours_in_yaw_within_the_reach():
     assert dm.view_of(12.4, 9.6) == (10.0, 0.0)
     assert dm.view_of(-33.0, -12.0) == (-35.0, -10.0)
-    assert dm.view_of(80.0, 30.0) == (35.0, 30.0)
+    assert dm.view_of(80.0, 30.0) == (50.0, 30.0)  # fitted out to 50 deg
     assert dm.view_of(0.0, 27.0) == (0.0, 20.0)  # a render tilted 20 deg reads 20-27
     assert dm.view_of(0.0, -48.0) == (0.0, -30.0)  # the pitched views' reach
     assert dm.views_near(0.0, -24.0) == [(0.0, -20.0), (-5.0, -20.0), (5.0, -20.0)]
     assert dm.views_near(12.4, 0.0) == [(10.0, 0.0), (5.0, 0.0), (15.0, 0.0)]
-    assert dm.views_near(34.0, 0.0) == [(35.0, 0.0), (30.0, 0.0)]
+    assert dm.views_near(34.0, 0.0) == [(35.0, 0.0), (30.0, 0.0), (40.0, 0.0)]
+    assert dm.views_near(-58.0, 0.0) == [(-60.0, 0.0), (-55.0, 0.0)]  # measured out to 60
 
 
 def test_a_turned_model_is_built_once_cached_and_read_back_with_its_view(tmp_path, monkeypatch):
@@ -92,3 +93,15 @@ def test_a_model_file_with_a_broken_mirror_map_is_refused(tmp_path):
     path = save_model(bad, tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="mirror"):
         load_model(path)
+
+
+def test_the_yaw_that_explains_a_face_best_is_the_vertex_of_its_views_misfits():
+    """The views' misfits (``method.turned.misfits``) are read between the views: the parabola through the least and
+    its neighbours; at the end of the views tried, the next view out is tried while within the measured reach."""
+    from shadowflow.nodes.method.turned import _further, least_misfit_yaw
+
+    curve = {y: 0.01 * (y - 32.0) ** 2 + 1.0 for y in (20.0, 25.0, 30.0, 35.0, 40.0)}
+    assert least_misfit_yaw(curve) == pytest.approx(32.0)
+    assert _further(curve) is None  # the least is inside
+    assert least_misfit_yaw({45.0: 2.0, 50.0: 1.5, 55.0: 1.0}) == 55.0 and _further({45.0: 2.0, 50.0: 1.0}) == 55.0
+    assert _further({-55.0: 1.0, -50.0: 2.0}) == -60.0 and _further({-60.0: 1.0, -55.0: 2.0}) is None

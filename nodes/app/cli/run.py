@@ -18,6 +18,7 @@ from ...geometry.reflectance import light_from_angles
 from ...method.nodes import CHOICES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
+from ..counts import tally_text
 from ..inputs import FolderWatch, expand_inputs
 from ..outputs import MAX_VIEW_SIZE, checked_view_size, real_path
 from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
@@ -199,7 +200,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     stream, total, watch = _input_stream(args, inputs, note)
     t0 = time.perf_counter()
     result = run_stream(stream, out, model, options, run, total)
-    note(f"{result.frames - result.not_ok} of {result.frames} done in {time.perf_counter() - t0:.1f} s"
+    done = (f"{tally_text(result.counts)}; done" if result.counts
+            else f"{result.frames - result.not_ok} of {result.frames} done")
+    note(f"{done} in {time.perf_counter() - t0:.1f} s"
          + (f"; report: {result.report}" if result.report is not None else "")
          + (f"; recordings: {', '.join(run.record)} in {out}" if run.record else ""))
     code = _run_exit_code(result, watch.error if watch is not None else None)
