@@ -16,8 +16,8 @@ from .fields import blur, smoothstep
 
 # the relit face fades into the photo over this share of the feather inside its border (``inner_alpha``)
 INNER_FEATHER = 0.4
-# outside the face the photo follows the face's change of light within this range: up to 1.6x (a face's shadowed
-# side brightened 5x would otherwise light its dark background up as a halo), down to 0.15x (a face relit into
+# outside the face the photo follows the face's change of light within this range: up to 4x (a face's shadowed
+# side brightened 16x would otherwise light its dark background up as a halo), down to 0.15x (a face relit into
 # shadow darkens its ear, hair and neck with it)
 RATIO_OUTSIDE = (0.15, 4.0)
 # ... but on the face's own skin beyond the model (inside the face mesh's outline, past the model's mask: the jaw

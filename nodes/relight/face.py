@@ -422,7 +422,7 @@ class FaceRelight:
 
     def _lifted(self, new: np.ndarray) -> np.ndarray | float:
         """(h, w, C) how much the side of the face the photo's light reaches less is raised toward its mirror's
-        level (``albedo.mirror_lift``) as far as the new lighting ``new`` (h, w, C) brightens it; 1 without a
+        level (``albedo.mirror_raise``) as far as the new lighting ``new`` (h, w, C) brightens it; 1 without a
         midline."""
         if self.mirror_raise is None:
             return 1.0

@@ -61,12 +61,10 @@ def fit_ambient(photo: np.ndarray, direct: np.ndarray, skin: np.ndarray, sigma_p
     w = np.asarray(skin, bool)
     if w.sum() < 100:
         return DEFAULT_AMBIENT
-    img = np.atleast_3d(np.asarray(photo, np.float32))
-    grey = img.mean(axis=-1)
-    num = cv2.GaussianBlur(np.where(w, grey, 0.0).astype(np.float32), (0, 0), max(sigma_px, 1.0))
-    den = cv2.GaussianBlur(w.astype(np.float32), (0, 0), max(sigma_px, 1.0))
-    level = np.log(np.maximum(num[w] / np.maximum(den[w], 1e-6), 1e-5)).astype(np.float64)
-    s = np.asarray(direct, np.float64)[w]
+    level = _skin_level(photo, w, sigma_px)
+    # the shading averaged over the skin as the photo is: at the skin's edge the average is one-sided, and the
+    # shading's own there (not the pixel's) is what the photo's level is made of (a + (1 - a) S is linear in S)
+    s = _skin_level(np.asarray(direct, np.float32), w, sigma_px, log=False)
     best, best_error = DEFAULT_AMBIENT, np.inf
     for a in np.geomspace(*AMBIENT_RANGE, 48):
         r = level - np.log(a + (1.0 - a) * s)
@@ -76,12 +74,13 @@ def fit_ambient(photo: np.ndarray, direct: np.ndarray, skin: np.ndarray, sigma_p
     return best
 
 
-def _skin_level(photo: np.ndarray, skin: np.ndarray, sigma_px: float) -> np.ndarray:
-    """(n,) float64 ln of the photo's brightness (``photo`` (h, w, C) linear) averaged over ``sigma_px`` of the
-    ``skin`` (h, w) bool, at each of its pixels."""
+def _skin_level(photo: np.ndarray, skin: np.ndarray, sigma_px: float, log: bool = True) -> np.ndarray:
+    """(n,) float64 ln of the photo's brightness (``photo`` (h, w[, C]) linear) averaged over ``sigma_px`` of the
+    ``skin`` (h, w) bool, at each of its pixels (the average itself with ``log=False``)."""
     grey = np.atleast_3d(np.asarray(photo, np.float32)).mean(axis=-1)
     num = cv2.GaussianBlur(np.where(skin, grey, 0.0).astype(np.float32), (0, 0), max(sigma_px, 1.0))
     den = cv2.GaussianBlur(skin.astype(np.float32), (0, 0), max(sigma_px, 1.0))
-    return np.log(np.maximum(num[skin] / np.maximum(den[skin], 1e-6), 1e-5)).astype(np.float64)
+    level = num[skin] / np.maximum(den[skin], 1e-6)
+    return (np.log(np.maximum(level, 1e-5)) if log else level).astype(np.float64)
 
 

@@ -1,0 +1,129 @@
+"""One face relit in its photo (``relight/face.py``, ``FaceRelight``) and the node's honesty about it
+(``relight/nodes.py``), on a rendered face whose truth is known: an ICT-FaceKit identity, skin-coloured, lit from
+40 degrees right with a room's light of 0.2, its cast and attached shadows traced, in a coloured frame (a linear
+8-bit file). The fit is taken as exact (its normals, depth and shadows the render's), so what is checked is the
+relighting alone: the photo comes back under its own light, and a new light gives the face the render under it."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from shadowflow.flow.frame import Frame
+from shadowflow.nodes.evaluation.scenes import draw_face
+from shadowflow.nodes.geometry.integrate import fill_holes
+from shadowflow.nodes.geometry.normals import normals_from_depth
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.shadow import shadow_maps
+from shadowflow.nodes.model.canonical import canonical_eyes
+from shadowflow.nodes.photo.align import Alignment
+from shadowflow.nodes.relight.compose import FaceLayer, compose
+from shadowflow.nodes.relight.face import FaceRelight
+from shadowflow.nodes.relight.fields import distance_to
+from shadowflow.nodes.relight.nodes import PhotoRelightNode
+
+GRID = (128, 128)
+TOP, LEFT = 40, 50  # the model grid's corner in the photo
+FRAME = (210, 230)
+SKIN = np.array([0.75, 0.55, 0.42], np.float32)
+AMBIENT = 0.2
+PHOTO_LIGHT = light_from_angles(-40.0)  # from the image's right
+NEW_LIGHT = light_from_angles(40.0)  # from its left
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    depth, mask, _ = draw_face(np.random.default_rng(3), GRID, "ict")
+    depth = fill_holes(depth, mask)
+    normals = normals_from_depth(depth)
+
+    def render(light):
+        """(H, W, 3) the face under ``light`` with the room's light, in the frame (as a linear 8-bit file holds it);
+        its shadows (``ShadowMaps``) on the grid."""
+        shadows = shadow_maps(depth, normals, light)
+        shading = AMBIENT + (1 - AMBIENT) * np.clip(np.nan_to_num(normals) @ light, 0.0, None) * shadows.lit
+        yy, xx = np.mgrid[0:FRAME[0], 0:FRAME[1]] / 200.0
+        image = np.dstack([0.2 + 0.2 * xx, 0.3 - 0.1 * yy, np.full_like(xx, 0.25)])
+        region = image[TOP:TOP + GRID[0], LEFT:LEFT + GRID[1]]
+        region[mask] = SKIN * shading[mask][:, None]
+        return (np.round(image * 255) / 255).astype(np.float32), shadows
+
+    photo, shadows = render(PHOTO_LIGHT)
+    truth, new_shadows = render(NEW_LIGHT)
+    new_cast = np.zeros(FRAME, bool)  # where the new light's cast shadow (the nose's) falls, in the photo
+    new_cast[TOP:TOP + GRID[0], LEFT:LEFT + GRID[1]] = new_shadows.cast
+    eyes = canonical_eyes(GRID)
+    face = FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                       mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan), depth=depth,
+                       light=PHOTO_LIGHT, iod_px=float(eyes[1, 0] - eyes[0, 0]))
+    return SimpleNamespace(face=face, photo=photo, truth=truth, new_cast=new_cast, eyes=eyes + [LEFT, TOP])
+
+
+def _box(values, face):
+    y0, y1, x0, x1 = face.box
+    return values[y0:y1, x0:x1]
+
+
+def test_relit_by_its_own_light_the_face_comes_back_as_the_photo(rendered):
+    """Under the photo's own light the relit face is the photo (to a tenth of a level of 255), nothing is painted,
+    the exposure is 1, and the layer put back into the photo leaves it as it was."""
+    face = rendered.face
+    relit = face.relit(PHOTO_LIGHT)
+    assert np.abs(relit - _box(rendered.photo, face))[face.face].max() < 0.1 / 255
+    assert face.report["painted"] == 0.0 and face.report["exposure"] == pytest.approx(1.0, abs=1e-3)
+    assert np.abs(compose(rendered.photo, [face.layer(PHOTO_LIGHT)]) - rendered.photo).max() < 0.1 / 255
+
+
+def test_relit_by_a_new_light_the_face_is_the_render_under_it(rendered):
+    """Lit from the other side, the relit face is the face rendered under that light (up to the one exposure gain):
+    within 4 % at the median pixel and 15 % at the 90th percentile (the cast shadows' edges, the fill of the far
+    side's attached shadow), where the photo differs from it by over 50 % at the median pixel, and within 20 % in
+    the new light's own cast shadow (the nose's), traced on the fitted surface; the side toward the new light is
+    brightened, the other darkened; beyond the feather the photo is untouched."""
+    face = rendered.face
+    relit = face.relit(NEW_LIGHT)
+    f = face.face
+    truth, photo = _box(rendered.truth, face)[f].mean(axis=-1), _box(rendered.photo, face)[f].mean(axis=-1)
+    got = relit[f].mean(axis=-1)
+    scale = np.median(got / truth)
+    error = np.abs(got - scale * truth) / (scale * truth)
+    assert np.median(error) < 0.04 and np.percentile(error, 90) < 0.15
+    cast = _box(rendered.new_cast, face)[f]  # the new light's cast shadow falls where the render has it
+    assert cast.sum() > 100 and np.median(got[cast] / (scale * truth[cast])) == pytest.approx(1.0, abs=0.2)
+    assert np.median(np.abs(photo - truth) / truth) > 0.5
+    cols = np.nonzero(f.any(axis=0))[0]
+    middle = (cols.min() + cols.max()) // 2
+    change = got / photo
+    x = np.nonzero(f)[1]
+    assert np.median(change[x < middle - 10]) > 1.5 and np.median(change[x > middle + 10]) < 0.8
+    out = compose(rendered.photo, [face.layer(NEW_LIGHT)])
+    y0, y1, x0, x1 = face.layer_box
+    whole = np.zeros(rendered.photo.shape[:2], bool)
+    whole[y0:y1, x0:x1] = face.layer_face
+    far = distance_to(whole) > face.feather
+    np.testing.assert_array_equal(out[far], rendered.photo[far])
+
+
+def test_the_node_flags_a_face_mostly_painted_and_gives_back_an_evenly_lit_face_it_would_harm(rendered):
+    """``PhotoRelightNode._honest``: a face more than half painted is flagged and its score halved; an evenly lit
+    face whose relit layer would change it at a fine scale (blotches of +-30 %) comes back as the photo, bit for
+    bit, flagged too (score quartered with both); a face neither (an evenly lit one relit by its own light among
+    them) is left alone."""
+    face = rendered.face
+    frame = Frame(0, "rendered", data={"placement": SimpleNamespace(eyes=rendered.eyes)})
+    layer = face.layer(NEW_LIGHT)
+    quality = {"score": 0.8, "flags": []}
+    layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, layer)], {"painted": 0.1}, quality)
+    assert layers[0][1] is layer and quality == {"score": 0.8, "flags": []}
+    own = face.layer(PHOTO_LIGHT)  # evenly lit, and relit as it was: no harm done
+    quality, report = {"score": 0.8, "flags": [], "even": True}, {"painted": 0.0}
+    layers = PhotoRelightNode._honest(frame, face, [(PHOTO_LIGHT, own)], report, quality)
+    assert layers[0][1] is own and report["harm"] < 1.0 and quality["flags"] == []
+    quality = {"score": 0.8, "flags": []}
+    PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, layer)], {"painted": 0.6}, quality)
+    assert quality["score"] == pytest.approx(0.4) and len(quality["flags"]) == 1
+    blotchy = layer.relit * (1.0 + 0.3 * np.random.default_rng(0).uniform(-1, 1, layer.relit.shape[:2] + (1,)))
+    harmful = FaceLayer(layer.box, layer.inside, blotchy.astype(np.float32), layer.gain, layer.alpha)
+    quality = {"score": 0.8, "flags": [], "even": True}
+    report = {"painted": 0.6}
+    layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, harmful)], report, quality)
+    assert report["harm"] > 8.0 and quality["score"] == pytest.approx(0.2) and len(quality["flags"]) == 2
+    np.testing.assert_array_equal(compose(rendered.photo, [layers[0][1]]), rendered.photo)
