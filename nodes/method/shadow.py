@@ -210,34 +210,6 @@ def near_cast(maps: ShadowMaps, depth: np.ndarray, light: np.ndarray, intensity:
     return ShadowMaps(cast=maps.cast | seeded, attached=maps.attached, near=seeded)
 
 
-# a pixel the fitted shape turns from the light is in shadow on the photo when it is darker than 0.45 x
-# this x the typical albedo: real attached shadows keep only ambient light; skin the fit turned too far is brighter
-PHOTO_SHADOW_FLOOR = 0.3
-
-
-def photo_shadows(intensity: np.ndarray, shading: np.ndarray, coarse: np.ndarray, face: np.ndarray,
-                  relative: float = 0.45, near: np.ndarray | None = None, min_area: float = 0.0) -> np.ndarray:
-    """(H, W) bool: the shadows at the photo's resolution. The model grid's shadows (``coarse``,
-    mapped to the photo) say where; the photo says exactly which pixels: those far darker than
-    predicted (``far_darker``) in regions that meet the coarse shadows. A coarse shadow pixel the
-    photo shows lit is lit. intensity, shading (H, W) on the photo grid; coarse, face (H, W) bool.
-    near (H, W) bool: the coarse shadows found from rays the surface nearly blocks (``near_cast``), taken
-    where the photo is dark but not grown across it: grown, a near shadow in an eye socket took the brow
-    beside it, and one on an upper lip the beard around it (a portrait lit from above).
-    min_area: shadows (8-connected) of fewer pixels are dropped: finer than the model grid (a model pixel's
-    area, at the caller's scale), no shadow the fit can place; a nostril's dark speck, grown by the shadows'
-    penumbra margin downstream, came back a grey disc of fill."""
-    dark = far_darker(intensity, shading, face, relative, floor=PHOTO_SHADOW_FLOOR)
-    labels, _ = ndimage.label(dark, structure=np.ones((3, 3), bool))
-    seeds = np.unique(labels[ndimage.binary_dilation(coarse) & dark])
-    found = np.isin(labels, seeds[seeds > 0]) & face
-    found = found if near is None else found | (near & dark & face)
-    if min_area > 1.0 and found.any():
-        labels, area = _component_areas(found)
-        found &= (area >= min_area)[labels]
-    return found
-
-
 def _component_areas(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``mask``'s 8-connected regions: (labels (H, W) int, 0 off the mask; each label's area in pixels)."""
     labels, n = ndimage.label(mask, structure=np.ones((3, 3), bool))

@@ -194,7 +194,9 @@ class FaceRelight:
             reach = (np.float32(mirror_lift) * smoothstep(off_axis, 0.0, LIFT_AXIS) * face).astype(np.float32)
             self.mirror_raise = mirror_raise(self.photo / self.photo_lighting, self.skin.astype(np.float32), axis,
                                                   brightness(self.photo_lighting), LIFT_SIGMA * iod_px, reach)
-        self.shadow = face & (self.evidence.membership >= SHADOW_MEMBERSHIP)
+        # the photo's shadows: the fitted shape's own under the photo's light (attached and cast: geometry, never a
+        # beard's darkness) and those the photo shows beyond them (``evidence``)
+        self.shadow = face & ((self.evidence.membership >= SHADOW_MEMBERSHIP) | fit_shadow)
         self.alpha = inner_alpha(face, self.feather, distance_inside(face))
         self.layer_alpha = self._in_layer(self.alpha)
         self.albedo = self._albedo()

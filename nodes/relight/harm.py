@@ -65,11 +65,16 @@ def log_ratio(before: np.ndarray, after: np.ndarray, ellipse: Ellipse) -> np.nda
             ).astype(np.float32)
 
 
-def harm(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> Harm:
+def harm(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within: np.ndarray | None = None) -> Harm:
     """``Harm`` of ``after`` (the relit photo) against ``before`` (the input), both linear, on the face whose
-    eyes are ``eyes`` (2, 2) photo pixels."""
+    eyes are ``eyes`` (2, 2) photo pixels; with ``within`` (H, W) bool, over the part of the ellipse inside it only
+    (a turned face's ellipse reaches past its outline, and the face's change of light against the background
+    there is a step, not harm)."""
     ellipse = face_ellipse(eyes, np.shape(before)[:2], 3.0 * HIGH_PASS)
     m = ellipse.mask
+    if within is not None:
+        y0, y1, x0, x1 = ellipse.box
+        m = m & np.asarray(within, bool)[y0:y1, x0:x1]
     if not m.any():
         raise ValueError(f"eyes {np.asarray(eyes).tolist()}: the face's ellipse is outside the photo")
     r = log_ratio(before, after, ellipse)

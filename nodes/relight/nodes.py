@@ -38,6 +38,10 @@ EVEN_HARM = 8.0
 # a face painted over more than this share of it is doubtful: the photo shows less of it than it hides (a render lit
 # from 60 degrees without a room light, its far side black, is 42 % painted)
 PAINTED_DOUBT = 0.5
+# ... judged only on a face turned at most this far (degrees of yaw): the measure's ellipse from the eyes is a frontal
+# face's, and a head turned toward the light looks evenly lit whatever the light (a render turned 45 degrees into a
+# light from 45 degrees, relit frontally, changed by 13 % with nothing harmed)
+EVEN_YAW = 25.0
 
 
 def face_eyes(frame: Frame) -> np.ndarray | None:
@@ -46,13 +50,20 @@ def face_eyes(frame: Frame) -> np.ndarray | None:
     return None if placement is None or placement.eyes is None else np.asarray(placement.eyes, np.float64)
 
 
+def face_yaw(frame: Frame) -> float:
+    """The head's turn in degrees as its placement read it (0 without a reading)."""
+    placement = frame.data.get("placement")
+    pose = None if placement is None else getattr(placement, "pose", None)
+    return 0.0 if pose is None else float(pose.view[0])
+
+
 def layer_harm(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray) -> float:
-    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there; ``eyes`` (2, 2) photo
-    pixels."""
+    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there, over the face's own
+    pixels (``layer.inside``); ``eyes`` (2, 2) photo pixels."""
     y0, y1, x0, x1 = layer.box
     before = face.layer_photo
     after = compose(before, [dataclasses.replace(layer, box=(0, y1 - y0, 0, x1 - x0))])
-    return harm(before, after, eyes - [x0, y0]).h
+    return harm(before, after, eyes - [x0, y0], within=layer.inside).h
 
 
 def unchanged(layer: FaceLayer, photo: np.ndarray) -> FaceLayer:
@@ -91,13 +102,14 @@ class PhotoRelightNode:
     @staticmethod
     def _honest(frame: Frame, face: FaceRelight, layers: list, report: dict, quality: dict) -> list:
         """The face's layers, or its photo as it was when the relighting would harm it: a face lit evenly from side to
-        side (``quality["even"]``) whose relit face under the first light changes at a fine scale by more than
-        ``EVEN_HARM`` (``harm``'s H) comes back as it was, ``doubtful`` with why; a face painted over more than
+        side (``quality["even"]``), turned at most ``EVEN_YAW``, whose relit face under the first light changes at a
+        fine scale by more than ``EVEN_HARM`` (``harm``'s H) comes back as it was, ``doubtful`` with why; a face
+        painted over more than
         ``PAINTED_DOUBT`` of it is ``doubtful`` too. The flags go into ``quality`` (its score halved by each, as
         ``quality.assess``'s), the figures into ``report``."""
         flags = []
         eyes = face_eyes(frame)
-        if quality.get("even") and eyes is not None:
+        if quality.get("even") and eyes is not None and abs(face_yaw(frame)) <= EVEN_YAW:
             h = layer_harm(face, layers[0][1], eyes)
             report["harm"] = round(h, 2)
             if h > EVEN_HARM:

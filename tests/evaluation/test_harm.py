@@ -65,6 +65,21 @@ def test_patches_erased_texture_and_outlines_are_harm(damage):
     assert score.p > 2.0
 
 
+def test_within_the_face_only_its_outline_against_the_background_is_no_harm():
+    """A head turned so far that the eyes' ellipse reaches past its outline onto the background: the face relit
+    2x smoothly is a step at the outline over the ellipse (what the honesty check had taken for harm on turned
+    renders), none over the face's own pixels; a patch inside the face is harm either way."""
+    photo = _skin(3)
+    face = np.zeros((400, 400), bool)
+    face[:, :260] = True  # the outline crosses the ellipse (x 100-300) at x = 260
+    relit = photo.copy()
+    relit[face] *= 2.0
+    assert harm(photo, relit, EYES).h > 8.0  # above the honesty check's bound (relight.nodes.EVEN_HARM)
+    assert harm(photo, relit, EYES, within=face).h < 0.5
+    relit[_disc((170, 230), 30)] = 1.6  # a flat, brighter tone pasted over a cheek
+    assert harm(photo, relit, EYES, within=face).h > 6.0
+
+
 def test_halves_say_whether_a_face_is_lit_evenly():
     photo = _skin(2)
     assert harm(photo, photo, EYES).even

@@ -127,3 +127,20 @@ def test_the_node_flags_a_face_mostly_painted_and_gives_back_an_evenly_lit_face_
     layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, harmful)], report, quality)
     assert report["harm"] > 8.0 and quality["score"] == pytest.approx(0.2) and len(quality["flags"]) == 2
     np.testing.assert_array_equal(compose(rendered.photo, [layers[0][1]]), rendered.photo)
+
+
+def test_a_head_turned_past_the_measures_reach_is_not_judged_by_it(rendered):
+    """The honesty check's ellipse from the eyes is a frontal face's: the same blotchy layer that sends an evenly lit
+    frontal face back as it was is left to a head read as turned 40 degrees (its eyes' ellipse reaches the
+    background, and a head turned toward its light looks evenly lit whatever the light); at 20 degrees it is
+    judged."""
+    face = rendered.face
+    layer = face.layer(NEW_LIGHT)
+    blotchy = layer.relit * (1.0 + 0.3 * np.random.default_rng(0).uniform(-1, 1, layer.relit.shape[:2] + (1,)))
+    harmful = FaceLayer(layer.box, layer.inside, blotchy.astype(np.float32), layer.gain, layer.alpha)
+    for yaw, judged in ((40.0, False), (-40.0, False), (20.0, True)):
+        pose = SimpleNamespace(view=(yaw, 0.0))
+        frame = Frame(0, "rendered", data={"placement": SimpleNamespace(eyes=rendered.eyes, pose=pose)})
+        quality = {"score": 0.8, "flags": [], "even": True}
+        layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, harmful)], {"painted": 0.0}, quality)
+        assert (layers[0][1] is not harmful) == judged and bool(quality["flags"]) == judged, (yaw, quality)
