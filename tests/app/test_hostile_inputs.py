@@ -251,7 +251,9 @@ def test_a_sidecar_arriving_after_its_photo_is_applied_by_the_watch(tmp_path):
 
     writer = threading.Thread(target=sidecar_later)
     writer.start()
-    code = main(["run", "--watch", str(src), "--idle-exit", "10", "--settle", "0.2", "--out", str(out), "--quiet",
+    # the idle clock runs from when the photo is handed on, and the photo may take 40 s (its turned views built into
+    # a fresh cache): the watch must outlast it for the sidecar to arrive
+    code = main(["run", "--watch", str(src), "--idle-exit", "60", "--settle", "0.2", "--out", str(out), "--quiet",
                  "--record", "none"])
     writer.join()
     assert code == 0
