@@ -197,7 +197,9 @@ def test_yaleb_a_fill_no_brighter_than_the_skin_relights_better_than_the_papers(
         rows = evaluate_subject(yaleb_subject, default_model(), opts, None, lights=[(70, 0), (-70, 0)],
                                 estimate_light=False, bounds=False)
         psnr[fill] = np.mean([r["psnr"] for r in rows])
-    assert psnr["ceiling"] > psnr["mirror"] + 0.15, psnr  # measured 20.8 vs 20.5 dB
+    # measured 20.18 vs 20.03 dB since the relighting was rebuilt, which fills only where the photo holds no signal
+    # (20.8 vs 20.5 when the whole shadowed side was filled)
+    assert psnr["ceiling"] > psnr["mirror"] + 0.05, psnr
 
 
 @pytest.mark.slow
@@ -325,12 +327,13 @@ def test_yaleb_the_noses_narrow_shadow_at_25_degrees_is_taken_out():
     assert np.nanmin(nose) > 0.15 and np.nanmedian(nose) > 0.55, np.round(nose, 2)
     # 24.82 dB since the relighting was rebuilt (before, 25.42)
     assert np.mean([r["psnr"] for r in rows]) > 24.5, [round(r["psnr"], 2) for r in rows]
-    # switched off (``--mirror-lift 0``), B04 at -25 measures its side lit less as it is: 29.02 dB against 30.15
+    # switched off (``--mirror-lift 0``), B04 at -25 measures its side lit less as it is
     b04 = [f for f in folders if f.name == "yaleB04"][0]
     off = evaluate_subject(build_ground_truth(b04), default_model(), MethodOptions(light="yaleb", mirror_lift=0.0),
                            None, lights=[(-25, 0)], estimate_light=False, bounds=False)[0]
     on = [r for r in rows if r["subject"] == "yaleB04" and r["light"].startswith("-25")][0]
-    assert off["psnr"] < on["psnr"] - 0.5, (off["psnr"], on["psnr"])
+    # since the relighting was rebuilt: 28.92 against 29.41
+    assert off["psnr"] < on["psnr"] - 0.3, (off["psnr"], on["psnr"])
 
 
 def test_yaleb_a_photo_that_fails_is_left_out_and_named_when_asked_else_it_stops_the_run(yaleb_subject):
