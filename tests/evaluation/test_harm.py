@@ -3,9 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from shadowflow.nodes.relight.harm import face_ellipse, harm, light_move
 from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
+from shadowflow.nodes.relight.harm import face_ellipse, harm, light_move
 
 EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart
 
