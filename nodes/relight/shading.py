@@ -16,6 +16,7 @@ import numpy as np
 # (``fit_ambient``), the default where too little skin tells
 DEFAULT_AMBIENT = 0.15
 AMBIENT_RANGE = (0.01, 0.9)
+# ... of the shares explaining the skin within this share of the best, the one nearest the default (``fit_ambient``)
 AMBIENT_TOLERANCE = 0.1
 # ... on skin this far inside the face's border (interocular distances), its brightness averaged over this many
 AMBIENT_RIM = 0.1

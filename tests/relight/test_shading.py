@@ -40,3 +40,19 @@ def test_the_rooms_share_of_the_light_is_fitted_to_a_face_rendered_with_it():
     for ambient in (0.1, 0.2, 0.5):
         photo = (np.array([0.6, 0.44, 0.33], np.float32) * with_ambient(direct, ambient)[..., None]).astype(np.float32)
         assert fit_ambient(photo, direct, core, 1.0) == pytest.approx(ambient, rel=0.1), ambient
+
+
+def test_where_the_skin_cannot_tell_the_rooms_share_it_is_the_default_and_where_it_can_it_is_its_own():
+    """A face lit from the view axis whose skin shows no shading (a flat disc): every share explains it alike, and the
+    default (0.15) is taken, not the grid's end (0.01, which drew a side light's shadows black). The cylinder lit from
+    50 degrees with a room's share of 0.02, its skin textured, tells its own: kept, not pulled to the default."""
+    normals, face = _cylinder()
+    core = distance_inside(face) > 6
+    flat = np.where(core, 1.0, 0.0).astype(np.float32)
+    photo = (np.array([0.6, 0.44, 0.33], np.float32) * np.ones(core.shape, np.float32)[..., None]).astype(np.float32)
+    assert fit_ambient(photo, flat, core, 1.0) == pytest.approx(0.15, rel=0.05)
+    direct = np.clip(normals @ light_from_angles(50.0).astype(np.float32), 0.0, None)
+    pores = np.exp(0.1 * np.random.default_rng(0).standard_normal(core.shape)).astype(np.float32)  # skin's own
+    lit = with_ambient(direct, 0.02) * pores
+    photo = (np.array([0.6, 0.44, 0.33], np.float32) * lit[..., None]).astype(np.float32)
+    assert fit_ambient(photo, direct, core, 1.0) == pytest.approx(0.02, rel=0.15)
