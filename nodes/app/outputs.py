@@ -164,7 +164,7 @@ PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRIT
               cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
 
 
-def _png_bytes(img8: np.ndarray) -> bytes:
+def png_bytes(img8: np.ndarray) -> bytes:
     ok, enc = cv2.imencode(".png", img8, PNG_PARAMS)
     if not ok:
         raise OSError("PNG encoding failed")
@@ -235,7 +235,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "
         relit = _bgr(relit_photo_8bit(frame, i))
         if i == 0 and card:
             frame.meta["card"] = card_pictures(_bgr(photo_8bit(frame)), relit, [f.get("box") for f, _ in faces])
-        return _png_bytes(relit)
+        return png_bytes(relit)
 
     encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: relit_png(i)
                 for i, light in enumerate(relit_lights(frame))}
@@ -269,7 +269,7 @@ def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid
         p.update(grid_products(face, model))
 
     def png(values8: np.ndarray) -> bytes:
-        return _png_bytes(on_photo(values8, box, shape))
+        return png_bytes(on_photo(values8, box, shape))
 
     def npy(name: str) -> bytes:
         values = p.pop(name)
@@ -283,7 +283,7 @@ def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid
         "grid.json": lambda: (json.dumps(grid_placement(face, model), indent=1) + "\n").encode(),
         "albedo.png": lambda: png(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
         "shadow.png": lambda: png(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
-        "novel_view.png": lambda: _png_bytes(novel_view_8bit(face)),
+        "novel_view.png": lambda: png_bytes(novel_view_8bit(face)),
         "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face, model)),  # the fit's resolution, the photo's frame
     }
     folder.mkdir(parents=True, exist_ok=True)

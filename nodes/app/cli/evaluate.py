@@ -7,18 +7,19 @@ import json
 import time
 from contextlib import contextmanager
 
-import cv2
-
-from ....flow.replay.text import one_line
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
-from ...evaluation.people import contact_sheet, evaluate_people, format_table, json_rows, people_inputs, summarise as people_summary
+from ....flow.replay.text import one_line
+from ...evaluation.people import contact_sheet, evaluate_people, format_table, json_rows, people_inputs
+from ...evaluation.people import summarise as people_summary
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
 from ...evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS, evaluate_yaleb, format_report, summarise
 from ...method.nodes import CHOICES, MethodOptions
 from ...model.default_model import train_from_recipe
 from ...model.sources import load_source
+from ...photo.encoding import swapped_rb
 from ..cluster import DASK_METAVAR, dask_client, parse_dask
+from ..outputs import png_bytes
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
     CONE_TRUST_HELP,
@@ -116,10 +117,7 @@ def cmd_eval_people(args: argparse.Namespace) -> int:
     if args.sheet:
         sheet = contact_sheet(rows, args.worst)
         if sheet is not None:
-            ok, png = cv2.imencode(".png", cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
-            if not ok:
-                raise ValueError(f"{args.sheet}: the contact sheet could not be encoded as PNG")
-            atomic_write_bytes(args.sheet, png.tobytes())
+            atomic_write_bytes(args.sheet, png_bytes(swapped_rb(sheet)))
             print(one_line(f"written: {args.sheet}"))
     _write_report(args.json, {"data": str(args.data), "rows": json_rows(rows), "summary": people_summary(rows),
                               "seconds": time.perf_counter() - t0})
