@@ -137,10 +137,10 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     flags = list(doubts)
     if eyes == "none":
         flags.append("no eyes found")
-    if explained < MIN_EXPLAINED and not (even and eyes != "none"):
-        flags.append(f"the fitted face explains {100 * max(explained, 0):.0f} % of the image's shading")
-    if even and eyes != "none":
+    if even and eyes != "none":  # (its signals keep what the fit explained)
         explained = max(explained, EVEN_EXPLAINED)
+    elif explained < MIN_EXPLAINED:
+        flags.append(f"the fitted face explains {100 * max(explained, 0):.0f} % of the image's shading")
     if downweighted > MAX_DOWNWEIGHTED:
         flags.append(f"{100 * downweighted:.0f} % of the face down-weighted")
     if clipped > MAX_CLIPPED:
