@@ -26,13 +26,13 @@ def main() -> None:
     ap.add_argument("--json")
     args = ap.parse_args()
     model = default_model()
-    chain = Chain(face_nodes(model, MethodOptions()))
+    chain = Chain(face_nodes(MethodOptions()))
     s = light_from_angles(args.angle)
     depths, albedos = procedural(args.repeats, seed=99)
     rows = []
     for d, a in zip(depths, albedos):
         sc = render_scene(d, a, s, model.mask)
-        f = chain.process(on_model_grid(0, "bench", sc.image, s))
+        f = chain.process(on_model_grid(0, "bench", sc.image, s, model))
         t = dict(f.meta["timings"])
         t["per_iteration"] = t["robust_fit"] / f.meta["iterations"]
         t["iterations"] = f.meta["iterations"]

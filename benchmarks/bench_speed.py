@@ -61,13 +61,13 @@ def run(grid: int, ks: list[int], frames: int, repeats: int, naive_max_grid: int
     rows = []
     for k in ks:
         model = full.truncated(k)
-        chain = Chain(face_nodes(model, MethodOptions()))
+        chain = Chain(face_nodes(MethodOptions()))
         timings, errors = [], []
         for d in tests:
             sc = render_scene(d, 1.0, s, model.mask)
             runs = []
             for _ in range(repeats):  # the same frame again: the median of its repeats
-                f = chain.process(on_model_grid(0, "bench", sc.image, s))
+                f = chain.process(on_model_grid(0, "bench", sc.image, s, model))
                 runs.append(dict(f.meta["timings"]))
             t = {key: statistics.median(r[key] for r in runs) for key in runs[0]}
             t["iterations"] = f.meta["iterations"]

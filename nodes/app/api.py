@@ -22,7 +22,6 @@ from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
 from ..method.nodes import MethodOptions
 from ..method.products import input_grid_products, photo_mesh
-from ..method.turned import face_model
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
 from ..photo.loader import InputError, checked_light, parse_light
@@ -89,7 +88,7 @@ class Products:
         """The face as a mesh at the fit's resolution in the photo's pixel frame: vertices (V, 3)
         float32 (column, -row, height), triangles (T, 3), colours (V, 3) uint8 grey albedo;
         ``mesh.ply`` holds the same (``method.products.photo_mesh``)."""
-        return photo_mesh(self.frame, self.model)
+        return photo_mesh(self.frame)
 
     def save(self, folder: str | os.PathLike, arrays: str = "grid") -> dict[str, str]:
         """Write the files of one ``shadowflow run`` output folder (conventions.md) into ``folder``,
@@ -101,7 +100,7 @@ class Products:
             if clash:
                 raise ValueError(f"{folder / clash[0]}: is the input image; save somewhere else")
         folder.mkdir(parents=True, exist_ok=True)
-        return write_outputs(self.photo, self.model, folder, arrays)
+        return write_outputs(self.photo, folder, arrays)
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
@@ -158,13 +157,13 @@ def fit(image: str | os.PathLike | np.ndarray, light: str | np.ndarray | None = 
     relit = relit_photos(photo)
     if np.ndim(image) == 3 and "colour" not in photo.data:  # an RGB array of a grey photo: RGB back, as given
         relit = [(light, np.repeat(np.atleast_3d(img)[..., :1], 3, axis=-1)) for light, img in relit]
-    p = input_grid_products(face, shape_model, relit)
+    p = input_grid_products(face, relit)
     r = face.data["fit"]
     return Products(normals=p["normals"], depth=p["depth"], albedo=p["albedo"], weights=p["weights"], lit=p["lit"],
                     relit=p["relit"], relit_extra=p["relit_extra"], quality=face.meta["quality"], mask=p["mask"],
                     novel_view=face.data["novel_view"], light=np.asarray(face.data["light"], np.float64),
                     history=list(r.history), iterations=r.iterations, converged=r.converged, frame=face,
-                    model=face_model(face, shape_model), faces=[face_record(photo, f, None) for f in photo.parts],
+                    model=face.data["model"], faces=[face_record(photo, f, None) for f in photo.parts],
                     photo=photo)
 
 

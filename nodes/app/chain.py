@@ -18,6 +18,6 @@ def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: M
     fit's iterations and each face's products recorded when there is a ``recorder``, and the outputs
     written under ``out`` (never over a path in ``protected``, nor once ``still_ours`` says ``out`` is not
     the run's any more)."""
-    observer = FitRecorder(model, recorder) if recorder is not None else None
-    after = (RecordNode(model, recorder),) if recorder is not None else ()
-    return [*photo_nodes(model, options, observer, after=after), WriteNode(model, out, protected, options.arrays, still_ours)]
+    observer = FitRecorder(recorder) if recorder is not None else None
+    after = (RecordNode(recorder),) if recorder is not None else ()
+    return [*photo_nodes(model, options, observer, after=after), WriteNode(out, protected, options.arrays, still_ours)]

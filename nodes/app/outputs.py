@@ -28,7 +28,7 @@ from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit 
 from ..photo.align import Alignment, scalar_to_input
 from ..photo.loader import MAX_PIXELS, MAX_SIDE
 from ..photo.encoding import swapped_rb
-from ..model.shape_model import MAX_GRID_SIDE, ShapeModel
+from ..model.shape_model import MAX_GRID_SIDE
 from .counts import status_lines  # noqa: F401 (the tests take it from here)
 from .report import card_pictures
 from .view import VIEW_NAME, view_html
@@ -215,7 +215,7 @@ def relit_name(light: np.ndarray) -> str:
     return f"relit_{light_tag(light)}.png"
 
 
-def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "grid",
+def write_outputs(frame: Frame, folder: Path, arrays: str = "grid",
                   card: bool = False) -> dict[str, str]:
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
@@ -226,7 +226,7 @@ def write_outputs(frame: Frame, model: ShapeModel, folder: Path, arrays: str = "
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
-        for name, path in write_face(face, model, folder / sub if sub else folder, arrays).items():
+        for name, path in write_face(face, folder / sub if sub else folder, arrays).items():
             written[f"{sub}/{name}" if sub else name] = path
     stem = frame.meta.get("stem")
     faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
@@ -254,7 +254,7 @@ def novel_view_8bit(face: Frame) -> np.ndarray:
     return to_8bit(in_encoding(face, view), seen)
 
 
-def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid") -> dict[str, str]:
+def write_face(face: Frame, folder: Path, arrays: str = "grid") -> dict[str, str]:
     """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. The images are on the
     photo's pixel grid, made from the face's box (``face_products``); the fit's arrays (normals, weights,
     depth) on its model grid (``grid_products``, placed on the photo by ``grid.json``), or with ``arrays``
@@ -262,11 +262,11 @@ def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid
     if arrays not in ARRAYS:
         raise ValueError(f"arrays {arrays!r}: choose from {', '.join(ARRAYS)}")
     on_grid = arrays == "grid"
-    box, p = face_products(face, model, arrays=not on_grid)
+    box, p = face_products(face, arrays=not on_grid)
     shape = face.data["image"].shape[:2]
     mask = p["mask"]
     if on_grid:
-        p.update(grid_products(face, model))
+        p.update(grid_products(face))
 
     def png(values8: np.ndarray) -> bytes:
         return png_bytes(on_photo(values8, box, shape))
@@ -280,11 +280,11 @@ def write_face(face: Frame, model: ShapeModel, folder: Path, arrays: str = "grid
         "mask.png": lambda: png(np.where(mask, 255, 0).astype(np.uint8)),
         "weights.npy": lambda: npy("weights"),
         "depth.npy": lambda: npy("depth"),
-        "grid.json": lambda: (json.dumps(grid_placement(face, model), indent=1) + "\n").encode(),
+        "grid.json": lambda: (json.dumps(grid_placement(face), indent=1) + "\n").encode(),
         "albedo.png": lambda: png(to_8bit(p.pop("albedo"), mask)),  # colour for a colour photo
         "shadow.png": lambda: png(np.where(p.pop("lit"), 255, 0).astype(np.uint8)),
         "novel_view.png": lambda: png_bytes(novel_view_8bit(face)),
-        "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face, model)),  # the fit's resolution, the photo's frame
+        "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face)),  # the fit's resolution, the photo's frame
     }
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
@@ -375,9 +375,9 @@ class WriteNode:
 
     name = "write"
 
-    def __init__(self, model: ShapeModel, out_dir: Path, protected: set[Path], arrays: str = "grid",
+    def __init__(self, out_dir: Path, protected: set[Path], arrays: str = "grid",
                  still_ours: Callable[[], bool] | None = None):
-        self.model, self.out_dir, self.protected, self.arrays = model, out_dir, protected, arrays
+        self.out_dir, self.protected, self.arrays = out_dir, protected, arrays
         self.still_ours = still_ours
 
     def __call__(self, frame: Frame) -> Frame:
@@ -398,7 +398,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        write_outputs(frame, self.model, folder, self.arrays, card=True)
+        write_outputs(frame, folder, self.arrays, card=True)
         frame.meta["outputs"] = str(folder)
         return frame
 

@@ -29,8 +29,6 @@ from ..method.nodes import (
 )
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
-from ..method.turned import face_model
-from ..model.shape_model import ShapeModel
 from ..relight.nodes import PhotoRelightNode
 
 # The method's channel names (``channels.py``), for the engine's replay (``flow/replay`` knows none of them).
@@ -68,8 +66,8 @@ class FitRecorder:
     (held back until the fit ends, see ``finish``).
     """
 
-    def __init__(self, model: ShapeModel, recorder: Recorder):
-        self.model, self.recorder = model, recorder
+    def __init__(self, recorder: Recorder):
+        self.recorder = recorder
         self._held: dict[int, FitIteration] = {}
 
     def iteration(self, frame: Frame, it: FitIteration) -> None:
@@ -90,7 +88,7 @@ class FitRecorder:
 
     def _emit(self, frame: Frame, it: FitIteration) -> None:
         """Face-pixel copies only: the recorder's thread puts them on the grid (``OnMask``)."""
-        mask, r, k, fid = face_model(frame, self.model).mask, self.recorder, it.iteration, frame.id
+        mask, r, k, fid = frame.data["model"].mask, self.recorder, it.iteration, frame.id
 
         def on_face(values: np.ndarray) -> OnMask:
             return OnMask(np.array(values, np.float32), mask)
@@ -109,11 +107,12 @@ class RecordNode:
 
     name = "record"
 
-    def __init__(self, model: ShapeModel, recorder: Recorder):
-        self.model, self.recorder = model, recorder
+    def __init__(self, recorder: Recorder):
+        self.recorder = recorder
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m, fid = frame.data, face_model(frame, self.model), frame.id
+        d, fid = frame.data, frame.id
+        m = d["model"]
         self.recorder.name_frame(fid, frame.meta.get("stem"))
 
         def emit(path: str, kind: Kind, value) -> None:

@@ -61,12 +61,12 @@ def score_one(shared: tuple[str, ShapeModel, MethodOptions], item: tuple[int, fl
     chain = _CHAINS.get(token)
     if chain is None:
         _CHAINS.clear()
-        chain = _CHAINS[token] = Chain(method_nodes(model, options, with_views=False))
+        chain = _CHAINS[token] = Chain(method_nodes(options, with_views=False))
     i, angle, depth, albedo = item
     s = light_from_angles(angle, 0.0)
     t0 = time.perf_counter()
     scene = render_scene(depth, albedo, s, model.mask)
-    frame = chain.process(on_model_grid(i, f"test-{i}@{angle:g}deg", scene.image, s))
+    frame = chain.process(on_model_grid(i, f"test-{i}@{angle:g}deg", scene.image, s, model))
     if not frame.ok:
         raise RuntimeError(frame.status)
     return {**score(scene, frame), "seconds": time.perf_counter() - t0}

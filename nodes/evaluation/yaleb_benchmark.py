@@ -199,7 +199,7 @@ def frontal_self_relight(subject: YaleSubject, model: ShapeModel, options: Metho
     frame = chain.process(Frame(0, str(subject.image_path(0, 0))))
     if not frame.ok:
         raise RuntimeError(frame.status)
-    out = input_grid_products(frame.parts[0], model, relit_photos(frame))
+    out = input_grid_products(frame.parts[0], relit_photos(frame))
     photo = frame.data["image"]
     region = out["mask"] & subject.stereo.valid
     relit = np.nan_to_num(out["relit"]).astype(np.float64)
@@ -254,7 +254,7 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
             continue
         seconds = time.perf_counter() - t0
         frame = photo.parts[0]
-        out = input_grid_products(frame, model, relit_photos(photo))
+        out = input_grid_products(frame, relit_photos(photo))
         region = gt.valid & out["mask"] & np.isfinite(out["normals"][..., 0])
         mean_shape = normals_to_input(model.to_image(model.mean_normals.astype(np.float32)), model.mask,
                                       frame.data["alignment"], out["mask"].shape)

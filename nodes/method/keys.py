@@ -21,6 +21,8 @@ DATA: dict[str, tuple[str, str]] = {
              "are linear light)", "load, or given; faces"),
     "light": ("(3,) unit light, input camera frame: known before the faces (photo), or the face's", "load, faces"),
     # a face's frame
+    "model": ("``ShapeModel`` the face is fitted with: the model turned to its view (``turned.face_model``), chosen "
+              "once when the face's frame is made", "faces, or on_model_grid"),
     "alignment": ("``Alignment``: model pixel -> input pixel", "faces, or given"),
     "placement": ("``FacePlacement``: the face's alignment, eyes, box, pose, outlines and doubts", "faces"),
     "eyes_found": ("how the face was placed: detected | mesh only | given | centre asked", "faces"),

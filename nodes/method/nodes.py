@@ -144,12 +144,13 @@ class FitObserver(Protocol):
     def finish(self, frame: Frame) -> None: ...
 
 
-def on_model_grid(fid: int, source: str, image: np.ndarray, light: np.ndarray) -> Frame:
+def on_model_grid(fid: int, source: str, image: np.ndarray, light: np.ndarray, model: ShapeModel) -> Frame:
     """The frame of an image already on the model grid (a render, a benchmark scene): the entries
     ``LoadNode`` would write, with the identity alignment. image: (Hm, Wm) in [0, 1]; light: (3,)
-    unit, camera frame. Run ``method_nodes`` on it."""
+    unit, camera frame; model: the model whose grid the image is on, which the face is fitted with. Run
+    ``method_nodes`` on it."""
     return Frame(fid, source, data={"image": image, "light": light, "alignment": IDENTITY, "grid_image": image,
-                                    "grid_light": light})
+                                    "grid_light": light, "model": model})
 
 
 def seen_pixels(frame: Frame, model: ShapeModel) -> np.ndarray:
@@ -198,8 +199,8 @@ class LoadNode:
 
     name = "load"
 
-    def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
+    def __init__(self, options: MethodOptions):
+        self.options = options
 
     def __call__(self, frame: Frame) -> Frame:
         d, o = frame.data, self.options
@@ -304,7 +305,8 @@ class FacesNode:
                            "encoding": frame.meta.get("encoding", "linear")})
         if placement.view != (0.0, 0.0):
             face.meta["model_view"] = list(placement.view)
-        m = face_model(face, self.model)
+        # the face's model, chosen here once: every node after reads it from the frame
+        m = face.data["model"] = face_model(face, self.model)
         if placement.refused:
             face.meta["placement"] = placement.record()
             face.fail(self.name, f"{source}: {placement.refused}")
@@ -340,15 +342,15 @@ class RemapNode:
 
     name = "remap"
 
-    def __init__(self, model: ShapeModel, model_peak: bool = True, saturation: float = SATURATION,
-                 max_clipped: float = 0.02, scale: str = "peak"):
+    def __init__(self, model_peak: bool = True, saturation: float = SATURATION, max_clipped: float = 0.02,
+                 scale: str = "peak"):
         if scale not in ("peak", "ratio"):
             raise ValueError(f"unknown remap scale {scale!r}: peak or ratio")
-        self.model, self.model_peak, self.scale = model, model_peak, scale
+        self.model_peak, self.scale = model_peak, scale
         self.saturation, self.max_clipped = saturation, max_clipped
 
     def __call__(self, frame: Frame) -> Frame:
-        image, s, model = frame.data["grid_image"], frame.data["grid_light"], face_model(frame, self.model)
+        image, s, model = frame.data["grid_image"], frame.data["grid_light"], frame.data["model"]
         seen = fitted_pixels(frame, model)  # face pixels the photo shows, no hair over them
         face = image[model.mask][seen]
         saturated = np.zeros(model.n_pixels, bool)  # over-exposure decided here, once
@@ -369,11 +371,11 @@ class RemapNode:
 class SfsInitNode:
     name = "sfs_init"
 
-    def __init__(self, model: ShapeModel, config: FitConfig):
-        self.model, self.config = model, config
+    def __init__(self, config: FitConfig):
+        self.config = config
 
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["initial"] = initial_normals(face_model(frame, self.model), frame.data["remapped"],
+        frame.data["initial"] = initial_normals(frame.data["model"], frame.data["remapped"],
                                                 frame.data["grid_light"], self.config)
         return frame
 
@@ -385,8 +387,8 @@ class RobustFitNode:
     name = "robust_fit"
     thread_safe = True
 
-    def __init__(self, model: ShapeModel, config: FitConfig, observer: FitObserver | None = None):
-        self.model, self.config, self.observer = model, config, observer
+    def __init__(self, config: FitConfig, observer: FitObserver | None = None):
+        self.config, self.observer = config, observer
 
     def __call__(self, frame: Frame) -> Frame:
         def hook(it: FitIteration) -> None:
@@ -396,7 +398,7 @@ class RobustFitNode:
                 if self.observer is not None:
                     self.observer.iteration(frame, it)
 
-        model = face_model(frame, self.model)
+        model = frame.data["model"]
         intensity = frame.data["remapped"][model.mask]
         unreliable = frame.data["saturated"] | ~fitted_pixels(frame, model)  # hair is not the face's shape
         result = fit(model, intensity, frame.data["grid_light"], self.config, frame.data["initial"], hook,
@@ -418,11 +420,11 @@ class CombineNode:
 
     name = "combine"
 
-    def __init__(self, model: ShapeModel, cone_trust: float = 1.0):
-        self.model, self.cone_trust = model, cone_trust
+    def __init__(self, cone_trust: float = 1.0):
+        self.cone_trust = cone_trust
 
     def __call__(self, frame: Frame) -> Frame:
-        r, model = frame.data["fit"], face_model(frame, self.model)
+        r, model = frame.data["fit"], frame.data["model"]
         paper = model.to_image(combine(r.normals, r.model_normals, r.weights).astype(np.float32))
         if self.cone_trust == 1.0:
             frame.data["normals"] = paper
@@ -436,23 +438,23 @@ class CombineNode:
 class IntegrateNode:
     name = "integrate"
 
-    def __init__(self, model: ShapeModel, integrator: str):
+    def __init__(self, integrator: str):
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown integrator {integrator!r}: choose from {', '.join(INTEGRATORS)}")
-        self.model, self.integrate = model, INTEGRATORS[integrator]
+        self.integrate = INTEGRATORS[integrator]
 
     def __call__(self, frame: Frame) -> Frame:
-        frame.data["depth"] = self.integrate(frame.data["normals"], face_model(frame, self.model).mask)
+        frame.data["depth"] = self.integrate(frame.data["normals"], frame.data["model"].mask)
         return frame
 
 
 class ShadowNode:
     name = "shadow"
 
-    def __init__(self, model: ShapeModel, mode: str, dark_threshold: float):
+    def __init__(self, mode: str, dark_threshold: float):
         if mode not in ("confirmed", "geometric"):
             raise ValueError(f"unknown shadow mode {mode!r}: confirmed or geometric")
-        self.model, self.mode, self.dark_threshold = model, mode, dark_threshold
+        self.mode, self.dark_threshold = mode, dark_threshold
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
@@ -466,7 +468,7 @@ class ShadowNode:
         if self.mode == "confirmed":
             maps = confirm_with_image(maps, d["remapped"], self.dark_threshold, far_dark)
             kept_out = near_cast_kept_out(d.get("placement"), d.get("grid_covered"), d["depth"].shape,
-                                          face_model(frame, self.model).iod)
+                                          d["model"].iod)
             maps = near_cast(maps, d["depth"], d["grid_light"], d["remapped"], self.dark_threshold, far_dark, kept_out)
         frame.data["shadow"] = maps
         return frame
@@ -495,14 +497,13 @@ def near_cast_kept_out(placement: FacePlacement | None, covered: np.ndarray | No
 class AlbedoNode:
     name = "albedo"
 
-    def __init__(self, model: ShapeModel, fill: str = "ceiling"):
+    def __init__(self, fill: str = "ceiling"):
         if fill not in ("ceiling", "mirror"):
             raise ValueError(f"albedo fill must be 'ceiling' or 'mirror', not {fill!r}")
-        self.model = model
         self.ceiling = FILL_CEILING if fill == "ceiling" else None
 
     def __call__(self, frame: Frame) -> Frame:
-        model = face_model(frame, self.model)
+        model = frame.data["model"]
         # a frontal face's mirror image is across the eyes' midpoint column; a turned one's, the model's own map
         mirror = float(np.mean(model.eyes[:, 0])) if model.mirror is None else model.mirror
         # measured only where the photo shows the face: past its outline (hair, background), past the photo's
@@ -535,11 +536,12 @@ class QualityNode:
 
     name = "quality"
 
-    def __init__(self, model: ShapeModel, huber_k: float = FitConfig.huber_k):
-        self.model, self.huber_k = model, huber_k
+    def __init__(self, huber_k: float = FitConfig.huber_k):
+        self.huber_k = huber_k
 
     def __call__(self, frame: Frame) -> Frame:
-        d, m = frame.data, face_model(frame, self.model)
+        d = frame.data
+        m = d["model"]
         seen = seen_pixels(frame, m)
         r = d["fit"]
         shading = np.clip(r.model_normals @ np.asarray(d["grid_light"], np.float64), 0.0, None)
@@ -570,21 +572,20 @@ class QualityNode:
         return frame
 
 
-def method_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
-                 with_views: bool = True) -> list:
+def method_nodes(options: MethodOptions, observer: FitObserver | None = None, with_views: bool = True) -> list:
     """The method's nodes after loading, in order: remap .. quality, then the model grid's relit face
     (``with_views=False`` stops after the quality);
     ``observer`` goes to the fit node."""
     nodes = [
-        RemapNode(model, options.fit.solver != "paper", options.fit.saturation, scale=options.remap),
-        SfsInitNode(model, options.fit),
-        RobustFitNode(model, options.fit, observer),
-        CombineNode(model, options.fit.cone_trust),
-        IntegrateNode(model, options.integrator),
-        ShadowNode(model, options.shadows, options.fit.dark_threshold),
-        AlbedoNode(model, options.albedo_fill),
+        RemapNode(options.fit.solver != "paper", options.fit.saturation, scale=options.remap),
+        SfsInitNode(options.fit),
+        RobustFitNode(options.fit, observer),
+        CombineNode(options.fit.cone_trust),
+        IntegrateNode(options.integrator),
+        ShadowNode(options.shadows, options.fit.dark_threshold),
+        AlbedoNode(options.albedo_fill),
         # before the relighting: a frame with no face fails without paying for it
-        QualityNode(model, options.fit.huber_k),
+        QualityNode(options.fit.huber_k),
     ]
     if with_views:  # the model grid's relit face; the photo's is the relighting's (``relight.nodes``)
         nodes.append(RelightNode(options))

@@ -12,23 +12,21 @@ from ..photo.align import face_box, mask_to_input, normals_to_input, reach_margi
 from ..photo.encoding import linear_to_srgb
 from ..photo.placement import outline_on_grid
 from .relight import surface_mesh
-from .turned import face_model
 
 
-def face_mask(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> np.ndarray:
-    """(H, W) bool over a photo (H, W): the model's face under the frame's alignment, within the
+def face_mask(frame: Frame, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool over a photo (H, W): the face's model under the frame's alignment, within the
     face's own outline when its landmarks gave one (``placement.outlines["oval"]``)."""
-    model = face_model(frame, model)
-    box = product_box(frame, model, shape)
+    model = frame.data["model"]
+    box = product_box(frame, shape)
     return on_photo(_box_mask(frame, model, box), box, shape)
 
 
-def product_box(frame: Frame, model: ShapeModel, shape: tuple[int, int]) -> tuple[int, int, int, int]:
+def product_box(frame: Frame, shape: tuple[int, int]) -> tuple[int, int, int, int]:
     """``(row0, row1, col0, col1)`` of the photo (H, W) that holds everything the face's products
     know: beyond it they are NaN (0 in masks), so only this box is computed."""
-    model = face_model(frame, model)
     al = frame.data["alignment"]
-    return face_box(model.mask, al, shape, margin=reach_margin(al))
+    return face_box(frame.data["model"].mask, al, shape, margin=reach_margin(al))
 
 
 def _box_mask(frame: Frame, model: ShapeModel, box: tuple[int, int, int, int]) -> np.ndarray:
@@ -50,16 +48,16 @@ def _in_box(values: np.ndarray, src: tuple[int, int, int, int], dst: tuple[int, 
     return out
 
 
-def face_products(frame: Frame, model: ShapeModel, arrays: bool = True
+def face_products(frame: Frame, arrays: bool = True
                   ) -> tuple[tuple[int, int, int, int], dict[str, np.ndarray]]:
     """One face's results on the photo's pixels inside its ``product_box`` ``(row0, row1, col0, col1)``
     (beyond it each is NaN, or False): ``(box, {mask, normals, weights, depth, albedo, lit})`` as
     ``input_grid_products`` describes them, each (h, w[, C]) the box's size; without ``arrays``, only
     mask, albedo and lit (the fit's arrays are written on its own grid, ``grid_products``). Only the box
     is computed: a 4-megapixel photo's background costs nothing."""
-    model = face_model(frame, model)
     d = frame.data
-    box = product_box(frame, model, d["image"].shape[:2])
+    model = d["model"]
+    box = product_box(frame, d["image"].shape[:2])
     mask = _box_mask(frame, model, box)
     # the relit box (``photo_box``) holds the photo's albedo and shadow
     albedo = _in_box(d["photo_albedo"].astype(np.float32), d["photo_box"], box, np.nan)
@@ -80,15 +78,14 @@ def face_products(frame: Frame, model: ShapeModel, arrays: bool = True
     return box, out
 
 
-def grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
+def grid_products(frame: Frame) -> dict[str, np.ndarray]:
     """One face's fit as the fit has it, on the model grid (Hm, Wm), NaN where the fit did not see the face
     (off the model's mask, beyond the photo or the face's outline): normals (Hm, Wm, 3) float32, unit, in
     the PHOTO's camera frame (rotated with the face's roll: the same vectors ``input_grid_products`` puts on
     the photo's pixels); weights (Hm, Wm) in [0, 1]; depth (Hm, Wm) in photo pixels. ``grid_placement``
     says where each model pixel lies on the photo."""
-    model = face_model(frame, model)
     d = frame.data
-    al = d["alignment"]
+    model, al = d["model"], d["alignment"]
     placement = d.get("placement")
     if placement is not None:  # the face's outline, as its products on the photo (the fit may trust less of it)
         seen = model.mask & outline_on_grid(placement, model, d["image"].shape[:2])
@@ -102,15 +99,14 @@ def grid_products(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
             "depth": np.where(seen, d["depth"] * np.float32(al.scale), nan).astype(np.float32)}
 
 
-def grid_placement(frame: Frame, model: ShapeModel) -> dict:
+def grid_placement(frame: Frame) -> dict:
     """Where a face's model grid lies on its photo (``grid.json``): ``grid`` [Hm, Wm]; ``to_photo`` the 2 x 3
     matrix taking a model pixel (col, row, 1) to its photo pixel (x, y), pixel centres at integers, as
     OpenCV's ``warpAffine`` takes it (``cv2.warpAffine(depth, to_photo, (W, H))`` puts a grid array on the
     photo); ``photo`` [H, W]; ``scale`` photo pixels per model pixel."""
-    model = face_model(frame, model)
     al = frame.data["alignment"]
     h, w = frame.data["image"].shape[:2]
-    return {"grid": list(model.grid), "to_photo": np.round(al.matrix, 9).tolist(), "photo": [h, w],
+    return {"grid": list(frame.data["model"].grid), "to_photo": np.round(al.matrix, 9).tolist(), "photo": [h, w],
             "scale": round(al.scale, 9), "depth_unit": "photo pixels", "normals_frame": "photo camera"}
 
 
@@ -120,16 +116,15 @@ def on_photo(values: np.ndarray, box: tuple[int, int, int, int], shape: tuple[in
     return _in_box(values, box, (0, shape[0], 0, shape[1]), np.nan if values.dtype.kind == "f" else 0)
 
 
-def input_grid_products(frame: Frame, model: ShapeModel, relit: list | None = None) -> dict[str, np.ndarray]:
+def input_grid_products(frame: Frame, relit: list | None = None) -> dict[str, np.ndarray]:
     """One face's results on the INPUT image's pixel grid (see ``conventions.md``): mask,
     normals, weights, depth (input pixels), lit (H, W); albedo (H, W) or (H, W, 3) for a colour
     photo, NaN off the face, in the photo's encoding; relit: the photo relit by ``relight_light`` (H,
     W[, 3]) in its encoding, the face feathered into the untouched photo; relit_extra: ``(light, image)``
     for each of ``extra_lights``. frame: the face's frame; relit: the photo's relit images with every
     face (``relight.products.relit_photos`` of the photo's frame), or None: no relit images."""
-    model = face_model(frame, model)
     shape = frame.data["image"].shape[:2]
-    box, products = face_products(frame, model)
+    box, products = face_products(frame)
     out = {name: on_photo(values, box, shape) for name, values in products.items()}
     if relit:
         out.update(relit=squeeze_channels(relit[0][1]),
@@ -175,12 +170,11 @@ def squeeze_channels(image: np.ndarray) -> np.ndarray:
     return image[..., 0] if image.ndim == 3 and image.shape[2] == 1 else image
 
 
-def photo_mesh(frame: Frame, model: ShapeModel) -> dict[str, np.ndarray]:
+def photo_mesh(frame: Frame) -> dict[str, np.ndarray]:
     """The recovered surface as a mesh at the fit's own resolution (one vertex per model pixel, so
     its size is what the fit knows, whatever the photo's), placed in the photo's pixel frame:
     vertices (V, 3) float32 (x = input column, y = -input row, z = height in input pixels),
     triangles (T, 3) uint32, colours (V, 3) uint8 grey albedo."""
-    model = face_model(frame, model)
     d = frame.data
     al = d["alignment"]
     mesh = surface_mesh(d["depth"], d["albedo"])

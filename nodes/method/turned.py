@@ -5,7 +5,8 @@ from a side light while the fit's leans toward it (docs/accuracy.md, "Turned hea
 or near frontal under a side light, is fitted at the views around its reading (``default_model.views_near``, then
 further out while the last view explains the photo best), and its yaw read as the mean of the landmarks' and of
 the view that explains the photo best (``misfits``, ``ViewChoiceNode``); it is fitted with the view of that yaw.
-Every node of a face's fit asks ``face_model`` for its model: the frame's view is ``meta["model_view"]``."""
+A face's model is chosen once, when its frame is made (``face_model``: the frame's view is
+``meta["model_view"]``), and travels with it as ``data["model"]``."""
 from __future__ import annotations
 
 import dataclasses
@@ -168,7 +169,7 @@ class ViewChoiceNode:
                     trial = node(trial)
             except (FrameFailed, ValueError, FloatingPointError):
                 continue
-            out[yaw] = (trial, face_model(trial, self.model))
+            out[yaw] = (trial, trial.data["model"])
         return out
 
     def _placed(self, frame: Frame, found: FacePlacement, view: tuple[float, float]) -> FacePlacement:

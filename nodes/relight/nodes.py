@@ -21,7 +21,7 @@ from ..method.nodes import (
 )
 from ..method.products import photo_channels
 from ..method.relight import novel_view, resample_surface
-from ..method.turned import ViewChoiceNode, face_model
+from ..method.turned import ViewChoiceNode
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment
 from ..photo.encoding import linear_to_srgb
@@ -80,8 +80,8 @@ class PhotoRelightNode:
 
     name = "relight_photo"
 
-    def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
+    def __init__(self, options: MethodOptions):
+        self.options = options
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
@@ -125,7 +125,8 @@ class PhotoRelightNode:
 
     def face_relight(self, frame: Frame) -> FaceRelight:
         """The frame's entries as ``FaceRelight``'s arrays."""
-        d, m = frame.data, face_model(frame, self.model)
+        d = frame.data
+        m = d["model"]
         al: Alignment = d["alignment"]
         placement: FacePlacement | None = d.get("placement")
         meshed = placement is not None and bool(placement.outlines)
@@ -171,15 +172,15 @@ class NovelViewNode:
 
     name = "novel_view"
 
-    def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
+    def __init__(self, options: MethodOptions):
+        self.options = options
 
     def __call__(self, frame: Frame) -> Frame:
         d = frame.data
         albedo, depth = d["albedo"], d["depth"]
         if "photo_albedo" in d:
             measured = albedo_on_grid(d["photo_albedo"], d["photo_box"], d["alignment"],
-                                      face_model(frame, self.model).grid)
+                                      d["model"].grid)
             depth = np.where(np.isfinite(measured[..., 0]), depth, np.nan)
             albedo = measured[..., 0] if measured.shape[-1] == 1 else measured
         if self.options.novel_size is not None:  # rendered from the surface resampled to the size asked for
@@ -188,13 +189,12 @@ class NovelViewNode:
         return frame
 
 
-def face_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
-               with_views: bool = True) -> list:
+def face_nodes(options: MethodOptions, observer: FitObserver | None = None, with_views: bool = True) -> list:
     """A face's nodes after loading: the method's (``method_nodes``), then, ``with_views``, the face relit at the
     photo's resolution and turned (``PhotoRelightNode``, ``NovelViewNode``)."""
-    nodes = method_nodes(model, options, observer, with_views)
+    nodes = method_nodes(options, observer, with_views)
     if with_views:
-        nodes += [PhotoRelightNode(model, options), NovelViewNode(model, options)]
+        nodes += [PhotoRelightNode(options), NovelViewNode(options)]
     return nodes
 
 
@@ -205,7 +205,6 @@ def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver
     relit with every face is made from them when asked (``products.relit_photo``)."""
     faces = FacesNode(model, options)
     # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
-    choice = ViewChoiceNode(faces.again, method_nodes(model, options, None, False)[:3], model,
-                            options.face_length)
-    per_face = [choice, *face_nodes(model, options, observer, with_views), *after]
-    return [LoadNode(model, options), faces, *(EachPart(n) for n in per_face)]
+    choice = ViewChoiceNode(faces.again, method_nodes(options, None, False)[:3], model, options.face_length)
+    per_face = [choice, *face_nodes(options, observer, with_views), *after]
+    return [LoadNode(options), faces, *(EachPart(n) for n in per_face)]

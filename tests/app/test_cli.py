@@ -300,8 +300,6 @@ def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
     from shadowflow.nodes.app.cli import build_parser, method_options
     from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
     from shadowflow.nodes.method.robust_fit import FitConfig
-    from shadowflow.nodes.model.shape_model import train_shape_model
-    from shadowflow.nodes.model.sources import procedural
 
     paper = MethodOptions.paper()
     assert (paper.fit, paper.remap, paper.albedo_fill) == (FitConfig.paper(), "peak", "mirror")
@@ -313,10 +311,8 @@ def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
     assert (asked.fit.solver, asked.remap, asked.albedo_fill) == ("paper", "ratio", "ceiling")
     default = method_options(parse(["run", "--demo", "--out", "o"]))
     assert (default.remap, default.albedo_fill) == ("ratio", "ceiling")
-    depths, _ = procedural(12, seed=0, grid=(32, 32))
-    model = train_shape_model(depths, 6, source="procedural")
     for options, scale, ceiling in ((asked, "ratio", True), (plain, "peak", False)):
-        nodes = {type(n).__name__: n for n in method_nodes(model, options, with_views=False)}
+        nodes = {type(n).__name__: n for n in method_nodes(options, with_views=False)}
         assert nodes["RemapNode"].scale == scale and (nodes["AlbedoNode"].ceiling is not None) == ceiling
 
 

@@ -67,7 +67,7 @@ def _unchanged_beyond_faces(path, products, iods) -> bool:
     for face in products.photo.parts:
         from shadowflow.nodes.method.products import face_mask
 
-        faces |= face_mask(face, products.model, FRAME)
+        faces |= face_mask(face, FRAME)
     distance = cv2.distanceTransform((~faces).astype(np.uint8), cv2.DIST_L2, 5)
     far = distance > 0.5 * max(iods)
     return bool(far.sum() > 0.05 * far.size and np.array_equal(photo[far], relit[far]))

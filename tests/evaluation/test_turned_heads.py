@@ -7,7 +7,6 @@ import pytest
 import shadowflow
 from shadowflow.nodes.evaluation.turned import render_turned, score_turned
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.turned import face_model
 from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.faces.ict import shipped_basis
 from shadowflow.nodes.photo.placement import outline_on_grid
@@ -39,7 +38,7 @@ def test_a_head_turned_30_degrees_is_fitted_with_its_view_as_well_as_a_frontal_o
             assert abs(face["model_view"]["yaw"] - yaw) <= 10.0  # measured 25-35 at 30
             assert len(result.frame.meta["view_choice"]) >= 2
             # the fit trusts the face mesh's oval; the face's products reach its whole outline (the far cheek)
-            model = face_model(result.frame, default_model())
+            model = result.frame.data["model"]
             fitted = result.frame.data["grid_valid"] & model.mask
             products = outline_on_grid(result.frame.data["placement"], model, render.photo.shape[:2]) & model.mask
             assert not (fitted & ~products).any() and (products & ~fitted).sum() > 0.005 * products.sum()  # 1.2 %
@@ -112,7 +111,7 @@ def test_a_head_tilted_20_degrees_is_fitted_with_its_pitched_view_and_one_tilted
     from shadowflow.nodes.method.nodes import MethodOptions
     from shadowflow.nodes.relight.nodes import PhotoRelightNode
 
-    relight = PhotoRelightNode(default_model(), MethodOptions()).face_relight(pitched[0][1].frame)
+    relight = PhotoRelightNode(MethodOptions()).face_relight(pitched[0][1].frame)
     assert relight.mirror_raise is not None and relight.seen.max() > 0.5
     render, result, _ = _run(basis, ids[0], (0.0, -50.0))
     assert result.faces[0]["status"].startswith("doubtful") and "tilted -4" in result.faces[0]["status"]

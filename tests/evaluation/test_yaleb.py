@@ -99,7 +99,7 @@ def test_yaleb_light_auto_is_within_8_degrees_at_every_side_light():
     if not subjects:
         pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
     model, options = default_model(), MethodOptions(light="auto")
-    load = Chain([LoadNode(model, options), FacesNode(model, options)])
+    load = Chain([LoadNode(options), FacesNode(model, options)])
     errors = {}
     for folder in subjects:
         for az in (25, -25, 50, -50, 70, -70):
@@ -246,8 +246,6 @@ def test_yaleb_the_fill_takes_no_detail_from_across_the_face_beside_its_axis(yal
     import shadowflow
     from shadowflow.nodes.method.nodes import MethodOptions
     from shadowflow.nodes.relight.albedo import axis_distance
-    from shadowflow.nodes.method.turned import face_model
-    from shadowflow.nodes.model.default_model import default_model
 
     s = yaleb_subject
     for az in (70, -70):
@@ -255,7 +253,7 @@ def test_yaleb_the_fill_takes_no_detail_from_across_the_face_beside_its_axis(yal
         for detail in (0.0, 1.0):
             r = shadowflow.fit(str(s.image_path(az, 0)), options=MethodOptions(light="yaleb", fill_detail=detail))
             relit[detail] = np.nan_to_num(r.relit).astype(np.float64)
-        m, al = face_model(r.frame, default_model()), r.frame.data["alignment"]
+        m, al = r.frame.data["model"], r.frame.data["alignment"]
         iod = float(np.linalg.norm(np.subtract(*m.eyes)))
         centre = np.mean(m.eyes, axis=0)
         axis = al.points_to_input(np.array([centre, centre + [0.0, iod]]))

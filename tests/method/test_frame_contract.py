@@ -35,17 +35,17 @@ def test_every_entry_a_node_writes_is_in_the_table(tmp_path, procedural_model):
     model = procedural_model
     options = MethodOptions()  # cone trust 0.5: both normals entries
     photo = write_shadowed_face(tmp_path / "face.png", np.random.default_rng(3), light_from_angles(40))
-    photo_frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(model, options), FacesNode(model, options)])
+    photo_frame, added = _run_node_by_node(Frame(0, str(photo)), [LoadNode(options), FacesNode(model, options)])
     _check(added)
     assert len(photo_frame.parts) == 1
-    frame, added = _run_node_by_node(photo_frame.parts[0], face_nodes(model, options))
+    frame, added = _run_node_by_node(photo_frame.parts[0], face_nodes(options))
     _check(added)
     assert {"image", "grid_valid", "saturated", "shading_normals", "relit", "photo_layers"} <= set(frame.data)
 
     depth, _ = procedural(1, seed=5)
     s = light_from_angles(40)
     scene = render_scene(depth[0], 1.0, s, model.mask)
-    grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s), face_nodes(model, options))
+    grid_frame, grid_added = _run_node_by_node(on_model_grid(1, "render", scene.image, s, model), face_nodes(options))
     _check(grid_added)
     # the render's way in gives the method every entry the photo's does, bar the photo's bounds, what covers the
     # face in it and its placement

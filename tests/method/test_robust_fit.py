@@ -140,13 +140,13 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
     errors = {}
     for name, saturation in (("excluded", 0.99), ("trusted", 2.0)):
         opts = MethodOptions(fit=dataclasses.replace(FitConfig(), saturation=saturation))
-        chain = Chain(method_nodes(procedural_model, opts, with_views=False))
+        chain = Chain(method_nodes(opts, with_views=False))
         errs = []
         for i, d in enumerate(depths):
             scene = render_scene(d, 1.0, s, procedural_model.mask)
             image = np.clip(scene.image * 1.8, 0, 1).astype(np.float32)
             assert np.mean(image[procedural_model.mask] >= 0.99) > 0.2
-            frame = chain.process(on_model_grid(i, "overexposed", image, s))
+            frame = chain.process(on_model_grid(i, "overexposed", image, s, procedural_model))
             errs.append(score(scene, frame)["err_all"])
         errors[name] = float(np.mean(errs))
     assert errors["excluded"] < 0.5 * errors["trusted"], errors
