@@ -13,7 +13,8 @@ import statistics
 from shadowflow.flow import Chain
 from shadowflow.nodes.evaluation.scenes import render_scene
 from shadowflow.nodes.geometry.reflectance import light_from_angles
-from shadowflow.nodes.method.nodes import MethodOptions, on_model_grid
+from shadowflow.nodes.method.nodes import on_model_grid
+from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.nodes import face_nodes
 from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.sources import procedural

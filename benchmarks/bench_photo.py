@@ -45,7 +45,7 @@ def fit_in_child(photo: Path, max_pixels: int | None) -> tuple[dict, float]:
     """``shadowflow.fit`` of ``photo`` in a fresh process (Linux): (its report, its peak RSS in MiB),
     so the peak is the fit's alone, not the portrait's rendering."""
     code = ("import json, sys, time, shadowflow\n"
-            "from shadowflow.nodes.method.nodes import MethodOptions\n"
+            "from shadowflow.nodes.method.options import MethodOptions\n"
             "t0 = time.perf_counter()\n"
             f"r = shadowflow.fit({str(photo)!r}, options=MethodOptions(max_pixels={max_pixels!r}))\n"
             "print(json.dumps({'seconds': time.perf_counter() - t0, 'timings': r.frame.meta['timings'],"

@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_stream import make_inputs  # noqa: E402
 from shadowflow.flow.recording import RecordOptions  # noqa: E402
 from shadowflow.nodes.app.runner import RunOptions, run_stream  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions  # noqa: E402
+from shadowflow.nodes.method.options import MethodOptions  # noqa: E402
 
 CASES = [
     ("off", (), RecordOptions()),

@@ -32,7 +32,8 @@ from shadowflow.flow import Chain  # noqa: E402
 from shadowflow.nodes.evaluation.scenes import render_scene  # noqa: E402
 from shadowflow.nodes.geometry.normals import angle_deg  # noqa: E402
 from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
-from shadowflow.nodes.method.nodes import MethodOptions, on_model_grid
+from shadowflow.nodes.method.nodes import on_model_grid
+from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.nodes import face_nodes  # noqa: E402
 from shadowflow.nodes.method.robust_fit import FitConfig, fit  # noqa: E402
 from shadowflow.nodes.model.shape_model import train_shape_model  # noqa: E402

@@ -40,7 +40,7 @@ def golden_inputs(folder: Path) -> list[str]:
 def golden_run(out: Path, fit_workers: int = 1) -> Path:
     """Run the golden inputs into ``out``; returns the MCAP recording's path."""
     from shadowflow.nodes.app.runner import RunOptions, run_stream
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
 
     inputs = out / "inputs"

@@ -20,7 +20,7 @@ import numpy as np
 from ...flow.chain import Chain
 from ...flow.frame import Frame
 from ...flow.recording import RecordOptions
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..method.products import input_grid_products, photo_mesh
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel

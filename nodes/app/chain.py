@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import Callable, MutableSet
 
 from ...flow.recording import Recorder
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..relight.nodes import photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode

@@ -21,7 +21,7 @@ from typing import Iterator
 from ...flow.cluster_host import local_cluster
 from ...flow.frame import Frame
 from ...flow.recording import McapSink, Recorder, RecordOptions
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..model.shape_model import ShapeModel
 from .blueprint import rerun_sink
 from .chain import run_nodes

@@ -35,7 +35,7 @@ from ...flow.recording import McapSink, ProcessSinks, Recorder, RecordOptions, S
 from ...flow.jsonsafe import jsonable
 from ...flow.recording.process import renewed_sink
 from ...flow.replay.text import one_line
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..model.shape_model import ShapeModel
 from .outputs import (
     FACE_FILES,

@@ -25,7 +25,7 @@ from ...flow.chain import Chain
 from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.reflectance import light_from_angles
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..method.products import photo_channels
 from ..model.shape_model import ShapeModel
 from ..photo.encoding import linear_to_srgb, srgb_to_linear

@@ -18,7 +18,8 @@ from ...flow.frame import Frame
 from ..geometry.integrate import fill_holes
 from ..geometry.normals import angle_deg, normals_from_depth
 from ..geometry.reflectance import light_from_angles
-from ..method.nodes import MethodOptions, method_nodes, on_model_grid
+from ..method.nodes import method_nodes, on_model_grid
+from ..method.options import MethodOptions
 from ..model.shape_model import ShapeModel
 from .scenes import Scene, render_scene
 

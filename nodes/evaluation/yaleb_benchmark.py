@@ -33,7 +33,7 @@ from ...flow.distributed import local_map
 from ...flow.frame import Frame
 from ..geometry.normals import angle_deg
 from ..geometry.reflectance import lambertian, light_from_angles
-from ..method.nodes import MethodOptions
+from ..method.options import MethodOptions
 from ..method.products import input_grid_products
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment, normals_to_input, normals_to_model

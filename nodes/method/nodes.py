@@ -5,135 +5,32 @@ photo, ``on_model_grid`` makes the frame of an image already on the model grid.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from ...flow.frame import Frame, FrameFailed
-from ..geometry.integrate import frankot_chellappa, masked_least_squares
-from ..geometry.reflectance import light_tag
 from ..model.shape_model import ShapeModel
 from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
 from ..photo.cover import covered_on_grid
-from ..photo.encoding import ENCODINGS, linear_to_srgb
+from ..photo.encoding import linear_to_srgb
 from ..photo.evenness import evenly_lit
 from ..photo.given import given_eyes, known_light
-from ..photo.loader import MAX_WORK_PIXELS, MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
+from ..photo.loader import MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
 from ..photo.placement import FacePlacement, face_on_grid, features_on_grid, model_box, place_faces
 from ..photo.skin import skin
 from .albedo import FILL_CEILING, estimate_albedo
+from .options import INTEGRATORS, MethodOptions
 from .light import light_on_face
 from .products import photo_channels
 from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, grown_region, unread_weights
-from .relight import FRONTAL, relight
+from .relight import relight
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
 from .shadow import NEAR_CAST_MOUTH, confirm_with_image, far_darker, near_cast, shadow_maps
 from .turned import face_model, turned_placements
 
-INTEGRATORS = {"lsq": masked_least_squares, "fc": frankot_chellappa}
 HAIR_BELOW_EYES = 0.25  # interocular distances below the eyes' row that hair over a temple may reach
-# every option of ``MethodOptions`` that is one of a few names, and those names, the default first: the
-# options check against them and the command line offers them
-CHOICES: dict[str, tuple[str, ...]] = {
-    "integrator": tuple(INTEGRATORS),
-    "remap": ("ratio", "peak"),
-    "shadows": ("confirmed", "geometric"),
-    "albedo_fill": ("ceiling", "mirror"),
-    "encoding": ENCODINGS,
-    "arrays": ("grid", "photo"),
-}
-
-
-@dataclass(frozen=True)
-class MethodOptions:
-    """Everything that changes what the method computes.
-
-    light: "auto" | "yaleb" | a (3,) vector (input camera frame); a sidecar light wins.
-    eyes: (2, 2) eye centres of the one face of every input, or None: a sidecar's, else every face
-    found (``find_faces``, see ``photo.placement``), else (``find_faces`` False) the photo is taken
-    as one frontal face framed like the model grid.
-    """
-
-    fit: FitConfig = field(default_factory=FitConfig)
-    integrator: str = "lsq"
-    remap: str = "ratio"  # brightness scale: "ratio" (median ratio to the mean face) or "peak" (the paper)
-    shadows: str = "confirmed"  # "geometric": traced only (the paper); "confirmed": checked against the image
-    # "ceiling": filled albedo no brighter than the face's typical measured albedo (``albedo.FILL_CEILING``);
-    # "mirror": the paper's, mirrored values as measured
-    albedo_fill: str = "ceiling"
-    light: str | np.ndarray = "auto"
-    eyes: np.ndarray | None = None
-    find_faces: bool = True
-    # the face's length (eye-to-mouth distance) against the model's: "auto" measures it from a found face's
-    # landmarks when the model knows its mouth; "off" keeps the model's; a number is the stretch itself
-    face_length: str | float = "auto"
-    relight_light: np.ndarray = field(default_factory=lambda: FRONTAL.copy())  # input camera frame
-    extra_lights: tuple[np.ndarray, ...] = ()  # more relit photos (``--relight``), input camera frame
-    novel_yaw_deg: float = 45.0
-    novel_size: int | None = None  # the novel view's side in pixels (None: the model grid's)
-    # the lit eye's detail put into an eye a fill paints, at this contrast (``relight.eyes``); 0: off
-    eye_contrast: float = 1.0
-    # the detail the lit side of a frontal face shows, seen across its midline, put into the fill of its shadowed
-    # side at this strength (``relight.face.FaceRelight``'s fill); 0: the fit's smooth map alone
-    fill_detail: float = 1.0
-    # the side of a frontal face its light reaches less: its albedo raised toward its mirror's level, at this
-    # strength (``relight.albedo.mirror_raise``); 0: measured as it is
-    mirror_lift: float = 1.0
-    # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
-    max_pixels: int | None = MAX_WORK_PIXELS
-    # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",
-    # "linear"; the method works on linear light and writes images back in the photo's encoding
-    encoding: str = "auto"
-    # where a run writes the fit's arrays (normals.npy, weights.npy, depth.npy): "grid", the fit's model grid
-    # with grid.json placing it on the photo, or "photo", the photo's pixel grid (what the method computes is
-    # the same; the files differ, so a resumed run redoes its frames when this changes)
-    arrays: str = "grid"
-
-    @classmethod
-    def paper(cls, **overrides) -> "MethodOptions":
-        """The paper's variant, defined here once: its fit (``FitConfig.paper()``), its brightness scale
-        (``remap="peak"``) and its albedo fill (``albedo_fill="mirror"``); ``overrides`` change any field.
-        Cast shadows and the integrator keep their own switches (the paper's are ``shadows="geometric"``
-        and ``integrator="fc"``)."""
-        return cls(**{"fit": FitConfig.paper(), "remap": "peak", "albedo_fill": "mirror", **overrides})
-
-    def __post_init__(self) -> None:
-        """Every choice checked where it is defined: a bad one raises ``ValueError`` naming it, from the
-        API as from the command line."""
-        for name, allowed in CHOICES.items():
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"{name} {getattr(self, name)!r}: choose from {', '.join(allowed)}")
-        self._check_ranges()
-        self._check_lights()
-
-    def _check_ranges(self) -> None:
-        if not 0.0 <= self.eye_contrast <= 1.0:
-            raise ValueError(f"eye_contrast is between 0 (off) and 1, not {self.eye_contrast!r}")
-        if not 0.0 <= self.fill_detail <= 1.0:
-            raise ValueError(f"fill_detail is between 0 (off) and 1, not {self.fill_detail!r}")
-        if not 0.0 <= self.mirror_lift <= 1.0:
-            raise ValueError(f"mirror_lift is between 0 (off) and 1, not {self.mirror_lift!r}")
-        if not -90.0 <= self.novel_yaw_deg <= 90.0:
-            raise ValueError(f"novel_yaw_deg turns the face by -90 to 90 degrees, not {self.novel_yaw_deg!r}")
-        if self.novel_size is not None and not 32 <= self.novel_size <= 4096:
-            raise ValueError(f"novel_size is a side of 32 to 4096 pixels, not {self.novel_size!r}")
-        if self.max_pixels is not None and not 100_000 <= self.max_pixels <= 40_000_000:
-            raise ValueError(f"max_pixels is None (never reduce) or 0.1 to 40 megapixels, not {self.max_pixels!r}")
-        if isinstance(self.face_length, str) and self.face_length not in ("auto", "off"):
-            raise ValueError(f"face_length is auto, off or a factor, not {self.face_length!r}")
-        if not isinstance(self.face_length, str) and not 0.5 <= float(self.face_length) <= 2.0:
-            raise ValueError(f"face_length is a factor between 0.5 and 2, not {self.face_length!r}")
-
-    def _check_lights(self) -> None:
-        if isinstance(self.light, str) and self.light not in ("auto", "yaleb"):
-            raise ValueError(f"light {self.light!r}: auto, yaleb, two angles or a vector")
-        tags = [light_tag(light) for light in self.extra_lights]
-        for tag in set(tags):
-            if tags.count(tag) > 1:
-                raise ValueError(f"two relight lights are both {tag} (whole degrees): each writes relit_{tag}.png; "
-                                 "give them a degree apart")
 
 
 class FitObserver(Protocol):

@@ -14,11 +14,11 @@ from ..method.nodes import (
     FacesNode,
     FitObserver,
     LoadNode,
-    MethodOptions,
     covered_above_eyes,
     method_nodes,
     shading_normals,
 )
+from ..method.options import MethodOptions
 from ..method.products import photo_channels
 from ..method.relight import novel_view, resample_surface
 from ..method.turned import ViewChoiceNode

@@ -298,7 +298,8 @@ def test_the_papers_variant_is_one_preset_and_what_is_given_wins():
     asked: ``--fit paper --remap ratio`` ran with the paper's peak. The variant is ``MethodOptions.paper()``
     now; an option given explicitly is kept."""
     from shadowflow.nodes.app.cli import build_parser, method_options
-    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes
+    from shadowflow.nodes.method.nodes import method_nodes
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
 
     paper = MethodOptions.paper()
@@ -322,7 +323,7 @@ def test_the_command_lines_choices_are_the_options_own():
     import argparse
 
     from shadowflow.nodes.app.cli import build_parser
-    from shadowflow.nodes.method.nodes import CHOICES, MethodOptions
+    from shadowflow.nodes.method.options import CHOICES, MethodOptions
     from shadowflow.nodes.method.robust_fit.config import SOLVERS
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
@@ -335,6 +336,31 @@ def test_the_command_lines_choices_are_the_options_own():
                 assert default is None or default == getattr(MethodOptions(), name), (command, name)
         assert set(SOLVERS) <= set(actions["fit"].choices)
     assert set(CHOICES) - {"encoding", "arrays"} <= set(a.dest for a in sub.choices["eval"]._actions)
+
+
+def test_each_numeric_options_rule_is_the_options_own():
+    """Every numeric option's rule (``options.RANGES``) is stated once: the command line refuses a value past it
+    with the rule's own words and flag, and the API's ``MethodOptions`` with the same words; the values on either
+    edge are taken. A second, differently worded check in the command line (there were three) fails it."""
+    from shadowflow.nodes.app.cli import build_parser, method_options
+    from shadowflow.nodes.method.options import RANGES, MethodOptions
+
+    parse = build_parser().parse_args
+    flags = {a.option_strings[0]: a for a in parse.__self__._subparsers._group_actions[0].choices["run"]._actions
+             if a.option_strings}
+    for name, rule in RANGES.items():
+        assert rule.flag in flags, (name, rule.flag)
+        kind = flags[rule.flag].type or str
+        for ok in (rule.lo, rule.hi):
+            got = getattr(method_options(parse(["run", "--demo", "--out", "o", rule.flag, str(kind(ok / rule.per))])), name)
+            assert got == pytest.approx(ok), (name, got)
+        bad = kind(2 * rule.hi / rule.per + 1)
+        with pytest.raises(ValueError) as cli:
+            method_options(parse(["run", "--demo", "--out", "o", rule.flag, str(bad)]))
+        with pytest.raises(ValueError) as api:
+            MethodOptions(**{name: bad * rule.per})
+        assert str(cli.value).startswith(f"{rule.flag} {rule.says}, not {bad:g}"), str(cli.value)
+        assert str(api.value) == str(cli.value)
 
 
 def test_a_line_on_stderr_is_one_write_so_threads_never_run_two_into_one(monkeypatch):

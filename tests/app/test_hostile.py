@@ -255,7 +255,7 @@ def test_an_input_whose_name_is_not_utf8_runs_and_resumes(tmp_path, shadowed_fac
 
 @pytest.mark.parametrize("args, says", [
     (["--workers", "0"], "--workers must be 1 or more"),
-    (["--max-iterations", "0"], "--max-iterations must be 1 or more"),
+    (["--max-iterations", "0"], "(--max-iterations) must be an integer of at least 1"),
     (["--frame-timeout", "inf"], "--frame-timeout must be a finite number"),
     (["--frame-timeout", "-1"], "--frame-timeout must be a finite number"),
     (["--record-every", "0"], "--record-every must be 1 or more"),

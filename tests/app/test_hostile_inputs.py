@@ -312,7 +312,7 @@ def test_a_novel_view_larger_than_the_surface_it_shows_is_refused(tmp_path, caps
     import cv2
 
     import shadowflow
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
 
     photo = _face(tmp_path / "face.png")
     for size in ("513", "2048", "4096"):

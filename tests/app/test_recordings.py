@@ -307,7 +307,7 @@ def test_an_older_releases_dense_recording_still_reads_and_diffs_equal():
 def test_record_every_and_float16(tmp_path):
     model = golden_model()
     from shadowflow.nodes.app.runner import RunOptions, run_stream
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
 
     paths = golden_inputs(tmp_path)

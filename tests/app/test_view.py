@@ -14,7 +14,7 @@ import pytest
 from shadowflow.nodes.app.cli import main
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.relight.live import BEYOND, FACE, render_live
-from shadowflow.nodes.method.nodes import MethodOptions
+from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.products import relit_photos
 
 LIGHTS = {"frontal": np.array([0.0, 0.0, 1.0]), "30,10": light_from_angles(30, 10),

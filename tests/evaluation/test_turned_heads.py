@@ -108,7 +108,7 @@ def test_a_head_tilted_20_degrees_is_fitted_with_its_pitched_view_and_one_tilted
     for render, result, score in pitched:
         assert result.faces[0]["status"] == "ok" and result.faces[0]["model_view"]["pitch"] == -20.0
     # a head tilted, not turned, mirrors about its midline as a frontal one: the fill takes the detail across it
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.relight.nodes import PhotoRelightNode
 
     relight = PhotoRelightNode(MethodOptions()).face_relight(pitched[0][1].frame)

@@ -64,7 +64,7 @@ def test_yaleb_faces_are_found_under_side_light():
 def test_yaleb_fit_beats_the_mean_shape_and_relights_better_than_the_input(yaleb_subject):
     """Subject 01 at (+-50, 0) and (+-70, 0) with the default (ICT) model and the Yale light."""
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     rows = evaluate_subject(yaleb_subject, default_model(), MethodOptions(light="yaleb"), None,
@@ -92,7 +92,8 @@ def test_yaleb_light_auto_is_within_8_degrees_at_every_side_light():
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
     from shadowflow.nodes.geometry.normals import angle_deg
-    from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions
+    from shadowflow.nodes.method.nodes import FacesNode, LoadNode
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     subjects = sorted(YALEB.glob("yaleB*"))
@@ -119,7 +120,7 @@ def test_yaleb_eyes_lit_at_a_grazing_angle_come_back_with_their_irises():
     alone: 0.48-0.89)."""
     from shadowflow.flow.chain import Chain
     from shadowflow.flow.frame import Frame
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.relight.nodes import photo_nodes
     from shadowflow.nodes.model.default_model import default_model
 
@@ -150,7 +151,7 @@ def test_yaleb_a_frontal_photo_relit_frontally_is_itself(yaleb_subject):
     energy for subject 01 (42.7 dB and 97.9 % when the exposure clipped its highlights, 96.7 %
     before grazing pixels were trusted where the light does not amplify them)."""
     from shadowflow.nodes.evaluation.yaleb_benchmark import frontal_self_relight
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     r = frontal_self_relight(yaleb_subject, default_model(), MethodOptions(light="yaleb"))
@@ -164,7 +165,7 @@ def test_yaleb_dividing_out_the_smooth_albedo_helps_the_default_model(yaleb_subj
     import dataclasses
 
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.method.robust_fit import FitConfig
     from shadowflow.nodes.model.default_model import default_model
 
@@ -188,7 +189,7 @@ def test_yaleb_a_fill_no_brighter_than_the_skin_relights_better_than_the_papers(
     import dataclasses
 
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     psnr = {}
@@ -211,7 +212,7 @@ def test_yaleb_the_filled_side_shows_the_detail_of_the_lit_side(yaleb_subject):
     import shadowflow
     from scipy import ndimage
     from shadowflow.nodes.evaluation.yaleb_benchmark import relight_scores
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
 
     def energy(img, where):
         gy, gx = np.gradient(np.asarray(img, np.float64))
@@ -244,7 +245,7 @@ def test_yaleb_the_fill_takes_no_detail_from_across_the_face_beside_its_axis(yal
     reflection there as a symmetric pattern (subject 02's glabella lines came back as a "Y" at -70). Within
     0.05 interocular distances of the axis the fill is the smooth one; 0.25-0.6 out it takes the detail."""
     import shadowflow
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.relight.albedo import axis_distance
 
     s = yaleb_subject
@@ -308,7 +309,7 @@ def test_yaleb_the_noses_narrow_shadow_at_25_degrees_is_taken_out():
     near shadows alone 25.02, the lift alone 24.98)."""
     from shadowflow.nodes.evaluation.yaleb import build_ground_truth
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     folders = sorted(YALEB.glob("yaleB*"))
@@ -336,7 +337,7 @@ def test_yaleb_the_noses_narrow_shadow_at_25_degrees_is_taken_out():
 
 def test_yaleb_a_photo_that_fails_is_left_out_and_named_when_asked_else_it_stops_the_run(yaleb_subject):
     from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_subject
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.model.default_model import default_model
 
     args = (yaleb_subject, default_model(), MethodOptions(light="yaleb"), None)

@@ -6,7 +6,8 @@ from shadowflow.flow.frame import Frame
 from shadowflow.nodes.evaluation.scenes import render_scene, write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method import keys
-from shadowflow.nodes.method.nodes import FacesNode, LoadNode, MethodOptions, on_model_grid
+from shadowflow.nodes.method.nodes import FacesNode, LoadNode, on_model_grid
+from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.nodes import face_nodes
 from shadowflow.nodes.model.sources import procedural
 

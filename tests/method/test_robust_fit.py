@@ -133,7 +133,8 @@ def test_saturated_pixels_do_not_bend_the_shape(procedural_model):
     from shadowflow.flow.chain import Chain
     from shadowflow.nodes.evaluation.scenes import render_scene
     from shadowflow.nodes.evaluation.synthetic import score
-    from shadowflow.nodes.method.nodes import MethodOptions, method_nodes, on_model_grid
+    from shadowflow.nodes.method.nodes import method_nodes, on_model_grid
+    from shadowflow.nodes.method.options import MethodOptions
 
     depths, _ = procedural(4, seed=21)
     s = light_from_angles(30, 0)

@@ -330,7 +330,7 @@ def test_a_face_like_thing_the_mesh_doubts_is_refused_and_left_as_the_photo_has_
     import shadowflow
     from shadowflow.nodes.app.counts import tally
     from shadowflow.nodes.geometry.reflectance import light_from_angles
-    from shadowflow.nodes.method.nodes import MethodOptions
+    from shadowflow.nodes.method.options import MethodOptions
     from shadowflow.nodes.photo.placement import not_a_face
 
     hsv = cv2.cvtColor(astronaut, cv2.COLOR_RGB2HSV)

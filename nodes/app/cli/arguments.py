@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from ...method.nodes import MethodOptions
+from ...method.options import FACE_LENGTH, MethodOptions
 from ...method.robust_fit import FitConfig
 from ...method.robust_fit.config import SOLVERS
 from ...model.default_model import resolve_model
@@ -38,14 +38,12 @@ def fit_variant(args: argparse.Namespace, fit: str) -> dict:
 
 def fit_config(name: str, modes: int | None, max_iterations: int | None = None,
                 albedo_rounds: int | None = None, cone_trust: float | None = None) -> FitConfig:
+    """The fit's configuration from the command line's values (None: the variant's own); ``FitConfig`` checks
+    each (``ValueError`` naming it and its flag)."""
     cfg = FitConfig.paper() if name == "paper" else FitConfig(solver=name)
     if cone_trust is not None:
-        if not 0.0 <= cone_trust <= 1.0:
-            raise ValueError(f"--cone-trust is a fraction in [0, 1], not {cone_trust}")
         cfg = dataclasses.replace(cfg, cone_trust=cone_trust)
     if albedo_rounds is not None:
-        if albedo_rounds < 0:
-            raise ValueError(f"--albedo-rounds must be 0 or more, not {albedo_rounds}")
         cfg = dataclasses.replace(cfg, albedo_rounds=albedo_rounds)
     if modes is not None:
         cfg = dataclasses.replace(cfg, n_modes=modes)
@@ -55,16 +53,14 @@ def fit_config(name: str, modes: int | None, max_iterations: int | None = None,
 
 
 def face_length(text: str) -> str | float:
-    """``--face-length``: auto, off or a stretch factor in [0.5, 2]."""
+    """``--face-length`` as ``MethodOptions.face_length``: auto, off or a number (its range is the options' rule,
+    ``options.FACE_LENGTH``)."""
     if text in ("auto", "off"):
         return text
     try:
-        f = float(text)
+        return float(text)
     except ValueError:
-        f = float("nan")
-    if not 0.5 <= f <= 2.0:
-        raise ValueError(f"--face-length takes auto, off or a factor between 0.5 and 2, not {text!r}")
-    return f
+        raise ValueError(f"{FACE_LENGTH.flag} {FACE_LENGTH.says}, not {text!r}") from None
 
 
 def model_arg(spec: str | None):

@@ -14,7 +14,7 @@ from ...evaluation.people import contact_sheet, evaluate_people, format_table, j
 from ...evaluation.people import summarise as people_summary
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
 from ...evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS, evaluate_yaleb, format_report, summarise
-from ...method.nodes import CHOICES, MethodOptions
+from ...method.options import CHOICES, MethodOptions
 from ...model.default_model import train_from_recipe
 from ...model.sources import load_source
 from ...photo.encoding import swapped_rb

@@ -15,12 +15,12 @@ from ....flow.pipeline import wait_for_abandoned
 from ....flow.recording import RecordOptions
 from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
-from ...method.nodes import CHOICES, MethodOptions
+from ...method.options import CHOICES, MAX_VIEW_SIZE, RANGES, MethodOptions
 from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..counts import tally_text
 from ..inputs import FolderWatch, expand_inputs
-from ..outputs import MAX_VIEW_SIZE, checked_view_size, real_path
+from ..outputs import real_path
 from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
@@ -41,8 +41,6 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--workers must be 1 or more, not {args.workers}")
     if args.dask is not None:
         parse_dask(args.dask)
-    if args.max_iterations is not None and args.max_iterations < 1:
-        raise ValueError(f"--max-iterations must be 1 or more, not {args.max_iterations}")
     if args.record_every < 1:
         raise ValueError(f"--record-every must be 1 or more, not {args.record_every}")
     if not (args.frame_timeout >= 0 and math.isfinite(args.frame_timeout)):
@@ -51,36 +49,11 @@ def _check_run_arguments(args: argparse.Namespace) -> None:
         raise ValueError(f"--settle must be a finite number of seconds, not {args.settle}")
     if args.idle_exit is not None and not (args.idle_exit >= 0 and math.isfinite(args.idle_exit)):
         raise ValueError(f"--idle-exit must be a finite number of seconds, not {args.idle_exit}")
-    _view_angle(args.view_angle)
-    checked_view_size(args.view_size)
-    _strength("--eye-contrast", args.eye_contrast)
-    _strength("--fill-detail", args.fill_detail)
-    _strength("--mirror-lift", args.mirror_lift)
-    _max_pixels(args.max_megapixels)
-    for light in args.relight or ():
-        parse_light(light)
-
-
-def _strength(flag: str, c: float) -> float:
-    """A detail's strength given as ``flag`` (--eye-contrast, --fill-detail, --mirror-lift): 0 (off) to 1."""
-    if not (0.0 <= c <= 1.0):
-        raise ValueError(f"{flag} is between 0 (off) and 1, not {c:g}")
-    return c
-
-
-def _view_angle(deg: float) -> float:
-    if not -90.0 <= deg <= 90.0:
-        raise ValueError(f"--view-angle turns the face by -90 to 90 degrees, not {deg:g}")
-    return deg
 
 
 def _max_pixels(megapixels: float) -> int | None:
-    """``--max-megapixels``: 0 means never reduce."""
-    if megapixels == 0:
-        return None
-    if not 0.1 <= megapixels <= 40:
-        raise ValueError(f"--max-megapixels is 0 (never reduce) or 0.1 to 40, not {megapixels:g}")
-    return int(megapixels * 1_000_000)
+    """``--max-megapixels`` as ``MethodOptions.max_pixels``: 0 means never reduce (None)."""
+    return None if megapixels == 0 else int(megapixels * RANGES["max_pixels"].per)
 
 
 def write_demo_inputs(out: Path, count: int = 3) -> list[str]:
@@ -136,10 +109,8 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          find_faces=args.eyes == "auto", shadows=args.shadows,
                          face_length=face_length(args.face_length),
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
-                         novel_yaw_deg=_view_angle(args.view_angle), novel_size=checked_view_size(args.view_size),
-                         eye_contrast=_strength("--eye-contrast", args.eye_contrast),
-                         fill_detail=_strength("--fill-detail", args.fill_detail),
-                         mirror_lift=_strength("--mirror-lift", args.mirror_lift),
+                         novel_yaw_deg=args.view_angle, novel_size=args.view_size,
+                         eye_contrast=args.eye_contrast, fill_detail=args.fill_detail, mirror_lift=args.mirror_lift,
                          max_pixels=_max_pixels(args.max_megapixels),
                          encoding=args.encoding, arrays=args.arrays)
 
@@ -183,7 +154,7 @@ def _run_exit_code(result, watch_error: str | None) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     out = out_folder(args.out)
     _check_run_arguments(args)  # before any work or any file is written
-    options = method_options(args)
+    options = method_options(args)  # each option checked by its own rule (``method.options``, ``FitConfig``)
     why = _no_input(args)
     if why is not None:
         say(f"shadowflow run: no input image: {why}")

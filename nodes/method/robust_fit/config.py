@@ -35,14 +35,24 @@ MIN_CONE_DISTANCE = 1e-6  # AEP round-off: a model normal this close to its cone
 MIN_EIGENVALUE = 1e-12  # under the prior's 1 / eigenvalue
 
 
+# the command line's flags of the options it sets, named with them in what a bad value raises
+FLAGS = {"solver": "--fit", "max_iterations": "--max-iterations", "albedo_rounds": "--albedo-rounds",
+         "n_modes": "--modes", "cone_trust": "--cone-trust"}
+
+
+def _named(name: str) -> str:
+    """``FitConfig.<name>``, with its command-line flag when it has one."""
+    return f"FitConfig.{name} ({FLAGS[name]})" if name in FLAGS else f"FitConfig.{name}"
+
+
 def _one_of(name: str, value, allowed) -> None:
     if value not in allowed:
-        raise ValueError(f"FitConfig.{name} must be one of {', '.join(allowed)}, not {value!r}")
+        raise ValueError(f"{_named(name)} must be one of {', '.join(allowed)}, not {value!r}")
 
 
 def _at_least(name: str, value, low: int) -> None:
     if not isinstance(value, int) or isinstance(value, bool) or value < low:
-        raise ValueError(f"FitConfig.{name} must be an integer of at least {low}, not {value!r}")
+        raise ValueError(f"{_named(name)} must be an integer of at least {low}, not {value!r}")
 
 
 @dataclass(frozen=True)
@@ -107,7 +117,7 @@ class FitConfig:
             raise ValueError(f"FitConfig.relaxation must be in (0, 2) (over-relaxation diverges at 2), "
                              f"not {self.relaxation}")
         if not 0.0 <= self.cone_trust <= 1.0:
-            raise ValueError(f"FitConfig.cone_trust is a fraction in [0, 1], not {self.cone_trust}")
+            raise ValueError(f"{_named('cone_trust')} is a fraction in [0, 1], not {self.cone_trust}")
         if self.tolerance_deg is not None and not self.tolerance_deg >= 0:  # 0: always max_iterations
             raise ValueError(f"FitConfig.tolerance_deg must be 0 or more, not {self.tolerance_deg}")
 
