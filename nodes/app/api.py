@@ -28,8 +28,9 @@ from ..photo.loader import InputError, checked_light, parse_light
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .inputs import expand_inputs
-from .outputs import OUTPUT_FILES, checked_view_size, face_record, faces_of, real_path, write_outputs
+from .outputs import OUTPUT_FILES, VIEW_NAME, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
+from .view import write_page
 from .runner import RunOptions, RunResult, out_folder, run_stream, say
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
@@ -100,7 +101,9 @@ class Products:
             if clash:
                 raise ValueError(f"{folder / clash[0]}: is the input image; save somewhere else")
         folder.mkdir(parents=True, exist_ok=True)
-        return write_outputs(self.photo, folder, arrays)
+        written = write_outputs(self.photo, folder, arrays)
+        written[VIEW_NAME] = write_page(self.photo, folder)
+        return written
 
 
 def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
@@ -109,7 +112,6 @@ def _model(model: ShapeModel | str | os.PathLike | None) -> ShapeModel:
 
 def _options(options: MethodOptions | None, light, eyes) -> MethodOptions:
     opts = options or MethodOptions()
-    checked_view_size(opts.novel_size)
     changes = {}
     if isinstance(light, str) and light.strip().lower() in ("auto", "yaleb"):
         changes["light"] = light.strip().lower()

@@ -10,6 +10,8 @@ from ..relight.nodes import photo_nodes
 from ..model.shape_model import ShapeModel
 from .outputs import WriteNode
 from .record import FitRecorder, RecordNode
+from .report import CardNode
+from .view import PageNode
 
 
 def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: MutableSet[Path],
@@ -20,4 +22,6 @@ def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: M
     the run's any more)."""
     observer = FitRecorder(recorder) if recorder is not None else None
     after = (RecordNode(recorder),) if recorder is not None else ()
-    return [*photo_nodes(model, options, observer, after=after), WriteNode(out, protected, options.arrays, still_ours)]
+    # writing the files, the photo's page and the report's pictures: three steps, each reading what the run made
+    return [*photo_nodes(model, options, observer, after=after), WriteNode(out, protected, options.arrays, still_ours),
+            PageNode(), CardNode()]

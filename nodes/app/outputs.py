@@ -21,8 +21,7 @@ from ...flow.frame import Frame
 from ...flow.jsonsafe import json_safe
 from ...flow.manifest import RunManifest
 from ..geometry.reflectance import light_tag
-from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_8bit,
-                               photo_mesh)
+from ..method.products import (face_products, grid_placement, grid_products, in_encoding, on_photo, photo_mesh)
 from ..relight.products import relit_lights, relit_photo_8bit
 from ..method.products import to_8bit as rounded_8bit  # (this module's to_8bit also turns RGB to BGR)
 from ..photo.align import Alignment, scalar_to_input
@@ -30,8 +29,6 @@ from ..photo.loader import MAX_PIXELS, MAX_SIDE
 from ..photo.encoding import swapped_rb
 from ..model.shape_model import MAX_GRID_SIDE
 from .counts import status_lines  # noqa: F401 (the tests take it from here)
-from .report import card_pictures
-from .view import VIEW_NAME, view_html
 
 # a face's files; its photo's folder holds the largest face's and the photo relit (``relit.png``)
 FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json", "albedo.png", "shadow.png",
@@ -40,19 +37,8 @@ FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json"
 # places it on the photo), or on the photo's pixel grid (conventions.md's first layout: 48 MB of normals for a
 # 4-megapixel photo, holding the same 128 x 128 fit resampled)
 ARRAYS = ("grid", "photo")
+VIEW_NAME = "view.html"  # the photo's page (``view.PageNode``)
 OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
-# novel_view.png's largest side (``--view-size``): the surface it shows is the fit's (128^2 by default, at most the
-# largest model grid's 512^2), and rendering it costs memory and time with the square of the side, every face of a
-# photo (one face at 2048: +1 GB and 10 s; a photo of 49 faces at 1024: 116 s, 1.0 GB; docs/faults.md)
-MAX_VIEW_SIZE = 512
-
-
-def checked_view_size(px: int | None) -> int | None:
-    """``novel_view.png``'s side as asked (None: the model grid's); ``ValueError`` outside 32 to ``MAX_VIEW_SIZE``."""
-    if px is not None and not 32 <= px <= MAX_VIEW_SIZE:
-        raise ValueError(f"--view-size is a side of 32 to {MAX_VIEW_SIZE} pixels (the fit's surface holds no more "
-                         f"detail), not {px}")
-    return px
 
 
 def real_path(path: str | Path) -> Path:
@@ -180,7 +166,7 @@ def mesh_ply_bytes(m: dict[str, np.ndarray]) -> bytes:
     return mesh.export(file_type="ply")
 
 
-def _bgr(rgb8: np.ndarray) -> np.ndarray:
+def bgr(rgb8: np.ndarray) -> np.ndarray:
     """(H, W, 3) RGB -> OpenCV's BGR; (H, W, 1) -> (H, W)."""
     return rgb8[..., 0] if rgb8.shape[-1] == 1 else swapped_rb(rgb8)
 
@@ -191,7 +177,7 @@ def to_8bit(values: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     v = rounded_8bit(values)
     if mask is not None:
         v = np.where(mask[..., None] if v.ndim == 3 else mask, v, np.uint8(0))
-    return _bgr(v) if v.ndim == 3 else v
+    return bgr(v) if v.ndim == 3 else v
 
 
 def faces_of(frame: Frame) -> list[Frame]:
@@ -215,32 +201,21 @@ def relit_name(light: np.ndarray) -> str:
     return f"relit_{light_tag(light)}.png"
 
 
-def write_outputs(frame: Frame, folder: Path, arrays: str = "grid",
-                  card: bool = False) -> dict[str, str]:
+def write_outputs(frame: Frame, folder: Path, arrays: str = "grid") -> dict[str, str]:
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
     in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
-    let go before the next (a large photo's files are not all held at once, nor its relit photos).
-    arrays: where the fit's arrays are written (``ARRAYS``, ``write_face``). ``card``: the report's pictures
-    of the photo are made while it is held (``report.card_pictures``), in ``frame.meta["card"]``."""
+    let go before the next (a large photo's files are not all held at once, nor its relit photos), each relit
+    photo composed by the relighting when its turn comes (``relight.products.relit_photo_8bit``). arrays: where
+    the fit's arrays are written (``ARRAYS``, ``write_face``). The photo's page (``VIEW_NAME``) is the page's
+    own step (``view.PageNode``), the report's pictures the report's (``report.CardNode``)."""
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
         for name, path in write_face(face, folder / sub if sub else folder, arrays).items():
             written[f"{sub}/{name}" if sub else name] = path
-    stem = frame.meta.get("stem")
-    faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
-
-    def relit_png(i: int) -> bytes:
-        relit = _bgr(relit_photo_8bit(frame, i))
-        if i == 0 and card:
-            frame.meta["card"] = card_pictures(_bgr(photo_8bit(frame)), relit, [f.get("box") for f, _ in faces])
-        return png_bytes(relit)
-
-    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: relit_png(i)
+    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: png_bytes(bgr(relit_photo_8bit(frame, i)))
                 for i, light in enumerate(relit_lights(frame))}
-    # the photo to look at and relight by hand: every face, the failed ones marked
-    encoders[VIEW_NAME] = lambda: view_html(frame, faces)
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
         written[name] = str(folder / name)
@@ -398,7 +373,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        write_outputs(frame, folder, self.arrays, card=True)
+        write_outputs(frame, folder, self.arrays)
         frame.meta["outputs"] = str(folder)
         return frame
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import itertools
 import json
 import os
 import time
@@ -26,13 +27,17 @@ import cv2
 import numpy as np
 
 from ...flow.files import atomic_write_chunks
+from ...flow.frame import Frame
 from ...flow.recording import RecordingError
+from ..method.products import photo_8bit
 from ..photo.encoding import swapped_rb
+from ..relight.products import relit_photo_8bit
 from ..photo.loader import InputError, read_photo
 from .counts import photo_status, tally, tally_text
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
-from .view import SLIDER_SCRIPT, SLIDER_STYLE, VIEW_NAME, face_marks, faces_crop
+from .outputs import VIEW_NAME, bgr, faces_of
+from .view import SLIDER_SCRIPT, SLIDER_STYLE, face_marks, faces_crop
 
 REPORT_NAME = "report.html"
 THUMB = 128  # pixels, the longer side of a picture in the contact sheet
@@ -176,7 +181,7 @@ class CardPictures:
 def card_pictures(before: np.ndarray, after: np.ndarray, boxes: list) -> CardPictures:
     """``CardPictures`` of a photo (``before``, as its file shows it: uint8 BGR or grey) and its relit file
     (``after``, the same), ``boxes`` its faces' ``[x0, y0, x1, y1]`` (photo pixels; None for a face without
-    one). A run makes them while it holds both (``WriteNode``), so the report reads neither back."""
+    one). A run makes them while it holds both (``CardNode``), so the report reads neither back."""
     before, after = _alike(before, after)
     h, w = after.shape[:2]
     x0, y0, x1, y1 = faces_crop(boxes, (w, h))
@@ -192,6 +197,26 @@ def card_pictures(before: np.ndarray, after: np.ndarray, boxes: list) -> CardPic
         return base64.b64encode(enc.tobytes()).decode() if ok else ""
 
     return CardPictures((c0, r0, c1, r1), crop(before), crop(after), _fit(before))
+
+
+class CardNode:
+    """The report's pictures of a run's first ``LARGE_PHOTOS`` photos that came through, made while the run holds
+    each photo (``card_pictures`` of the photo as its file shows it and of it relit, as ``relit.png`` holds it), in
+    ``frame.meta["card"]`` for the run to hand to ``write_report``; later photos' cards are read back from their
+    files by the report, if at all."""
+
+    name = "card"
+    thread_safe = True
+
+    def __init__(self, limit: int = LARGE_PHOTOS):
+        self.left = itertools.count(limit, -1)
+
+    def __call__(self, frame: Frame) -> Frame:
+        faces = faces_of(frame)
+        if faces and next(self.left) > 0:
+            boxes = [(p.meta.get("placement") or {}).get("box") for p in (frame.parts or [frame])]
+            frame.meta["card"] = card_pictures(bgr(photo_8bit(frame)), bgr(relit_photo_8bit(frame, 0)), boxes)
+        return frame
 
 
 def _card(out: Path, r: dict, thumbs: dict | None = None, pictures: CardPictures | None = None) -> str:

@@ -22,6 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ...flow.files import atomic_write_bytes
 from ...flow.frame import Frame
 from ...flow.replay import printable
 from ..method.shadow import SOFT_CAST_REACH
@@ -32,8 +33,8 @@ from ..relight.albedo import LIFT_AMPLIFICATION
 from ..relight.compose import RATIO_BEYOND, RATIO_OUTSIDE
 from ..relight.live import BEYOND, FACE, HELD_MARGIN, RIM, SKIN, LiveFace
 from ..relight.shine import SHINE_LOBE
+from .outputs import VIEW_NAME, face_record
 
-VIEW_NAME = "view.html"
 BEFORE_SIDE = 1600  # pixels, the embedded photo's longer side at most
 
 
@@ -126,6 +127,28 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
         data=json.dumps({"faces": payload, "constants": constants}).replace("</", "<\\/"), script=_SCRIPT,
         style=SLIDER_STYLE + _STYLE)
     return page.encode("utf-8")
+
+
+def write_page(frame: Frame, folder: Path) -> str:
+    """``folder/VIEW_NAME``: the page of one photo's ``frame``, every face (the failed ones marked) as
+    ``summary.json`` records it; returns its path."""
+    stem = frame.meta.get("stem")
+    faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
+    path = folder / VIEW_NAME
+    atomic_write_bytes(path, view_html(frame, faces))
+    return str(path)
+
+
+class PageNode:
+    """Writes the photo's page beside the files ``WriteNode`` wrote (``meta["outputs"]``), after it: the writer
+    has checked every file of that folder, this page's included (``outputs.OUTPUT_FILES``), and written them."""
+
+    name = "page"
+    thread_safe = True
+
+    def __call__(self, frame: Frame) -> Frame:
+        write_page(frame, Path(frame.meta["outputs"]))
+        return frame
 
 
 def faces_crop(boxes: list, size: tuple[int, int], grow: float = 0.6, most: float = 0.5) -> tuple[float, ...]:

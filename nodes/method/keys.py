@@ -89,8 +89,8 @@ META: dict[str, tuple[str, str]] = {
     "relight": ("what the face's relighting did under the first light: exposure, painted share, lift's 95th percentile", "relight_photo"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
-    "card": ("``report.CardPictures``: the report's pictures of the photo, made while it was held; taken by the "
-             "run when the frame is done", "write"),
+    "card": ("``report.CardPictures``: the report's pictures of the photo, made while it was held (the run's first "
+             "``report.LARGE_PHOTOS``); taken by the run when the frame is done", "card"),
     "recording_parts": ("the recording files a Dask worker wrote the frame into (taken off by the runner)",
                         "the Dask worker's finish"),
     "recording_error": ("why a Dask worker could not record the frame (taken off by the runner)",
