@@ -31,7 +31,8 @@ from ..relight.products import relit_photos
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, checked_view_size, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
-from .runner import RunOptions, RunResult, out_folder, run_stream, say
+from .runner import RunOptions, RunResult, run_stream, say
+from .storage import out_folder
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 

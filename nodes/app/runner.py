@@ -3,7 +3,6 @@ write outputs and recordings, keep ``summary.json`` current after every frame.""
 from __future__ import annotations
 
 import dataclasses
-import errno
 import functools
 import json
 import math
@@ -17,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ...flow.files import FolderLock, atomic_write_bytes, exclusive_folder
+from ...flow.files import FolderLock, exclusive_folder
 from ...flow.frame import Frame
 from ...flow.manifest import (
     JOURNAL_NAME,
@@ -41,7 +40,6 @@ from .outputs import (
     FACE_FILES,
     OUTPUT_FILES,
     RUN_FILES,
-    foreign_run_files,
     real_path,
     run_output_folder,
     relit_name,
@@ -55,6 +53,7 @@ from .blueprint import rerun_sink
 from .chain import run_nodes
 from .inputs import input_fingerprint
 from .channels import CONVERGENCE
+from .storage import cannot_write, check_out, refuse_link, storage_failure
 from .report import LARGE_PHOTOS, PLOT_FRAMES, REPORT_NAME, CardPictures, write_report
 
 
@@ -101,64 +100,10 @@ def _recording_path(out: Path, suffix: str, resume: bool) -> Path:
     return path
 
 
-# errors that fail every later write too: the run stops instead of failing frame after frame (EPERM, EACCES: the
-# folder made immutable or read-only under the run; ESTALE: removed or replaced under it, ``FolderLock``)
-STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EPERM, errno.EACCES, errno.ESTALE}
 # the Rerun sink's process is made anew every this many frames (five of its 100-frame segments): the SDK
 # keeps a few hundred bytes for every entity path a process has logged, for the life of the process
 # (docs/tuning.md, "Streaming")
 RERUN_RENEW_FRAMES = 500
-
-
-class StorageError(OSError):
-    """The output folder cannot take more data (full, read-only, over quota)."""
-
-
-def refuse_link(path: Path) -> None:
-    """``ValueError`` when ``path`` is a symbolic link: nothing under ``--out`` is written through one."""
-    if path.is_symlink():
-        raise ValueError(f"{path}: is a symbolic link; shadowflow writes nothing through links in --out "
-                         "(remove it, or choose another --out)")
-
-
-def cannot_write(path, exc: OSError) -> str:
-    """The one line said when ``path`` could not be written."""
-    return f"{path}: cannot be written ({exc.strerror or exc})"
-
-
-def out_folder(text: str | os.PathLike) -> Path:
-    """``--out`` (or the API's ``out``) as a folder; ``ValueError`` for an empty name, which would be the working
-    folder (and a run writes over its ``report.html``, ``summary.json`` and ``manifest.json``)."""
-    if not os.fspath(text).strip():
-        raise ValueError(f"--out {os.fspath(text)!r}: an empty name; name a folder (--out . for this one)")
-    return Path(text)
-
-
-def check_out(out: Path) -> None:
-    """``check_writable``, once ``out`` is known to hold no file of a run's names that a run did not write
-    (``outputs.foreign_run_files``); else ``ValueError`` naming the first."""
-    foreign = foreign_run_files(out)
-    if foreign:
-        more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
-        if (out / foreign[0]).is_symlink():
-            refuse_link(out / foreign[0])
-        raise ValueError(f"--out {out}: holds {foreign[0]}, which no shadowflow run wrote, and a run writes over "
-                         f"it{more}; choose another --out")
-    check_writable(out)
-
-
-def check_writable(out: Path) -> None:
-    """Create ``out`` if needed and prove a file can be written there; else ``StorageError``."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = atomic_write_bytes(out / ".shadowflow-write-test", b"ok")
-        probe.unlink()
-    except OSError as exc:
-        raise StorageError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
-
-
-def _storage_failure(exc: BaseException | None) -> bool:
-    return isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS
 
 
 def complete(out: Path, name: str, record: dict, extra_lights: Iterable = ()) -> bool:
@@ -595,7 +540,7 @@ class StoredRun:
             if self.stored(frame.meta["stem"], frame.meta["previous"]):
                 self.save_summary()
                 self.progress.update(True)
-        elif _storage_failure(frame.error):  # not the frame's fault: leave it for --resume
+        elif storage_failure(frame.error):  # not the frame's fault: leave it for --resume
             self.out_of_storage(frame.status)
             frame.drop_data()
         elif self.storage is not None:  # finished after the run stopped taking data: not journaled, so
