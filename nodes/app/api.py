@@ -31,8 +31,9 @@ from ..relight.products import relit_photos
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, checked_view_size, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
-from .runner import RunOptions, RunResult, run_stream, say
+from .runner import RunOptions, RunResult, run_stream
 from .storage import out_folder
+from .terminal import say
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 
