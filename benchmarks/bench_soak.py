@@ -35,9 +35,9 @@ from scipy.stats import theilslopes
 from bench_stream import make_inputs
 
 CLI = [sys.executable, "-m", "shadowflow.nodes.app.cli"]
-# the run with its Rerun sink's process renewed every N frames (``runner.RERUN_RENEW_FRAMES``), N from argv[1]
-_RENEWED = ("import runpy, sys\nimport shadowflow.nodes.app.runner as runner\n"
-            "runner.RERUN_RENEW_FRAMES = int(sys.argv[1])\nsys.argv = ['shadowflow'] + sys.argv[2:]\n"
+# the run with its Rerun sink's process renewed every N frames (``sinks.RERUN_RENEW_FRAMES``), N from argv[1]
+_RENEWED = ("import runpy, sys\nimport shadowflow.nodes.app.sinks as sinks\n"
+            "sinks.RERUN_RENEW_FRAMES = int(sys.argv[1])\nsys.argv = ['shadowflow'] + sys.argv[2:]\n"
             "runpy.run_module('shadowflow.nodes.app.cli', run_name='__main__')\n")
 _HWM = ("import runpy, sys\nsys.argv = ['shadowflow'] + sys.argv[1:]\n"
         "try:\n    runpy.run_module('shadowflow.nodes.app.cli', run_name='__main__')\n"
@@ -160,7 +160,7 @@ def main() -> None:
     ap.add_argument("--record", default="rerun,mcap")
     ap.add_argument("--json")
     ap.add_argument("--renew-frames", type=int, help="renew the Rerun sink's process every N frames "
-                    "(default: the runner's RERUN_RENEW_FRAMES; a number above --frames: never)")
+                    "(default: sinks.RERUN_RENEW_FRAMES; a number above --frames: never)")
     ap.add_argument("--no-replay", action="store_true", help="skip replay and diff of the run")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:

@@ -30,8 +30,10 @@ from ..relight.products import relit_photos
 from .inputs import expand_inputs
 from .outputs import OUTPUT_FILES, VIEW_NAME, face_record, faces_of, real_path, write_outputs
 from .process import one_blas_thread, release_large_frees
+from .runner import RunOptions, RunResult, run_stream
+from .storage import out_folder
+from .terminal import say
 from .view import write_page
-from .runner import RunOptions, RunResult, out_folder, run_stream, say
 
 ARRAY_SOURCE = "<array>"  # the frame's source when the image was given as an array
 

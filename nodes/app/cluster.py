@@ -107,7 +107,7 @@ def reserve_parts(out: Path, stem: str, suffixes: list[str]) -> dict[str, Path]:
 
 def worker_setup() -> None:
     """What a local run does for itself, in a worker process: BLAS on one thread (the fit's matrices
-    are small) and glibc's allocator tuned (``runner.release_large_frees``)."""
+    are small) and glibc's allocator tuned (``process.release_large_frees``)."""
     from threadpoolctl import threadpool_limits
 
     from .process import release_large_frees

@@ -370,7 +370,7 @@ def test_a_line_on_stderr_is_one_write_so_threads_never_run_two_into_one(monkeyp
     import sys
     import threading
 
-    from shadowflow.nodes.app.runner import Progress, say
+    from shadowflow.nodes.app.terminal import Progress, say
 
     class Writes:
         def __init__(self):

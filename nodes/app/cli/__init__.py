@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from ..process import one_blas_thread
-from ..runner import say, tool_version
+from ..runner import tool_version
+from ..terminal import say
 from . import evaluate, recordings, run, train
 from .run import method_options, run_options
 

@@ -21,7 +21,9 @@ from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..counts import tally_text
 from ..inputs import FolderWatch, expand_inputs
 from ..outputs import real_path
-from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, check_out, out_folder, refuse_link, run_stream, say
+from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, run_stream
+from ..storage import check_out, out_folder, refuse_link
+from ..terminal import say
 from .arguments import (
     ALBEDO_ROUNDS_HELP,
     CONE_TRUST_HELP,
