@@ -28,7 +28,8 @@ import numpy as np
 from ...flow.files import atomic_write_chunks
 from ...flow.recording import RecordingError
 from ..photo.encoding import swapped_rb
-from ..photo.loader import InputError, read_photo
+from ..photo.input_error import InputError
+from ..photo.loader import read_photo
 from .counts import photo_status, tally, tally_text
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
