@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,18 +22,8 @@ class RerunSink(Sink):
     on in a new file of the same recording (``run.s2.rrd``, ... see ``_next_segment``), opened when
     the next frame's first event comes. ``previous_paths``: the files an earlier sink of this
     recording wrote (``recording_id`` the same; e.g. in a process since renewed, see
-    ``ProcessSinks``): this one goes on in the next segment after them.
-
-    Per-iteration images, vectors and scalars are held per entity until the frame ends (or
-    ``batch`` iterations are waiting) and sent in one ``send_columns`` call: Rerun's cost is
-    per call (about 0.3 ms to turn one array into Arrow, whatever its size), and a frame
-    makes dozens of them. The file holds the same rows, times and values as one ``log`` per
-    iteration would write; a frame's rows reach the file when the frame is flushed, as before.
-    ``max_held_bytes``: the rows held, over all frames, are at most about this many bytes; past it
-    the largest held batch is sent at once. A run's pipeline has several frames in its fit at a
-    time, each with per-iteration images held here until it ends: without the bound the held rows
-    ranged from 1 to 100 MiB with how many frames the pipeline's timing kept in flight (the
-    recording process's RSS 130-300 MiB in a soak, ``benchmarks/bench_soak.py``).
+    ``ProcessSinks``): this one goes on in the next segment after them. Per-iteration images, vectors
+    and scalars are held (``HeldRows``: ``batch``, ``max_held_bytes``) and sent a batch at a time.
     """
 
     def __init__(self, path: str | Path, blueprint=None, application_id: str = "shadowflow",
@@ -44,16 +35,12 @@ class RerunSink(Sink):
 
         self.rr = rr
         self.path = Path(path)
-        self.batch = batch
         self.blueprint, self.application_id = blueprint, application_id
         self.recording_id = recording_id or str(uuid.uuid4())  # files of one id: one recording in the viewer
         self.segment_frames = segment_frames
         self.paths: list[Path] = [Path(p) for p in previous_paths or []]  # the files written: path, then its segments
         self._frames_in_segment = 0
-        self._pending: dict[tuple[int, str], list[Event]] = {}
-        self.max_held_bytes = max_held_bytes
-        self._pending_bytes: dict[tuple[int, str], int] = {}  # of each held batch's values
-        self.held_bytes = 0  # of all of them
+        self._held = HeldRows(batch, max_held_bytes)
         self._names: dict[int, str] = {}  # frame id -> its entity path part, until the frame is done
         self.rec = None
         if not self.paths:  # else the next segment opens with the first event, as after a full one
@@ -88,28 +75,21 @@ class RerunSink(Sink):
         """The entity of channel ``path`` in ``frame``."""
         return f"{path}/{self._names.get(frame) or f'{frame:05d}'}"
 
+    @property
+    def held_bytes(self) -> int:
+        """Bytes of the rows held, over all frames."""
+        return self._held.nbytes
+
     def write(self, event: Event) -> None:
         if self.rec is None:  # the last segment is full
             self._next_segment()
-        if event.iteration is not None and self._columnar(event):
-            rows = self._pending.setdefault((event.frame, event.path), [])
-            rows.append(event)
-            key, size = (event.frame, event.path), value_nbytes(event.value)
-            self._pending_bytes[key] = self._pending_bytes.get(key, 0) + size
-            self.held_bytes += size
-            if len(rows) >= self.batch:
+        if event.iteration is not None and _columnar(event):
+            if self._held.hold(event):
                 self._send(event.frame, event.path)
-            while self.held_bytes > self.max_held_bytes:
-                self._send(*max(self._pending_bytes, key=self._pending_bytes.__getitem__))
+            while (largest := self._held.over_bound()) is not None:
+                self._send(*largest)
             return
         self._log(event)
-
-    @staticmethod
-    def _columnar(event: Event) -> bool:
-        """Per-iteration kinds that are batched: scalars, vectors and 2-D/3-D images."""
-        if event.kind in (Kind.SCALARS, Kind.NORMALS, Kind.IMAGE):
-            return True
-        return event.kind is Kind.ARRAY and _ndim(event.value) in (1, 2)
 
     def _log(self, event: Event) -> None:
         rr, rec = self.rr, self.rec
@@ -128,62 +108,31 @@ class RerunSink(Sink):
             if event.frame not in self._names and isinstance(v, dict) and isinstance(v.get("stem"), str):
                 self.name_frame(event.frame, v["stem"])  # a frame that failed before recording anything
             rec.log(self._entity("status", event.frame), rr.TextLog(json.dumps(v, default=jsonable)))
-        elif event.kind is Kind.DEPTH:
-            rec.log(entity, rr.DepthImage(display(v, Kind.DEPTH)))
-        elif event.kind is Kind.MESH:
-            rec.log(entity, rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"],
-                                      vertex_colors=v["colours"]))
-        elif event.kind is Kind.NORMALS:
-            rec.log(entity, rr.Image(display(v, Kind.NORMALS)))
         else:
-            rec.log(entity, self._shown(display(v, event.kind), event.kind))
-
-    def _shown(self, a: np.ndarray, kind: Kind):
-        """The Rerun archetype of an image or array: an image (grey, RGB, and 2-D arrays), a bar chart
-        (a vector, the fit's coefficients) or a tensor."""
-        rr = self.rr
-        if a.ndim == 2 or (kind is Kind.IMAGE and a.ndim == 3 and a.shape[2] == 3):
-            return rr.Image(a)
-        return rr.BarChart(a) if a.ndim == 1 else rr.Tensor(a)
+            rec.log(entity, _archetype(rr, event.kind, v))
 
     def _send(self, frame: int, path: str) -> None:
         """One ``send_columns`` per entity for the held iterations of ``path`` in ``frame``."""
-        rr, rows = self.rr, self._pending.pop((frame, path))
-        self.held_bytes -= self._pending_bytes.pop((frame, path))
+        rr, rows = self.rr, self._held.take(frame, path)
         entity = self._entity(path, frame)
-
-        def index(rs: list[Event]) -> list:
-            return [rr.TimeColumn("frame", sequence=[frame] * len(rs)),
-                    rr.TimeColumn("iteration", sequence=[e.iteration for e in rs])]
-
         if rows[0].kind is Kind.SCALARS:
-            names = dict.fromkeys(n for e in rows for n, x in e.value.items() if _is_number(x))
-            for name in names:
-                rs = [e for e in rows if _is_number(e.value.get(name))]
-                self.rec.send_columns(self._entity(f"{path}/{name}", frame), indexes=index(rs),
+            for name, rs in _scalar_series(rows):
+                self.rec.send_columns(self._entity(f"{path}/{name}", frame), indexes=_iteration_index(rr, frame, rs),
                                       columns=rr.Scalars.columns(scalars=[float(e.value[name]) for e in rs]))
             return
         if _ndim(rows[0].value) == 1:  # a vector per iteration: the bar chart of the latest one held
             # (normally the frame's last). The SDK sends no batch of tensors in one call, and one log
             # call per iteration made a 128x128 recorded run 2.55x the unrecorded one instead of 1.77x;
             # every iteration's vector stays in the MCAP (``replay``, ``diff``)
-            e = rows[-1]
-            a = display(e.value, e.kind)
-            if a.ndim != 1:
-                raise ValueError(f"{entity}: iterations mix vectors and images")
+            iteration, a = _latest_vector(rows, entity)
             self.rec.set_time("frame", sequence=frame)
-            self.rec.set_time("iteration", sequence=e.iteration)
+            self.rec.set_time("iteration", sequence=iteration)
             self.rec.log(entity, rr.BarChart(a))
             return
-        images = display_stack(rows)
-        n, h, w = images.shape[:3]
-        fmt = rr.components.ImageFormat(width=w, height=h, color_model="RGB" if images.ndim == 4 else "L",
-                                        channel_datatype="U8" if images.dtype == np.uint8 else "F32")
-        self.rec.send_columns(entity, indexes=index(rows),
-                              columns=rr.Image.columns(buffer=images.reshape(n, -1).view(np.uint8), format=[fmt] * n))
+        self.rec.send_columns(entity, indexes=_iteration_index(rr, frame, rows), columns=_image_columns(rr, rows))
 
     def _send_frame(self, frame: int | None) -> None:
-        for f, path in [k for k in self._pending if frame is None or k[0] == frame]:
+        for f, path in self._held.batches(frame):
             self._send(f, path)
 
     def frame_done(self, frame: int) -> None:
@@ -211,6 +160,104 @@ class RerunSink(Sink):
         cleanup = getattr(self.rr.bindings, "flush_and_cleanup_orphaned_recordings", None)
         if cleanup is not None:
             cleanup()
+
+
+class HeldRows:
+    """Per-iteration rows held per entity (frame, channel) until the frame ends (or ``batch`` iterations are
+    waiting), for ``RerunSink`` to send in one ``send_columns`` call: Rerun's cost is per call (about 0.3 ms
+    to turn one array into Arrow, whatever its size), and a frame makes dozens of them. The file holds the
+    same rows, times and values as one ``log`` per iteration would write; a frame's rows reach the file
+    when the frame is flushed, as before. ``max_bytes``: the rows held, over all frames, are at most about
+    this many bytes; past it the largest held batch is sent at once. A run's pipeline has several frames in
+    its fit at a time, each with per-iteration images held here until it ends: without the bound the held
+    rows ranged from 1 to 100 MiB with how many frames the pipeline's timing kept in flight (the recording
+    process's RSS 130-300 MiB in a soak, ``benchmarks/bench_soak.py``)."""
+
+    def __init__(self, batch: int, max_bytes: int):
+        self.batch, self.max_bytes = batch, max_bytes
+        self._rows: dict[tuple[int, str], list[Event]] = {}
+        self._bytes: dict[tuple[int, str], int] = {}  # of each held batch's values
+        self.nbytes = 0  # of all of them
+
+    def hold(self, event: Event) -> bool:
+        """Hold ``event``'s row; True when its batch is full (to be sent now)."""
+        rows = self._rows.setdefault((event.frame, event.path), [])
+        rows.append(event)
+        key, size = (event.frame, event.path), value_nbytes(event.value)
+        self._bytes[key] = self._bytes.get(key, 0) + size
+        self.nbytes += size
+        return len(rows) >= self.batch
+
+    def over_bound(self) -> tuple[int, str] | None:
+        """(frame, path) of the largest held batch while the rows held are over ``max_bytes``; else None."""
+        return max(self._bytes, key=self._bytes.__getitem__) if self.nbytes > self.max_bytes else None
+
+    def take(self, frame: int, path: str) -> list[Event]:
+        """The held rows of ``path`` in ``frame``, no longer held."""
+        rows = self._rows.pop((frame, path))
+        self.nbytes -= self._bytes.pop((frame, path))
+        return rows
+
+    def batches(self, frame: int | None) -> list[tuple[int, str]]:
+        """(frame, path) of every batch held for ``frame`` (None: for every frame)."""
+        return [k for k in self._rows if frame is None or k[0] == frame]
+
+
+def _columnar(event: Event) -> bool:
+    """Per-iteration kinds that are batched: scalars, vectors and 2-D/3-D images."""
+    if event.kind in (Kind.SCALARS, Kind.NORMALS, Kind.IMAGE):
+        return True
+    return event.kind is Kind.ARRAY and _ndim(event.value) in (1, 2)
+
+
+def _archetype(rr, kind: Kind, v: Any):
+    """The Rerun archetype of a value logged alone (a depth map, a mesh, normals, an image or array)."""
+    if kind is Kind.DEPTH:
+        return rr.DepthImage(display(v, Kind.DEPTH))
+    if kind is Kind.MESH:
+        return rr.Mesh3D(vertex_positions=v["vertices"], triangle_indices=v["triangles"], vertex_colors=v["colours"])
+    if kind is Kind.NORMALS:
+        return rr.Image(display(v, Kind.NORMALS))
+    return _shown(rr, display(v, kind), kind)
+
+
+def _shown(rr, a: np.ndarray, kind: Kind):
+    """The Rerun archetype of an image or array: an image (grey, RGB, and 2-D arrays), a bar chart
+    (a vector, the fit's coefficients) or a tensor."""
+    if a.ndim == 2 or (kind is Kind.IMAGE and a.ndim == 3 and a.shape[2] == 3):
+        return rr.Image(a)
+    return rr.BarChart(a) if a.ndim == 1 else rr.Tensor(a)
+
+
+def _iteration_index(rr, frame: int, rs: list[Event]) -> list:
+    """The time columns of rows of ``frame``: its number and each row's iteration."""
+    return [rr.TimeColumn("frame", sequence=[frame] * len(rs)),
+            rr.TimeColumn("iteration", sequence=[e.iteration for e in rs])]
+
+
+def _scalar_series(rows: list[Event]) -> Iterator[tuple[str, list[Event]]]:
+    """(name, the rows where it is a number) of every scalar the rows of one channel hold, in their order."""
+    names = dict.fromkeys(n for e in rows for n, x in e.value.items() if _is_number(x))
+    for name in names:
+        yield name, [e for e in rows if _is_number(e.value.get(name))]
+
+
+def _latest_vector(rows: list[Event], entity: str) -> tuple[int, np.ndarray]:
+    """(iteration, vector as displayed) of the last of rows of vectors; ``ValueError`` when it is no vector."""
+    e = rows[-1]
+    a = display(e.value, e.kind)
+    if a.ndim != 1:
+        raise ValueError(f"{entity}: iterations mix vectors and images")
+    return e.iteration, a
+
+
+def _image_columns(rr, rows: list[Event]):
+    """The ``rr.Image`` columns of rows of images of one size: their display images in one buffer."""
+    images = display_stack(rows)
+    n, h, w = images.shape[:3]
+    fmt = rr.components.ImageFormat(width=w, height=h, color_model="RGB" if images.ndim == 4 else "L",
+                                    channel_datatype="U8" if images.dtype == np.uint8 else "F32")
+    return rr.Image.columns(buffer=images.reshape(n, -1).view(np.uint8), format=[fmt] * n)
 
 
 def _ndim(value: Any) -> int:

@@ -24,7 +24,8 @@ from ..method.options import MethodOptions
 from ..method.products import input_grid_products, photo_mesh
 from ..model.default_model import resolve_model
 from ..model.shape_model import ShapeModel
-from ..photo.loader import InputError, checked_light, parse_light
+from ..photo.input_error import InputError
+from ..photo.lights import checked_light, parse_light
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .inputs import expand_inputs

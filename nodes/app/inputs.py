@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Iterator
 
 from ...flow.manifest import content_hash
-from ..photo.loader import IMAGE_SUFFIXES, sidecar_path
+from ..photo.loader import IMAGE_SUFFIXES
+from ..photo.sidecar import sidecar_path
 
 
 def _output_folder(path: Path) -> bool:

@@ -32,7 +32,8 @@ from ...flow.recording import RecordingError
 from ..method.products import photo_8bit
 from ..photo.encoding import swapped_rb
 from ..relight.products import relit_photo_8bit
-from ..photo.loader import InputError, read_photo
+from ..photo.input_error import InputError
+from ..photo.loader import read_photo
 from .counts import photo_status, tally, tally_text
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name

@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry.reflectance import light_from_angles
-from ..photo.loader import load_image, yaleb_angles
+from ..photo.lights import yaleb_angles
+from ..photo.loader import load_image
 from .photometric_stereo import (
     StereoResult,
     photometric_stereo,

@@ -16,8 +16,10 @@ from ..photo.cover import covered_on_grid
 from ..photo.encoding import linear_to_srgb
 from ..photo.evenness import evenly_lit
 from ..photo.given import given_eyes, known_light
-from ..photo.loader import MIN_SIDE, InputError, Photo, photo_from_samples, read_photo, read_sidecar
+from ..photo.input_error import InputError
+from ..photo.loader import MIN_SIDE, Photo, photo_from_samples, read_photo
 from ..photo.placement import FacePlacement, face_on_grid, features_on_grid, model_box, place_faces
+from ..photo.sidecar import read_sidecar
 from ..photo.skin import skin
 from .albedo import FILL_CEILING, estimate_albedo
 from .options import INTEGRATORS, MethodOptions

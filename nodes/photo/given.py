@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .loader import InputError, Sidecar, yaleb_light
+from .input_error import InputError
+from .lights import yaleb_light
+from .sidecar import Sidecar
 
 
 def given_eyes(source: str, shape: tuple[int, int], sidecar: Sidecar | None, eyes: np.ndarray | None,

@@ -1,14 +1,12 @@
-"""Loader: images to float brightness in [0, 1], and where the light and eyes come from."""
+"""Loader: images to float brightness in [0, 1]. Each format's own reader is beside it (``pnm``, ``tiff``); the
+light and eyes given with a photo are read by ``lights`` and ``sidecar``."""
 from __future__ import annotations
 
 import errno
 import io
-import json
 import os
-import re
 import stat
 import warnings
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,27 +14,15 @@ import cv2
 import numpy as np
 from PIL import Image
 
-from ..geometry.reflectance import light_from_angles
 from .native_messages import decoder_messages_dropped
 from .encoding import Decoded8, decode_samples, decoded_luminance, linear_luminance, resolve, swapped_rb
+from .input_error import InputError
+from .pnm import read_ascii_pnm, read_binary_pnm
+from .tiff import TIFF_MAGIC, TiffBomb, read_tiff, tiff_header
 
 # what a folder is read for; a file named on the command line is read whatever its name
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".jfif", ".pgm", ".ppm", ".pnm", ".tif", ".tiff", ".bmp", ".webp", ".gif",
                   ".npy"}
-_YALEB = re.compile(r"_P\d+A([+-]\d{3})E([+-]\d{2})")
-
-
-class InputError(ValueError):
-    """A problem with one input; the message names the file and the problem on one line."""
-
-
-@dataclass(frozen=True)
-class Sidecar:
-    """Optional ``<stem>.json`` next to an input: ``light`` (3,) and ``eyes`` (2, 2)."""
-
-    light: np.ndarray | None = None
-    eyes: np.ndarray | None = None
-
 
 MIN_SIDE = 32  # pixels: the smallest image side that can hold a face to align
 MAX_PIXELS = 40_000_000  # larger images are refused before decoding
@@ -48,7 +34,6 @@ MAX_PLAIN_PNM_PIXELS = 4_000_000  # a plain (ASCII) PNM is parsed token by token
 # a plain PNM is read no further than this: 4 megapixels of 16-bit colour written as numbers take 72 MB, and what
 # follows its samples is not part of the image
 MAX_PLAIN_PNM_BYTES = 96 << 20
-MAX_SIDECAR_BYTES = 64 << 10  # a sidecar holds a light and two eyes: a few dozen bytes
 
 
 def _read_file(p: Path) -> bytes:
@@ -76,91 +61,6 @@ def _read_file(p: Path) -> bytes:
             return fh.read(MAX_PLAIN_PNM_BYTES if plain else -1)
     except OSError as exc:
         raise InputError(f"{p}: cannot be read ({exc.strerror or exc})") from None
-
-
-# a PNM header's next number: whitespace and comments (to the end of their line) before it, taken possessively so that
-# a header of megabytes of comments is scanned once, and no more digits than a 32-bit number has
-_PNM_FIELD = re.compile(rb"(?:\s|#[^\r\n]*+)*+(\d{1,10}+)(?!\d)")
-
-
-def _pnm_header(data: bytes) -> tuple[int, int, int, int] | None:
-    """A PNM's (width, height, maxval, where its samples start) after its magic, its comments any length
-    (a 14-bit PGM's 2,000-byte comment made the first 1,024 bytes a header without its numbers); None when
-    it is malformed."""
-    pos, values = 2, []
-    for _ in range(3):
-        m = _PNM_FIELD.match(data, pos)
-        if m is None:
-            return None
-        values.append(int(m.group(1)))
-        pos = m.end()
-    if not data[pos:pos + 1].isspace():  # one whitespace character ends the header
-        return None
-    return values[0], values[1], values[2], pos + 1
-
-
-def _read_binary_pnm(p: Path, data: bytes) -> tuple[np.ndarray, int]:
-    """A binary PGM (P5) or PPM (P6) as ``(samples (H, W) or (H, W, 3) BGR as OpenCV gives them,
-    uint8 or uint16, maxval)``, read by the format's own rules (samples over 255 are two bytes,
-    big-endian, on the scale 0..maxval); ``InputError`` when the header or the data is malformed."""
-    header = _pnm_header(data)
-    if header is None:
-        raise InputError(f"{p}: corrupt PNM header (its width, height and maxval)")
-    width, height, maxval, start = header
-    if not 0 < maxval < 65536:
-        raise InputError(f"{p}: PNM maxval {maxval} is outside 1-65535")
-    channels = 3 if data[:2] == b"P6" else 1
-    dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
-    count = width * height * channels
-    body = data[start:start + count * dtype.itemsize]
-    if len(body) < count * dtype.itemsize:
-        raise InputError(f"{p}: truncated PNM data ({len(body)} of the {count * dtype.itemsize} bytes its header "
-                         "declares)")
-    samples = np.frombuffer(body, dtype).reshape((height, width, channels) if channels == 3 else (height, width))
-    samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
-    return (swapped_rb(samples) if channels == 3 else samples), maxval
-
-
-_PLAIN_BLOCK = 1 << 22  # bytes of a plain PNM's samples split into numbers at a time
-
-
-def _plain_samples(data: bytes, start: int, count: int) -> np.ndarray | None:
-    """The first ``count`` numbers of a plain PNM's samples from ``start``, split a block at a time (whatever
-    follows them, megabytes of more numbers too, is never read); None when there are fewer, or one is not a
-    number of at most five digits."""
-    parts, got, pos, carry = [], 0, start, b""
-    while got < count and (pos < len(data) or carry):
-        block = data[pos:pos + _PLAIN_BLOCK]
-        pos += len(block)
-        tokens = (carry + block).split()
-        carry = tokens.pop() if tokens and block and not block[-1:].isspace() else b""
-        if len(carry) > 5:
-            return None
-        take = tokens[:count - got]
-        if take:
-            digits = np.array(take)
-            if digits.dtype.itemsize > 5 or not all(t.isdigit() for t in take):
-                return None
-            parts.append(digits.astype(np.int64))
-            got += len(take)
-    return np.concatenate(parts) if got == count else None
-
-
-def _read_ascii_pnm(data: bytes, width: int, height: int) -> tuple[np.ndarray, int] | None:
-    """A plain (ASCII) PGM (P2) or PPM (P3), already checked to be ``width`` x ``height``, as
-    ``_read_binary_pnm`` gives a binary one (its samples on the scale 0..maxval, whatever the maxval);
-    None when it is malformed (too few samples, one over maxval)."""
-    header = _pnm_header(data)
-    if header is None or header[:2] != (width, height) or not 0 < header[2] < 65536:
-        return None
-    maxval = header[2]
-    channels = 3 if data[:2] == b"P3" else 1
-    samples = _plain_samples(data, header[3], width * height * channels)
-    if samples is None or samples.max() > maxval:
-        return None
-    samples = samples.astype(np.uint16 if maxval > 255 else np.uint8)
-    samples = samples.reshape((height, width, 3) if channels == 3 else (height, width))
-    return (swapped_rb(samples) if channels == 3 else samples), maxval
 
 
 # a progressive JPEG is decoded scan by scan, each a pass over the whole image: encoders write 6 (grey) to 10 (colour)
@@ -254,9 +154,6 @@ class Photo:
     rgb8: np.ndarray | None = None
 
 
-TIFF_MAGIC = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
-
-
 def read_photo(path: str | os.PathLike, max_pixels: int | None = None, encoding: str = "linear") -> Photo:
     """Read an image (``Photo``), reduced to at most ``max_pixels`` pixels (area-averaged; a JPEG is
     decoded at 1/2, 1/4 or 1/8 scale first, so a large one never exists at full size in memory).
@@ -322,7 +219,7 @@ def _header(p: Path, data: bytes) -> _Header:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # bomb warnings (our limit is lower), odd EXIF: not ours to say
             if data[:4] in TIFF_MAGIC:
-                width, height, dtype, planar = _tiff_header(data)
+                width, height, dtype, planar = tiff_header(data)
                 header = _Header(width, height, "TIFF", dtype, planar)
             else:
                 with Image.open(io.BytesIO(data)) as probe:  # reads the header only
@@ -359,7 +256,7 @@ def _decoded(p: Path, data: bytes, header: _Header, max_pixels: int | None) -> n
                  8: cv2.IMREAD_REDUCED_COLOR_8}[reduce]
     # OpenCV reads only these TIFF types, and planar 16-bit RGB with its planes mixed up
     if header.kind == "TIFF" and (header.tiff_planar or header.tiff_dtype not in (np.uint8, np.uint16, np.float32)):
-        raw = _read_tiff(p, data)
+        raw = read_tiff(p, data)
     else:
         with decoder_messages_dropped():  # libpng's and libjpeg's own lines: the frame's error says it
             raw = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
@@ -372,11 +269,11 @@ def _pnm(p: Path, data: bytes, header: _Header) -> tuple[np.ndarray, int] | None
     """A binary or plain (ASCII) PNM's samples and maxval, read here whatever its maxval (OpenCV swaps the
     bytes of 10- and 12-bit ones); ``InputError`` saying what is wrong with a malformed one."""
     if data[:2] in (b"P5", b"P6"):
-        return _read_binary_pnm(p, data)
+        return read_binary_pnm(p, data)
     if header.width * header.height > MAX_PLAIN_PNM_PIXELS:
         raise InputError(f"{p}: a plain (ASCII) PNM of {header.width}x{header.height} pixels; over "
                          f"{MAX_PLAIN_PNM_PIXELS // 1_000_000} megapixels, save it as a binary one")
-    pnm = _read_ascii_pnm(data, header.width, header.height)
+    pnm = read_ascii_pnm(data, header.width, header.height)
     if pnm is None:
         raise InputError(f"{p}: corrupt or truncated plain PNM data")
     return pnm
@@ -475,227 +372,3 @@ def shrunk(samples: np.ndarray, max_pixels: int | None) -> np.ndarray:
     if samples.dtype not in (np.uint8, np.uint16, np.float32, np.float64):
         samples = samples.astype(np.float32)
     return cv2.resize(np.ascontiguousarray(samples), size, interpolation=cv2.INTER_AREA)
-
-
-# what one tile or strip of a TIFF may hold: a tile larger than its image is decoded whole before it is cropped (a
-# 64 x 64 image declaring one 16384^2 float64 tile took 4.3 GB); encoders tile at 256-1024 pixels a side
-MAX_TILE_PIXELS = 4_000_000
-# TIFF compressions tifffile decodes without a bound on what they inflate to (zlib, Adobe deflate, LZMA, zstd): each
-# segment is inflated first, no further than its geometry allows
-_INFLATING = {8: "zlib", 32946: "zlib", 34925: "lzma", 50000: "zstd"}
-
-
-def _tiff_header(data: bytes) -> tuple[int, int, np.dtype, bool]:
-    """(width, height, sample type, planar: one plane a channel) of a TIFF's first image, from its header only;
-    ``ValueError`` for a tile (or strip) over ``MAX_TILE_PIXELS`` and larger than the image."""
-    import tifffile
-
-    try:
-        with tifffile.TiffFile(io.BytesIO(data)) as tif:
-            page = tif.pages[0]
-            planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and page.samplesperpixel > 1
-            width, height = int(page.imagewidth), int(page.imagelength)
-            tile = (int(page.tilewidth) * int(page.tilelength) * max(1, int(page.tiledepth)) if page.is_tiled
-                    else width * min(int(page.rowsperstrip) or height, height))
-            dtype = np.dtype(page.dtype)
-    except MemoryError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - struct, index, type errors...: a damaged header, whatever the kind
-        raise ValueError(f"damaged TIFF header ({type(exc).__name__})") from None
-    if tile > max(MAX_TILE_PIXELS, width * height):
-        raise TiffBomb(f"one TIFF tile of {tile} pixels for an image of {width}x{height}; over the "
-                       f"{MAX_TILE_PIXELS // 1_000_000}-megapixel limit of a tile larger than its image")
-    return width, height, dtype, planar
-
-
-class TiffBomb(InputError):
-    """A TIFF whose tiles or strips would decode to far more than its image (the message says how)."""
-
-
-def _inflation_checked(p: Path, data: bytes, page) -> None:
-    """``InputError`` when a segment (tile or strip) of ``page`` inflates past what its geometry holds: each is
-    inflated in pieces and let go, before tifffile inflates them whole."""
-    kind = _INFLATING.get(int(page.compression))
-    if kind is None:
-        return
-    size = int(np.prod(page.chunks)) * max(1, page.dtype.itemsize)
-    for offset, count in zip(page.dataoffsets, page.databytecounts):
-        segment = data[offset:offset + count]
-        if kind == "zlib":
-            inflate = zlib.decompressobj()
-        elif kind == "lzma":
-            import lzma
-
-            inflate = lzma.LZMADecompressor()
-        else:
-            import zstandard
-
-            inflate = zstandard.ZstdDecompressor().decompressobj()
-        got = _inflated_size(inflate, segment, size)
-        if got > size:
-            raise InputError(f"{p}: a TIFF strip or tile inflates past the {size} bytes its geometry holds "
-                             "(a decompression bomb)")
-
-
-def _inflated_size(inflate, segment: bytes, size: int) -> int:
-    """How many bytes ``inflate`` (a zlib, LZMA or zstd decompressor) makes of ``segment``, counted no further
-    than ``size`` + 1, a megabyte at a time."""
-    got, step = 0, 1 << 20
-    try:
-        if hasattr(inflate, "unconsumed_tail"):  # zlib: max_length, then its unconsumed tail
-            out = inflate.decompress(segment, step)
-            while out and got <= size:
-                got += len(out)
-                out = inflate.decompress(inflate.unconsumed_tail, step) if inflate.unconsumed_tail else b""
-        elif hasattr(inflate, "needs_input"):  # lzma
-            out = inflate.decompress(segment, step)
-            while out and got <= size:
-                got += len(out)
-                out = inflate.decompress(b"", step)
-        else:  # zstd's decompressobj has no output bound: read from a stream instead
-            import zstandard
-
-            reader = zstandard.ZstdDecompressor().stream_reader(io.BytesIO(segment))
-            while got <= size and (out := reader.read(step)):
-                got += len(out)
-    except Exception:  # noqa: BLE001 - a damaged stream: tifffile's decoding says so
-        return 0
-    return got
-
-
-def _read_tiff(p: Path, data: bytes) -> np.ndarray | None:
-    """A TIFF OpenCV cannot decode (32-bit integers, 64-bit floats, signed...) through tifffile, as
-    (H, W) or (H, W, C) in BGR order; None when it is damaged."""
-    import tifffile
-
-    try:
-        with tifffile.TiffFile(io.BytesIO(data)) as tif:
-            page = tif.pages[0]
-            _inflation_checked(p, data, page)
-            arr = page.asarray()
-            planar = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - tifffile raises many kinds for damaged files
-        if isinstance(exc, MemoryError):
-            raise
-        return None
-    if planar and arr.ndim == 3:  # one plane a channel, (S, H, W): as interleaved
-        arr = np.moveaxis(arr, 0, -1)
-    if arr.ndim == 3 and arr.shape[2] in (3, 4):
-        return arr[..., [2, 1, 0]] if arr.shape[2] == 3 else arr[..., [2, 1, 0, 3]]
-    if arr.ndim != 2:
-        raise InputError(f"{p}: TIFF of shape {arr.shape} is not one grey or colour image")
-    return arr
-
-
-def yaleb_angles(path: str | os.PathLike) -> tuple[int, int]:
-    """(azimuth, elevation) in degrees from an Extended Yale B name ``..._P00A+035E-20...``;
-    lights behind the face are returned too (``yaleb_light`` refuses them)."""
-    m = _YALEB.search(Path(path).name)
-    if not m:
-        raise InputError(f"{path}: name has no Yale B light (expected _PnnA+aaaE+ee)")
-    a, e = int(m.group(1)), int(m.group(2))
-    if abs(a) > 180 or abs(e) > 90:
-        raise InputError(f"{path}: impossible Yale B angles A={a} E={e}")
-    return a, e
-
-
-def yaleb_light(path: str | os.PathLike) -> np.ndarray:
-    """Light from an Extended Yale B name ``..._P00A+035E-20...`` (conventions.md)."""
-    a, e = yaleb_angles(path)
-    try:
-        return checked_light(light_from_angles(a, e), f"Yale B light A={a} E={e}")
-    except ValueError as exc:
-        raise InputError(f"{path}: {exc}") from None
-
-
-def parse_light(text: str) -> np.ndarray:
-    """``"x,y,z"`` (a vector) or ``"A,E"`` (azimuth, elevation in degrees, ``light_from_angles``) ->
-    (3,) unit vector toward the light, camera frame."""
-    try:
-        v = np.array([float(t) for t in text.split(",")], np.float64)
-    except ValueError:
-        raise ValueError(f"light {text!r} is not two angles A,E (degrees) or three numbers x,y,z") from None
-    return checked_light(v, f"light {text!r}")
-
-
-MAX_AZIMUTH = 180.0
-MAX_ELEVATION = 90.0
-
-
-def checked_light(v: np.ndarray, what: str) -> np.ndarray:
-    """Validate and normalise a light: three numbers are a vector toward it (camera frame), two are
-    its azimuth and elevation in degrees (the Yale B convention, ``light_from_angles``: azimuth > 0
-    toward the image's left, elevation > 0 up); raise ``ValueError`` naming ``what``."""
-    try:
-        v = np.asarray(v, np.float64).reshape(-1)
-    except (OverflowError, TypeError, ValueError):  # a 400-digit integer, a string, a ragged list
-        raise ValueError(f"{what}: must be two angles (azimuth, elevation in degrees) or three finite numbers") from None
-    if v.shape == (2,) and np.all(np.isfinite(v)):
-        if abs(v[0]) > MAX_AZIMUTH or abs(v[1]) > MAX_ELEVATION:
-            raise ValueError(f"{what}: azimuth must be within +-{MAX_AZIMUTH:g} and elevation within "
-                             f"+-{MAX_ELEVATION:g} degrees")
-        v = light_from_angles(v[0], v[1])
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what}: must be two angles (azimuth, elevation in degrees) or three finite numbers")
-    with np.errstate(over="ignore"):
-        n = np.linalg.norm(v)
-    if not np.isfinite(n):  # the norm of 1e308s overflows: to the largest component first
-        v = v / np.max(np.abs(v))
-        n = np.linalg.norm(v)
-    if n < 1e-9:
-        raise ValueError(f"{what}: is the zero vector")
-    v = v / n
-    if v[2] <= 0:
-        raise ValueError(f"{what}: points away from the camera (z <= 0): the face would be unlit")
-    return v
-
-
-def sidecar_path(path: str | os.PathLike) -> Path:
-    """Where the sidecar of the image ``path`` would be: ``<stem>.json`` beside it."""
-    return Path(path).with_suffix(".json")
-
-
-def read_sidecar(path: str | os.PathLike) -> Sidecar:
-    """``<stem>.json`` beside ``path``, if any. Raises ``InputError`` when it is malformed."""
-    p = Path(path)
-    side = sidecar_path(p)
-    try:
-        if not side.is_file():
-            return Sidecar()
-    except OSError as exc:
-        if exc.errno == errno.ENAMETOOLONG:  # a 255-byte image name: its sidecar's name cannot exist
-            return Sidecar()
-        raise InputError(f"{p}: cannot look for its sidecar {side.name} ({exc.strerror or exc})") from None
-    raw = _sidecar_bytes(p, side)
-    try:
-        # utf-8-sig: a byte-order mark (some editors write one) is not part of the JSON
-        data = json.loads(raw.decode("utf-8-sig"))
-        if not isinstance(data, dict):
-            raise ValueError("top level is not an object")
-        light = checked_light(data["light"], "light") if "light" in data else None
-        eyes = None
-        if "eyes" in data:
-            eyes = np.asarray(data["eyes"], np.float64)
-            if eyes.shape != (2, 2) or not np.all(np.isfinite(eyes)):
-                raise ValueError("eyes must be [[x1, y1], [x2, y2]]")
-    except (ValueError, TypeError, OverflowError, UnicodeDecodeError, RecursionError) as exc:
-        raise InputError(f"{p}: malformed sidecar {side.name} ({' '.join(str(exc).split())})") from None
-    return Sidecar(light=light, eyes=eyes)
-
-
-def _sidecar_bytes(p: Path, side: Path) -> bytes:
-    """The sidecar's bytes, no more than ``MAX_SIDECAR_BYTES`` of them read whatever it claims or grows to."""
-    try:
-        size = side.stat().st_size
-        if size > MAX_SIDECAR_BYTES:
-            raise InputError(f"{p}: its sidecar {side.name} is {size} bytes, over the {MAX_SIDECAR_BYTES}-byte limit "
-                             "(a sidecar holds a light and two eyes)")
-        with side.open("rb") as fh:
-            raw = fh.read(MAX_SIDECAR_BYTES + 1)
-    except OSError as exc:
-        raise InputError(f"{p}: its sidecar {side.name} cannot be read ({exc.strerror or exc})") from None
-    if len(raw) > MAX_SIDECAR_BYTES:
-        raise InputError(f"{p}: its sidecar {side.name} is over the {MAX_SIDECAR_BYTES}-byte limit")
-    return raw

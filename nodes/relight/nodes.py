@@ -28,7 +28,8 @@ from ..photo.encoding import linear_to_srgb
 from ..photo.mediapipe import person_share
 from ..photo.placement import FacePlacement
 from .compose import FaceLayer, compose
-from .face import FaceRelight, Features
+from .face import FaceRelight
+from .face_box import Features
 from .harm import harm
 from .products import albedo_on_grid
 

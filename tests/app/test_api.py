@@ -10,7 +10,7 @@ import shadowflow
 from shadowflow.nodes.evaluation.scenes import write_shadowed_face
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method.robust_fit import FitConfig
-from shadowflow.nodes.photo.loader import InputError
+from shadowflow.nodes.photo.input_error import InputError
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 

@@ -11,7 +11,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shadowflow.flow.recording import Event, McapSink, OnMask, Recorder, RecordingError, read_mcap
-from shadowflow.nodes.photo.loader import IMAGE_SUFFIXES, InputError, load_image
+from shadowflow.nodes.photo.input_error import InputError
+from shadowflow.nodes.photo.loader import IMAGE_SUFFIXES, load_image
 
 FUZZ = settings(max_examples=120, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

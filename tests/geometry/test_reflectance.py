@@ -2,7 +2,7 @@ import numpy as np
 from conftest import random_unit
 from shadowflow.nodes.geometry.normals import angle_deg
 from shadowflow.nodes.geometry.reflectance import light_from_angles, project_to_cone, project_to_halfspace
-from shadowflow.nodes.photo.loader import yaleb_light
+from shadowflow.nodes.photo.lights import yaleb_light
 
 
 def test_cone_projection_satisfies_lambert_and_is_closest():

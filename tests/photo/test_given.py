@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from shadowflow.nodes.photo.align import Alignment
 from shadowflow.nodes.photo.given import given_eyes, known_light
-from shadowflow.nodes.photo.loader import InputError, Sidecar
+from shadowflow.nodes.photo.input_error import InputError
 from shadowflow.nodes.photo.placement import FacePlacement, face_on_grid
+from shadowflow.nodes.photo.sidecar import Sidecar
 
 EYES = np.array([[100.0, 120.0], [160.0, 121.0]])
 

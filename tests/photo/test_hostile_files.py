@@ -5,7 +5,9 @@ import json
 
 import numpy as np
 import pytest
-from shadowflow.nodes.photo.loader import InputError, read_photo, read_sidecar
+from shadowflow.nodes.photo.input_error import InputError
+from shadowflow.nodes.photo.loader import read_photo
+from shadowflow.nodes.photo.sidecar import read_sidecar
 
 
 def _plain(path, magic, maxval, samples):

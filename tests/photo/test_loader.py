@@ -4,7 +4,10 @@ import cv2
 import numpy as np
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 import pytest
-from shadowflow.nodes.photo.loader import InputError, load_image, load_photo, parse_light, read_sidecar, yaleb_light
+from shadowflow.nodes.photo.input_error import InputError
+from shadowflow.nodes.photo.lights import parse_light, yaleb_light
+from shadowflow.nodes.photo.loader import load_image, load_photo
+from shadowflow.nodes.photo.sidecar import read_sidecar
 
 
 @pytest.fixture

@@ -16,7 +16,8 @@ from ....flow.recording import RecordOptions
 from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
 from ...method.options import CHOICES, MAX_VIEW_SIZE, RANGES, MethodOptions
-from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS, parse_light
+from ...photo.lights import parse_light
+from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..counts import tally_text
 from ..inputs import FolderWatch, expand_inputs

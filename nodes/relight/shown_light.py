@@ -1,0 +1,174 @@
+"""The light the photo shows on one face, measured once in its box (docs/relighting.md, "The light the photo
+shows"): its skin, the fitted shading with the room's light, the skin's expected albedo and the photo's own
+shadows (``evidence``), handed on as ``lift.photo_light``; with how well each pixel's light is known and the
+photo's shine.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+from ..photo.align import normals_to_input, scalar_to_input
+from ..photo.encoding import linear_to_srgb
+from ..photo.skin import MAX_CHROMA_DISTANCE, skin_distance, strands
+from .albedo import expected_albedo, smooth_coarse
+from .evidence import ShadowEvidence, shadow_evidence, shadow_gate
+from .face_box import FaceBox
+from .fields import blur, brightness, distance_inside, grow
+from .lift import LIT_SHADING, exposure_target, photo_light, precision, signal
+from .shading import AMBIENT_RIM, AMBIENT_SIGMA, Shading, fit_ambient
+from .shine import SHEEN_SCALE, glints, sheen
+
+MATCH_SIGMA = 0.08  # the expected albedo is matched to the lit skin over this many interocular distances
+# the fit's albedo map is smoothed over this many model pixels before it is brought to the photo (``smooth_coarse``)
+COARSE_SMOOTH = 1.5
+# what is dark by its make and never read as shadow: the eyes and brows grown by this many interocular distances
+# (their ring of lids, lashes and socket), the lips and mouth by this
+EYE_MARGIN = 0.1
+MOUTH_MARGIN = 0.03
+# how rough skin may be, against the lit skin's median (``skin.strands``), before it is taken for hair's strands or a
+# beard
+ROUGH = 2.5
+ROUGH_FLOOR = 0.01  # the least texture (log brightness) lit skin is taken to have (a render's has none)
+STRAND_FLOOR = 0.05  # of the skin's typical brightness, added before the log (``skin.strands``' floor)
+# a dark pixel's colour is told over a Gaussian of this many interocular distances (it is noisy)
+COLOUR_SCALE = 0.02
+# on faces fewer photo pixels than this between the eyes, colour and strands are not resolved (a JPEG's colour at
+# half resolution): all of the face is read as skin there
+SKIN_MIN_IOD = 60.0
+# the face's skin the photo shows lit, where the expected albedo is measured: at least this direct light, and out
+# of the photo's shadows grown by this many interocular distances (their soft edges)
+MEASURE_DIRECT = 0.5
+MEASURE_CLEAR = 0.03
+# a pixel's signal and whether it may be painted are told over this many interocular distances (a region's)
+REGION_SIGMA = 0.02
+# a face pixel the photo shows in shadow (``shadow.png``): in the photo's shadows this far, or turned from the light
+SHADOW_MEMBERSHIP = 0.5
+# a glint is this near a pixel with the skin's colour under its white; the eyes, brows, lips and mouth grown by
+# this many interocular distances are theirs, not glints; nor is anything this near the face's edge
+GLINT_REACH = 0.1
+GLINT_FEATURE_MARGIN = 0.05
+GLINT_EDGE = 0.1
+
+
+class ShownLight:
+    """The light the photo shows on one face, in its box ``at`` (``FaceBox``; (h, w) its pixels). normals: (Hm, Wm,
+    3) the normals that explain the photo's shading (model camera frame, NaN off the face); lit: (Hm, Wm) bool, not
+    in the fit's shadows; albedo: (Hm, Wm) the fit's albedo map; light: (3,) the photo's light, camera frame;
+    iod_px: the face's interocular distance in photo pixels; encoding: the photo's file's ("srgb" or "linear"): its
+    noise floor is read in it; hair: (Hm, Wm) bool, what the fit left out as covering the face's upper part, or
+    None; hair_matte: (h, w, C) linear photo -> (h, w) how sure a hair segmentation is that each pixel is hair, or
+    None.
+
+    ``normals`` (h, w, 3), ``light`` (3,) unit, ``direct`` (h, w) its direct light; ``skin`` and ``dark_by_make``
+    (h, w) bool; ``shading`` (``Shading``), ``fitted`` (h, w) its lighting; ``expected`` (h, w, C) the skin's
+    expected albedo; ``evidence`` (``ShadowEvidence``); ``photo_lighting`` (h, w, C) the light the photo shows;
+    ``relative`` and ``usable`` (h, w) how well each pixel's light is known; ``lit_skin`` (h, w) bool and ``want``
+    its exposure; ``shine`` (h, w, C); ``shadow`` (h, w) bool, the photo's shadows (``shadow.png``).
+    """
+
+    def __init__(self, at: FaceBox, normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, light: np.ndarray,
+                 iod_px: float, encoding: str, hair: np.ndarray | None,
+                 hair_matte: Callable[[np.ndarray], np.ndarray] | None):
+        self.at, self.iod = at, iod_px
+        self.normals = np.nan_to_num(normals_to_input(normals, at.mask, at.al, at.shape)).astype(np.float32)
+        s = np.asarray(light, np.float64)
+        self.light = s / np.linalg.norm(s)
+        self.direct = direct = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
+        self.skin = self._skin(hair, hair_matte, direct, iod_px)
+        coarse = smooth_coarse(scalar_to_input(albedo, at.mask, at.al, at.shape), at.face,
+                               COARSE_SMOOTH * max(at.al.scale, 1.0))
+        fit_shadow = at.on_photo(~np.asarray(lit, bool))
+        gate = shadow_gate(fit_shadow, direct, at.face, iod_px)
+        self.shading = Shading(self.normals, self._ambient(direct), self.light)
+        lighting = self.shading.lighting()
+        self.expected, self.evidence = self._shadows(coarse, lighting, direct, gate)
+        # the light the photo shows: the fitted shading, its shadows and its errors as the photo's skin shows them
+        self.fitted = lighting
+        self.photo_lighting = photo_light(self.evidence.lighting(lighting))
+        self.encoding = encoding
+        # how well each pixel's light is known, as a region's: a fill is a region's, not a speckle's (dark hairs among
+        # lit skin left a lifted skin's pores beside painted ones)
+        self.relative = precision(blur(_file_values(at.photo, encoding), max(REGION_SIGMA * iod_px, 1.0)), encoding)
+        self.usable = signal(self.relative)
+        self.lit_skin = self.skin & (direct >= LIT_SHADING) & (self.evidence.membership < SHADOW_MEMBERSHIP)
+        self.want = exposure_target(at.photo, self.lit_skin)
+        self.shine = self._shine(iod_px)
+        # the photo's shadows: the fitted shape's own under the photo's light (attached and cast: geometry, never a
+        # beard's darkness) and those the photo shows beyond them (``evidence``)
+        self.shadow = at.face & ((self.evidence.membership >= SHADOW_MEMBERSHIP) | fit_shadow)
+
+    def _skin(self, hair: np.ndarray | None, hair_matte: Callable[[np.ndarray], np.ndarray] | None,
+              direct: np.ndarray, iod_px: float) -> np.ndarray:
+        """(h, w) bool: the face's pixels whose darkness may be a shadow's: off the eyes, brows, lips and mouth, off
+        hair (the fit's cover, the hair matte), smooth as skin is, of the skin's colour (in its shade too)."""
+        at, f = self.at, self.at.features
+        dark_by_make = at.outlined([*f.eyes, *f.brows], EYE_MARGIN * iod_px) | at.outlined(
+            [*f.lips, *f.nostrils], MOUTH_MARGIN * iod_px)
+        self.dark_by_make = dark_by_make
+        out = at.face & ~dark_by_make & ~np.any(at.photo >= 0.995, axis=-1)
+        if hair is not None:
+            out &= ~grow(at.on_photo(hair), max(at.al.scale, 1.0))
+        if hair_matte is not None:
+            out &= hair_matte(at.photo) < 0.5
+        if iod_px < SKIN_MIN_IOD:
+            return out
+        out &= ~_rough(at.photo, out, iod_px)
+        if at.photo.shape[-1] == 3:
+            blurred = cv2.GaussianBlur(at.photo, (0, 0), max(COLOUR_SCALE * iod_px, 1.0))
+            lit = out & (direct >= MEASURE_DIRECT)  # the skin's colour is the lit skin's
+            out &= skin_distance(blurred, at.face, shade=True, keep_out=dark_by_make, reference=lit) < MAX_CHROMA_DISTANCE
+        return out
+
+    def _shadows(self, coarse: np.ndarray, lighting: np.ndarray, direct: np.ndarray,
+                 gate: np.ndarray) -> tuple[np.ndarray, ShadowEvidence]:
+        """The skin's expected albedo (h, w, C) and the photo's shadows (``ShadowEvidence``), twice: the second time
+        the albedo is measured off the first time's shadows, whose darkness had pulled it down."""
+        photo, face = self.at.photo, self.at.face
+        clear = self.skin & (direct >= MEASURE_DIRECT) & ~gate
+        expected = evidence = None
+        for _ in range(2):
+            measured = clear if evidence is None else clear & ~grow(evidence.membership > 0.5,
+                                                                    MEASURE_CLEAR * self.iod)
+            if measured.sum() < 50:  # a face lit all from the side: its lit skin, wherever it is
+                measured = self.skin & (direct >= MEASURE_DIRECT)
+            expected = expected_albedo(photo, lighting, measured, coarse, face, MATCH_SIGMA * self.iod)
+            evidence = shadow_evidence(photo, expected, lighting, direct, self.skin, gate, face, self.iod)
+            if not evidence.found:
+                break
+        return expected, evidence
+
+    def _ambient(self, direct: np.ndarray) -> float:
+        """The room's share of the light (``shading.fit_ambient``), on the skin more than ``AMBIENT_RIM`` inside the
+        face (at its rim the fitted normals graze the view and the photo mixes in what is beyond)."""
+        core = self.skin & (distance_inside(self.at.face) > AMBIENT_RIM * self.iod)
+        return fit_ambient(self.at.photo, direct, core, AMBIENT_SIGMA * self.iod)
+
+    def _shine(self, iod_px: float) -> np.ndarray:
+        """(h, w, C) the photo's shine, in light: on the skin and its glints, what rises over its local level."""
+        at = self.at
+        albedo = at.photo / self.photo_lighting
+        white = np.zeros(at.shape, bool)
+        if at.features.all:
+            inside = distance_inside(at.face) > GLINT_EDGE * iod_px
+            white = glints(at.photo, self.skin, at.face & inside, SHEEN_SCALE * iod_px,
+                           at.outlined(at.features.all, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
+        excess = sheen(albedo, self.skin | white, self.usable > 0.5, SHEEN_SCALE * iod_px)
+        return (excess * self.photo_lighting).astype(np.float32)
+
+
+def _rough(photo: np.ndarray, smooth_guess: np.ndarray, iod_px: float) -> np.ndarray:
+    """(h, w) bool: what of ``photo`` (h, w, C) is as rough as hair's strands or a beard (``skin.strands`` over the
+    median of the ``smooth_guess`` (h, w) bool skin's, over ``ROUGH``)."""
+    lit_level = float(np.median(photo[smooth_guess].sum(axis=-1))) if smooth_guess.sum() > 50 else 1.0
+    texture = strands(photo, iod_px, STRAND_FLOOR * lit_level)
+    typical = float(np.median(texture[smooth_guess])) if smooth_guess.sum() > 50 else ROUGH_FLOOR
+    return texture > np.float32(ROUGH * max(typical, ROUGH_FLOOR))
+
+
+def _file_values(photo: np.ndarray, encoding: str) -> np.ndarray:
+    """(h, w) the brightness of ``photo`` (h, w, C) as its file holds it (encoded for an sRGB photo)."""
+    grey = brightness(photo)
+    return linear_to_srgb(grey) if encoding == "srgb" else grey
