@@ -205,6 +205,7 @@ class StoredRun:
             frame.drop_data()
         elif frame.meta.get("clip") and ledger.storage is None and not storage_failure(frame.error):
             self.clips.done(frame)  # a clip's frame, or its end: its relit clips and books
+            self.trim_heap()
         elif frame.skipped:
             if ledger.stored(frame.meta["stem"], frame.meta["previous"]):
                 ledger.save_summary()

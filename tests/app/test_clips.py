@@ -210,3 +210,22 @@ def test_what_is_a_clip(tmp_path):
     frames = [Image.new("L", (40, 40), v) for v in (0, 128, 255)]
     frames[0].save(moving, save_all=True, append_images=frames[1:], duration=100)
     assert is_clip(moving) and not is_clip(still)
+
+
+def test_an_animated_gif_with_frames(tmp_path):
+    """An animated GIF is a clip; --frames writes each frame's own files too."""
+    from PIL import Image
+
+    depth, mask, albedo = draw_face(np.random.default_rng(7), (SIZE, SIZE), "ict")
+    images = [Image.fromarray((np.clip(render_scene(depth, albedo, light, mask).image, 0, 1) * 255).astype(np.uint8))
+              for light in (light_from_angles(a, 0) for a in (30, 0, -30))]  # (a GIF merges equal frames)
+    gif = tmp_path / "wave.gif"
+    images[0].save(gif, save_all=True, append_images=images[1:], duration=100, loop=0)
+    out = tmp_path / "out"
+    done = run(str(gif), "--out", str(out), "--frames", *FAST)
+    assert done.returncode == 0, done.stderr
+    relit = ClipReader(out / "wave" / "relit.mp4")
+    assert (relit.info.width, relit.info.height) == (SIZE, SIZE) and sum(1 for _ in relit) == 3
+    assert len(lines(out / "wave")) == 3
+    for k in range(3):
+        assert (out / "wave" / "frames" / f"{k:06d}" / "relit.png").is_file()
