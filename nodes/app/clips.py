@@ -221,7 +221,9 @@ class ClipSink:
 
     def _frame(self, frame: Frame, stem: str, clip: dict) -> None:
         line = frame_line(frame)
-        failed = self.recording.frame_recorded(frame, line, self.ledger.save_manifest)
+        # the recording's frame record: the line, and which clip's frame it is (replay's table names it)
+        record = {**line, "source": frame.source, "stem": clip["stem"]}
+        failed = self.recording.frame_recorded(frame, record, self.ledger.save_manifest)
         if failed is not None:
             raise OSError(f"{self.out}: {failed}")
         clip_out = self.open.get(stem)
