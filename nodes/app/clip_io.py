@@ -102,7 +102,9 @@ class ClipReader:
                 decoded = packet.decode()
             except av.FFmpegError as exc:  # a damaged packet: its frame is one line, the clip goes on
                 if packet.size:
-                    yield ClipFrame(index, index * period, packet.pts, None, " ".join(str(exc).split()))
+                    time = float(packet.pts * tb) if packet.pts is not None else index * period
+                    why = getattr(exc, "strerror", None) or str(exc)
+                    yield ClipFrame(index, time, packet.pts, None, " ".join(why.split()))
                     index += 1
                 continue
             for frame in decoded:

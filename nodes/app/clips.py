@@ -233,6 +233,8 @@ class ClipSink:
             self.progress.grow(clip_out.info.frames - 1)  # (the clip was counted as one input)
         clip_out.write(frame, line)
         self.progress.update(frame.ok)
+        if frame.data.get("clip_rgb") is None and not frame.ok:  # undecodable: said at once (no face: at the end)
+            self.progress.write(f"error: {frame.status}")
 
     def _end(self, frame: Frame, stem: str, clip: dict) -> None:
         clip_out = self.open.pop(stem, None)
@@ -253,6 +255,11 @@ class ClipSink:
         ledger.save_summary()
         for line in status_lines(rec):
             self.progress.write(line)
+        counts = rec["clip"]["frame_status"]
+        others = sum(n for why, n in counts.items() if why != "ok" and not why.startswith("doubtful"))
+        if others and rec["status"] == "ok":
+            self.progress.write(f"note: {rec['source']}: {others} of {rec['clip']['frames']} frames without a face that "
+                                "came through, written as they are (frames.jsonl says why)")
 
     def abort_clip(self, stem: str) -> None:
         clip_out = self.open.pop(stem, None)

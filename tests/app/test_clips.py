@@ -229,3 +229,33 @@ def test_an_animated_gif_with_frames(tmp_path):
     assert len(lines(out / "wave")) == 3
     for k in range(3):
         assert (out / "wave" / "frames" / f"{k:06d}" / "relit.png").is_file()
+
+
+def test_an_unreadable_frame_is_one_line_and_the_clip_goes_on(tmp_path):
+    """A clip whose third frame's data is damaged: that frame fails with one line, the others are relit, and the
+    relit clip keeps every frame (the damaged one as the last frame written)."""
+    depth, mask, albedo = draw_face(np.random.default_rng(7), (SIZE, SIZE), "ict")
+    path = tmp_path / "damaged.avi"
+    with av.open(str(path), "w") as out:
+        video = out.add_stream("mjpeg", rate=RATE)
+        video.width = video.height = SIZE
+        video.pix_fmt = "yuvj420p"
+        for i, light in enumerate(SWITCHED[:5]):
+            grey = (np.clip(render_scene(depth, albedo, light, mask).image, 0, 1) * 255 + 0.5).astype(np.uint8)
+            frame = av.VideoFrame.from_ndarray(np.repeat(grey[..., None], 3, axis=2), format="rgb24")
+            frame.pts = i
+            for packet in video.encode(frame):
+                if i == 2:  # a JPEG's start and nothing that decodes
+                    bad = av.Packet(b"\xff\xd8" + bytes(300))
+                    bad.pts, bad.dts, bad.time_base, bad.stream = packet.pts, packet.dts, packet.time_base, video
+                    packet = bad
+                out.mux(packet)
+        out.mux(video.encode(None))
+    done = run(str(path), "--out", str(tmp_path / "out"), *FAST[:-1])  # (not --quiet: the notes are said)
+    got = lines(tmp_path / "out" / "damaged")
+    assert [line["index"] for line in got] == list(range(5))
+    assert [line["status"] == "ok" for line in got] == [True, True, False, True, True]
+    assert "unreadable frame" in got[2]["status"]
+    said = [line for line in done.stderr.splitlines() if "unreadable frame" in line]
+    assert len(said) == 1 and said[0].startswith("error: ") and "frame 2" in said[0]
+    assert sum(1 for _ in ClipReader(tmp_path / "out" / "damaged" / "relit.mp4")) == 5
