@@ -104,7 +104,8 @@ def run_output_folder(path: Path) -> bool:
     ours = [n for n in names if not _TEMPORARY.fullmatch(n)]
     if not all(_run_name(n) for n in ours):
         return False
-    return not ours or "normals.npy" in ours or "frames.jsonl" in ours or "relit.mp4" in ours
+    # (a clip's folder stopped mid-way with --frames holds its frames/ alone: --resume takes it back)
+    return not ours or any(n in ours for n in ("normals.npy", "frames.jsonl", "relit.mp4", "frames"))
 
 
 def _run_name(name: str) -> bool:
