@@ -259,3 +259,54 @@ def test_an_unreadable_frame_is_one_line_and_the_clip_goes_on(tmp_path):
     said = [line for line in done.stderr.splitlines() if "unreadable frame" in line]
     assert len(said) == 1 and said[0].startswith("error: ") and "frame 2" in said[0]
     assert sum(1 for _ in ClipReader(tmp_path / "out" / "damaged" / "relit.mp4")) == 5
+
+
+def _plain_clip(path: Path, size: tuple[int, int], audio: str | None, codec: str = "libx264",
+                pix_fmt: str = "yuv420p") -> Path:
+    """A short clip of flat frames (no face: for the clip's reading and writing alone), with ``audio`` in that codec."""
+    w, h = size
+    with av.open(str(path), "w") as out:
+        video = out.add_stream(codec, rate=RATE)
+        video.width, video.height, video.pix_fmt = w, h, pix_fmt
+        sound = out.add_stream(audio, rate=16000) if audio else None
+        for i in range(4):
+            frame = av.VideoFrame.from_ndarray(np.full((h, w, 3), 50 * i, np.uint8), format="rgb24")
+            frame.pts = i
+            out.mux(video.encode(frame))
+        out.mux(video.encode(None))
+        if sound is not None:
+            for t in range(0, 6400, 1024):
+                chunk = av.AudioFrame.from_ndarray(np.zeros((1, min(1024, 6400 - t)), np.int16), format="s16",
+                                                   layout="mono")
+                chunk.sample_rate, chunk.pts = 16000, t
+                out.mux(sound.encode(chunk))
+            out.mux(sound.encode(None))
+    return path
+
+
+def _copied(src: Path, dst: Path) -> Path:
+    from shadowflow.nodes.app.clip_io import ClipEncoder
+
+    reader = ClipReader(src)
+    encoder = ClipEncoder(dst, reader.info, str(src))
+    for frame in reader:
+        encoder.write(frame.rgb, frame.pts, frame.time)
+    encoder.finish()
+    reader.close()
+    return dst
+
+
+def test_audio_mp4_cannot_hold_is_made_aac(tmp_path):
+    """PCM audio (a .mkv's, a .mov's) cannot go into MP4 as it is: it is encoded as AAC, the video as ever."""
+    out = _copied(_plain_clip(tmp_path / "pcm.mkv", (64, 48), "pcm_s16le"), tmp_path / "relit.mp4")
+    with av.open(str(out)) as got:
+        assert got.streams.audio[0].codec_context.name == "aac"
+        assert sum(1 for _ in got.decode(video=0)) == 4
+        assert abs(float(got.streams.audio[0].duration * got.streams.audio[0].time_base) - 0.4) < 0.1
+
+
+def test_odd_sided_clip_keeps_its_size(tmp_path):
+    """4:2:0 needs even sides: an odd-sided clip (an MJPEG's, a GIF's) is written 4:4:4 at its own size."""
+    out = _copied(_plain_clip(tmp_path / "odd.avi", (65, 47), None, "mjpeg", "yuvj444p"), tmp_path / "relit.mp4")
+    relit = ClipReader(out)
+    assert (relit.info.width, relit.info.height) == (65, 47) and sum(1 for _ in relit) == 4
