@@ -83,6 +83,7 @@ def clip_run(tmp_path_factory):
     return src, out, done
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_relit_clips_keep_size_rate_count_and_audio(clip_run):
     src, out, _ = clip_run
     source = ClipReader(src / "talk.mp4")
@@ -100,6 +101,7 @@ def test_relit_clips_keep_size_rate_count_and_audio(clip_run):
         assert relit.streams.audio[0].frames == given.streams.audio[0].frames
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_relit_clip_differs_from_the_input(clip_run):
     """The relit frames are the relighting's, not the input's copied through."""
     src, out, _ = clip_run
@@ -108,6 +110,7 @@ def test_relit_clip_differs_from_the_input(clip_run):
     assert np.mean([np.abs(a - b).mean() for a, b in zip(given, relit)]) > 3.0
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_frames_jsonl_has_a_line_per_frame(clip_run):
     _, out, _ = clip_run
     got = lines(out / "talk")
@@ -121,6 +124,7 @@ def test_frames_jsonl_has_a_line_per_frame(clip_run):
     assert not (out / "talk" / "frames").exists()  # (only with --frames)
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_clip_beside_a_still_and_a_broken_clip(clip_run):
     _, out, done = clip_run
     records = {r["stem"]: r for r in json.loads((out / "summary.json").read_text())}
@@ -135,6 +139,7 @@ def test_clip_beside_a_still_and_a_broken_clip(clip_run):
     assert (out / "report.html").is_file()
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_a_switched_light_is_followed_within_a_few_frames(clip_run):
     _, out, _ = clip_run
     got = lines(out / "talk")
@@ -145,6 +150,7 @@ def test_a_switched_light_is_followed_within_a_few_frames(clip_run):
         assert angle_deg(np.array(light[k]), np.array(raw[k])) < 5
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_resume_skips_a_finished_clip(clip_run):
     src, out, _ = clip_run
     before = (out / "talk" / "relit.mp4").stat().st_mtime_ns
@@ -155,6 +161,7 @@ def test_resume_skips_a_finished_clip(clip_run):
     assert records["talk"]["clip"]["frames"] == len(SWITCHED), again.stderr
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_resume_redoes_an_unfinished_clip(tmp_path):
     """A clip whose files are not all there is redone whole."""
     clip = make_clip(tmp_path / "c.mp4", SWITCHED[:4])
@@ -166,6 +173,7 @@ def test_resume_redoes_an_unfinished_clip(tmp_path):
     assert sum(1 for _ in ClipReader(out / "c" / "relit.mp4")) == 4
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_smoothing_steadies_a_noisy_light_and_follows_a_switch(tmp_path):
     """The light jittering by a few degrees from frame to frame (as an estimate on a real clip does) comes out
     steadier; switched, it is followed, and CONFIRM frames after the switch steadied again about the new light."""
@@ -212,6 +220,7 @@ def test_what_is_a_clip(tmp_path):
     assert is_clip(moving) and not is_clip(still)
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_an_animated_gif_with_frames(tmp_path):
     """An animated GIF is a clip; --frames writes each frame's own files too."""
     from PIL import Image
@@ -231,6 +240,7 @@ def test_an_animated_gif_with_frames(tmp_path):
         assert (out / "wave" / "frames" / f"{k:06d}" / "relit.png").is_file()
 
 
+@pytest.mark.slow  # (whole CLI runs)
 def test_an_unreadable_frame_is_one_line_and_the_clip_goes_on(tmp_path):
     """A clip whose third frame's data is damaged: that frame fails with one line, the others are relit, and the
     relit clip keeps every frame (the damaged one as the last frame written)."""
