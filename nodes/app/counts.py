@@ -27,6 +27,8 @@ def _kind(status: str) -> str:
 def photo_status(rec: dict) -> str:
     """A finished input as counted: "failed" (no outputs: no face, or it failed as a whole), "ok" (every face that
     counts is ok) or "doubtful" (written, a face doubtful or refused)."""
+    if rec.get("clip") is not None:  # a clip: its faces are its frames' (frames.jsonl)
+        return "ok" if rec["status"] == "ok" else "failed"
     kinds = [_kind(f["status"]) for _, f in counted_faces(rec)]
     if "ok" not in kinds and "doubtful" not in kinds:
         return "failed"

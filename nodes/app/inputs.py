@@ -10,13 +10,18 @@ from pathlib import Path
 from typing import Iterator
 
 from ...flow.manifest import content_hash
-from ..photo.loader import IMAGE_SUFFIXES
+from ..photo.loader import IMAGE_SUFFIXES as STILL_SUFFIXES
+from .clip_io import CLIP_SUFFIXES
+
+IMAGE_SUFFIXES = STILL_SUFFIXES | CLIP_SUFFIXES  # what a run takes from a folder or glob: stills and clips
 from ..photo.sidecar import sidecar_path
 
 
 def _output_folder(path: Path) -> bool:
-    """A folder of a run's outputs (``OUT/<stem>/``), e.g. ``photo.png/`` made from ``photo.png.png``."""
-    return path.is_dir() and (path / "normals.npy").is_file() and (path / "mask.png").is_file()
+    """A folder of a run's outputs (``OUT/<stem>/``), e.g. ``photo.png/`` made from ``photo.png.png``; a clip's
+    (``clip.mp4/`` holding ``relit.mp4``) too."""
+    return path.is_dir() and (((path / "normals.npy").is_file() and (path / "mask.png").is_file())
+                              or (path / "frames.jsonl").is_file())
 
 
 def expand_inputs(items: list[str], note=print) -> list[str]:

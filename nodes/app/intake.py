@@ -10,6 +10,8 @@ from pathlib import Path
 from ...flow.frame import Frame
 from ...flow.manifest import InputEntry, file_identity, input_key
 from ..method.options import MethodOptions
+from .clip_io import is_clip
+from .clips import clip_complete, clip_frames
 from .inputs import input_fingerprint
 from .ledger import RunLedger
 from .outputs import FACE_FILES, OUTPUT_FILES, RUN_FILES, real_path, relit_name, run_output_folder, safe_stem
@@ -39,6 +41,8 @@ def complete(out: Path, name: str, record: dict, extra_lights: Iterable = ()) ->
     """All output files of a frame named ``name`` whose summary record is ``record`` exist (each was written by an
     atomic rename): the photo's folder's, a relit photo for each of ``extra_lights`` (``--relight``) among them,
     and each other face's folder the record lists (``face-<k>/``)."""
+    if record.get("clip") is not None:  # a clip's folder: its relit clips and frames.jsonl
+        return clip_complete(out / name, extra_lights)
     names = (*OUTPUT_FILES, *(relit_name(light) for light in extra_lights))
     if not all((out / name / n).is_file() for n in names):
         return False
@@ -82,8 +86,18 @@ class Intake:
             # what the input is made of, read once: to know it again if it moved here, and for a later --resume
             key, identity, fingerprint = input_key(path), file_identity(path), input_fingerprint(path)
             named = self._name(path, key, identity, fingerprint)
-            if named is not None:
-                yield self._frame(path, key, identity, fingerprint, *named)
+            if named is None:
+                continue
+            frame = self._frame(path, key, identity, fingerprint, *named)
+            if frame.ok and not frame.skipped and is_clip(path):  # one frame per frame of the clip, then its end
+                yield from clip_frames(frame, self._take_id, self.options.frames)
+            else:
+                yield frame
+
+    def _take_id(self) -> int:
+        """A new frame id (a clip's frames after its first)."""
+        self._next_id += 1
+        return self._next_id - 1
 
     def _name(self, path: str, key: str, identity, fingerprint: str) -> tuple[str, int, InputEntry | None] | None:
         """``(output name, frame id, the earlier run's entry to reuse or None)`` of the input ``path`` (its

@@ -83,7 +83,8 @@ def safe_stem(path: str, taken: MutableSet[str], free: Callable[[str], bool] = l
 
 
 _FACE_FOLDER = re.compile(r"face-[0-9]+")
-_RELIT_FILE = re.compile(r"relit_A[+-][0-9]{3}E[+-][0-9]{2}\.png")
+_RELIT_FILE = re.compile(r"relit_A[+-][0-9]{3}E[+-][0-9]{2}\.(png|mp4)")
+CLIP_NAMES = ("relit.mp4", "frames.jsonl", "frames")  # a clip's folder (``clips``): its relit clips, lines, frames
 _TEMPORARY = re.compile(r"\..+\.tmp")  # an atomic write's, left by a kill
 
 
@@ -101,9 +102,16 @@ def run_output_folder(path: Path) -> bool:
     except OSError:
         return False
     ours = [n for n in names if not _TEMPORARY.fullmatch(n)]
-    if any(n not in OUTPUT_FILES and not _RELIT_FILE.fullmatch(n) and not _FACE_FOLDER.fullmatch(n) for n in ours):
+    if not all(_run_name(n) for n in ours):
         return False
-    return not ours or "normals.npy" in ours
+    # (a clip's folder stopped mid-way with --frames holds its frames/ alone: --resume takes it back)
+    return not ours or any(n in ours for n in ("normals.npy", "frames.jsonl", "relit.mp4", "frames"))
+
+
+def _run_name(name: str) -> bool:
+    """Whether a run writes a file or folder of this name in an output folder (a photo's or a clip's)."""
+    return name in OUTPUT_FILES or name in CLIP_NAMES or bool(_RELIT_FILE.fullmatch(name) or
+                                                               _FACE_FOLDER.fullmatch(name))
 
 
 _LOCK_HOLDER = re.compile(rb"pid [0-9]+ on \S")  # what a run writes in its folder's ``.lock``: pid N on HOST, ...
@@ -343,6 +351,12 @@ def _mask(folder: Path, shape: tuple[int, int]) -> np.ndarray:
     return mask > 0
 
 
+def writes_files(frame: Frame) -> bool:
+    """Whether a frame's own files are written: a photo's always, a clip's frame's with ``--frames`` only."""
+    clip = frame.meta.get("clip")
+    return not clip or bool(clip.get("files"))
+
+
 class WriteNode:
     """Writes ``OUT/<frame.meta['stem']>/``; refuses to write over any input file, or into ``out_dir`` once
     ``still_ours`` (the run's lock) says it was removed or replaced under the run (an ``OSError`` of ``ESTALE``,
@@ -356,6 +370,8 @@ class WriteNode:
         self.still_ours = still_ours
 
     def __call__(self, frame: Frame) -> Frame:
+        if not writes_files(frame):
+            return frame  # a clip's frame goes into its relit clips (``clips``), its files only with --frames
         if self.still_ours is not None and not self.still_ours():
             raise OSError(errno.ESTALE, "removed or replaced during the run; nothing more is written there",
                           str(self.out_dir))

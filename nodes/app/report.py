@@ -213,7 +213,7 @@ class CardNode:
         self.left = itertools.count(limit, -1)
 
     def __call__(self, frame: Frame) -> Frame:
-        faces = faces_of(frame)
+        faces = faces_of(frame) if not frame.meta.get("clip") else []  # (a clip's report card: not yet)
         if faces and next(self.left) > 0:
             boxes = [(p.meta.get("placement") or {}).get("box") for p in (frame.parts or [frame])]
             frame.meta["card"] = card_pictures(bgr(photo_8bit(frame)), bgr(relit_photo_8bit(frame, 0)), boxes)

@@ -20,6 +20,7 @@ from ...flow.recording import RecordOptions
 from ...flow.runstore import RunStore
 from ..method.options import MethodOptions
 from ..model.shape_model import ShapeModel
+from .clips import ClipSink
 from .counts import status_lines, tally
 from .engine import engine
 from .intake import Intake, run_file_clash, run_files
@@ -190,6 +191,7 @@ class StoredRun:
         self.ledger = RunLedger(out, store, manifest, lock, self.shout)
         self.intake = Intake(paths, run.resume, options, self.ledger, self.protected, written, self.note)
         self.progress = Progress(total, not run.quiet, run.silent)
+        self.clips = ClipSink(out, options.extra_lights, self.ledger, self.recording, self.progress)
         self.trim_heap = HeapTrimmer()
 
     # -- each finished frame ----------------------------------------------------------------------
@@ -201,6 +203,9 @@ class StoredRun:
             ledger.folder_lost()
         if frame.cancelled:  # stopped before it finished: no record, so --resume redoes it
             frame.drop_data()
+        elif frame.meta.get("clip") and ledger.storage is None and not storage_failure(frame.error):
+            self.clips.done(frame)  # a clip's frame, or its end: its relit clips and books
+            self.trim_heap()
         elif frame.skipped:
             if ledger.stored(frame.meta["stem"], frame.meta["previous"]):
                 ledger.save_summary()
@@ -277,6 +282,7 @@ class StoredRun:
         folder removed or replaced under the run, nothing (its summary and manifest would be another run's)."""
         ledger = self.ledger
         self.progress.close()
+        self.clips.abort()  # a clip cut short by a stop: redone whole by --resume
         ledger.journal.close()
         self.recording.close(ledger.storage is not None, self.shout)
         if ledger.folder_lost():

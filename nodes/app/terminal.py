@@ -32,6 +32,12 @@ class Progress:
             self.bar.set_postfix_str(f"{self.failed} failed", refresh=False)
         self.bar.update(1)
 
+    def grow(self, more: int) -> None:
+        """``more`` frames to go than the total said (a clip counted as one input, then as its frames)."""
+        if self.bar.total is not None and more > 0:
+            self.bar.total += more
+            self.bar.refresh()
+
     def write(self, line: str) -> None:
         """A line on stderr above the status line (which is redrawn below it), in one write (``say``); none when
         ``silent``."""

@@ -147,6 +147,8 @@ class PageNode:
     thread_safe = True
 
     def __call__(self, frame: Frame) -> Frame:
+        if "outputs" not in frame.meta:  # a clip's frame without files of its own
+            return frame
         write_page(frame, Path(frame.meta["outputs"]))
         return frame
 

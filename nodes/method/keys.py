@@ -11,6 +11,9 @@ from __future__ import annotations
 # frame.data: key -> (what it holds, the node that writes it)
 DATA: dict[str, tuple[str, str]] = {
     # the photo's frame (its faces are its parts, ``Frame.parts``; a face's frame holds the entries below these)
+    "clip_rgb": ("(H, W, 3) uint8 a clip's frame as decoded, written as it is when the frame fails", "intake (app.clips)"),
+    "clip_relit": ("[(H, W, 3) uint8] a clip's frame relit by each of the run's lights, for its relit clips",
+                   "clip (app.clips)"),
     "samples": ("(H, W) or (H, W, 3) an array given for the photo (the API's), read as a file's samples are; "
                 "taken off by load", "given"),
     "image": ("(H, W) float32 input brightness in [0, 1]", "load, or given; faces (a face's, the photo's)"),
@@ -71,7 +74,8 @@ META: dict[str, tuple[str, str]] = {
     "face": ("which face of its photo a face's frame is (1 the largest)", "faces"),
     "placement": ("the face's box, eyes, pose, presence (``FacePlacement.record``)", "faces"),
     "light": ("[x, y, z] the light used, input camera frame", "faces"),
-    "light_source": ("sidecar | given | yaleb name | estimated", "load, faces"),
+    "light_source": ("sidecar | given | yaleb name | estimated | steadied (a clip's, app.steady)", "load, faces, steady"),
+    "light_raw": ("[x, y, z] a clip's face's light estimated on its frame alone, before steadying", "steady"),
     "alignment": ("how the face was aligned (landmarks, eyes, centred crop)", "faces"),
     "model_view": ("[yaw, pitch] degrees of the turned model the face is fitted with (absent: frontal)",
                    "faces, view_choice"),
@@ -89,6 +93,8 @@ META: dict[str, tuple[str, str]] = {
     "relight": ("what the face's relighting did under the first light: exposure, painted share, lift's 95th percentile", "relight_photo"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),
+    "clip": ("a clip's frame: its clip's stem, index, time (s), pts, info (size, rate, ...), source, files "
+             "(--frames); its end frame: end", "intake (app.clips)"),
     "card": ("``report.CardPictures``: the report's pictures of the photo, made while it was held (the run's first "
              "``report.LARGE_PHOTOS``); taken by the run when the frame is done", "card"),
     "recording_parts": ("the recording files a Dask worker wrote the frame into (taken off by the runner)",

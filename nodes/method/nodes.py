@@ -191,7 +191,10 @@ class FacesNode:
                       meta={"stem": face.meta.get("stem"), "encoding": face.meta.get("encoding", "linear")})
         if face.meta.get("light_source", "estimated") != "estimated":  # given: the same for every placement
             photo.data["light"], photo.meta["light_source"] = face.data["light"], face.meta["light_source"]
-        return self._face(photo, int(face.meta.get("face", 1)) - 1, placement, face.source)
+        made = self._face(photo, int(face.meta.get("face", 1)) - 1, placement, face.source)
+        if "light_raw" in face.meta:  # (a clip's steadied light: the frame's own estimate kept beside it)
+            made.meta["light_raw"] = face.meta["light_raw"]
+        return made
 
     def _face(self, frame: Frame, k: int, placement: FacePlacement, source: str | None = None) -> Frame:
         """Face ``k`` (0 the largest) of the photo as a frame of its own (failed when it is refused), fitted

@@ -113,6 +113,9 @@ class MethodOptions:
     # with grid.json placing it on the photo, or "photo", the photo's pixel grid (what the method computes is
     # the same; the files differ, so a resumed run redoes its frames when this changes)
     arrays: str = "grid"
+    # a clip's frames: each frame's own files written too (OUT/<stem>/frames/<index>/), not only the relit clips
+    # and frames.jsonl (``--frames``)
+    frames: bool = False
 
     @classmethod
     def paper(cls, **overrides) -> "MethodOptions":

@@ -200,12 +200,13 @@ def face_nodes(options: MethodOptions, observer: FitObserver | None = None, with
 
 
 def photo_nodes(model: ShapeModel, options: MethodOptions, observer: FitObserver | None = None,
-                with_views: bool = True, after: tuple = ()) -> list:
+                with_views: bool = True, after: tuple = (), after_faces: tuple = ()) -> list:
     """The whole chain for a photo: load, find its faces, the method on each face (``face_nodes``, then each of
     ``after``, e.g. recording). With ``with_views`` each face's relit layers are made (``photo_layers``); the photo
-    relit with every face is made from them when asked (``products.relit_photo``)."""
+    relit with every face is made from them when asked (``products.relit_photo``). ``after_faces``: nodes on the
+    whole frame once its faces are found (a clip's steadying)."""
     faces = FacesNode(model, options)
     # a turned face's candidate views, each fitted once without an observer (``turned.ViewChoiceNode``)
     choice = ViewChoiceNode(faces.again, method_nodes(options, None, False)[:3], model, options.face_length)
     per_face = [choice, *face_nodes(options, observer, with_views), *after]
-    return [LoadNode(options), faces, *(EachPart(n) for n in per_face)]
+    return [LoadNode(options), faces, *after_faces, *(EachPart(n) for n in per_face)]

@@ -17,10 +17,10 @@ from ...evaluation.scenes import write_shadowed_face
 from ...geometry.reflectance import light_from_angles
 from ...method.options import CHOICES, MAX_VIEW_SIZE, RANGES, MethodOptions
 from ...photo.lights import parse_light
-from ...photo.loader import IMAGE_SUFFIXES, MAX_WORK_PIXELS
+from ...photo.loader import MAX_WORK_PIXELS
 from ..cluster import DASK_HELP, DASK_METAVAR, parse_dask
 from ..counts import tally_text
-from ..inputs import FolderWatch, expand_inputs
+from ..inputs import IMAGE_SUFFIXES, FolderWatch, expand_inputs
 from ..outputs import real_path
 from ..runner import DEFAULT_FRAME_TIMEOUT, RunOptions, run_stream
 from ..storage import check_out, out_folder, refuse_link
@@ -115,7 +115,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          novel_yaw_deg=args.view_angle, novel_size=args.view_size,
                          eye_contrast=args.eye_contrast, fill_detail=args.fill_detail, mirror_lift=args.mirror_lift,
                          max_pixels=_max_pixels(args.max_megapixels),
-                         encoding=args.encoding, arrays=args.arrays)
+                         encoding=args.encoding, arrays=args.arrays, frames=args.frames)
 
 
 def _no_input(args: argparse.Namespace) -> str | None:
@@ -246,6 +246,9 @@ def add_parser(sub) -> None:
                    help="normals.npy, weights.npy, depth.npy: on the fit's model grid (default: what the fit holds, "
                         "with grid.json placing it on the photo; shadowflow.read_arrays brings them there) or on "
                         "the photo's pixel grid (a 4-megapixel photo's normals.npy is then 48 MB)")
+    r.add_argument("--frames", action="store_true",
+                   help="clips: also write each frame's files (OUT/<stem>/frames/<index>/), not only relit.mp4 and "
+                        "frames.jsonl")
     r.add_argument("--max-megapixels", type=float, default=MAX_WORK_PIXELS / 1e6, metavar="MP",
                    help="read larger photos reduced to this size, outputs at that size (default 4; 0: full size, "
                         "memory grows with the photo, see README)")

@@ -1,0 +1,322 @@
+"""Clips in a run (issue 61, first slice): a clip decoded frame by frame through the photo's chain, relit clips of
+the input's size, frame rate and frame count (audio kept), frames.jsonl, a clip beside a still, a clip that cannot
+be read, --resume, and the light carried and smoothed over a clip's frames. Tiny clips of rendered faces, made here."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+av = pytest.importorskip("av")
+
+from shadowflow.nodes.app.clip_io import ClipReader, is_clip  # noqa: E402
+from shadowflow.nodes.app.steady import CONFIRM, LightSmoother, angle_deg  # noqa: E402
+from shadowflow.nodes.evaluation.scenes import draw_face, render_scene, write_shadowed_face  # noqa: E402
+from shadowflow.nodes.geometry.reflectance import light_from_angles  # noqa: E402
+
+SIZE, RATE = 128, 10
+FAST = ["--max-iterations", "8", "--record", "none", "--quiet"]
+
+
+def make_clip(path: Path, lights, audio: bool = False, noise: float = 0.0, seed: int = 7) -> Path:
+    """A clip of one rendered ICT face, one frame per light, H.264 at RATE fps; with ``audio`` a tone in AAC."""
+    depth, mask, albedo = draw_face(np.random.default_rng(seed), (SIZE, SIZE), "ict")
+    rng = np.random.default_rng(seed + 1)
+    out = av.open(str(path), "w")
+    video = out.add_stream("libx264", rate=RATE)
+    video.width = video.height = SIZE
+    video.pix_fmt, video.options = "yuv420p", {"crf": "10"}
+    sound = out.add_stream("aac", rate=16000) if audio else None
+    for i, light in enumerate(lights):
+        image = render_scene(depth, albedo, np.asarray(light), mask).image + rng.normal(0, noise, (SIZE, SIZE))
+        grey = (np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8)
+        frame = av.VideoFrame.from_ndarray(np.repeat(grey[..., None], 3, axis=2), format="rgb24")
+        frame.pts = i
+        out.mux(video.encode(frame))
+    out.mux(video.encode(None))
+    if sound is not None:
+        n = 16000 * len(lights) // RATE
+        for t in range(0, n, 1024):
+            samples = (np.sin(np.arange(t, min(t + 1024, n)) / 7.0) * 8000).astype(np.int16)[None]
+            chunk = av.AudioFrame.from_ndarray(samples, format="s16", layout="mono")
+            chunk.sample_rate, chunk.pts = 16000, t
+            out.mux(sound.encode(chunk))
+        out.mux(sound.encode(None))
+    out.close()
+    return path
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    return subprocess.run([sys.executable, "-m", "shadowflow.nodes.app.cli", "run", *args], capture_output=True,
+                          text=True, env=env, timeout=600)
+
+
+def lines(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "frames.jsonl").read_text().splitlines()]
+
+
+def jumps(vectors) -> np.ndarray:
+    """The angle (degrees) between each frame's light and the next's."""
+    return np.array([angle_deg(np.array(a), np.array(b)) for a, b in zip(vectors, vectors[1:])])
+
+
+SWITCHED = [light_from_angles(30, 0)] * 5 + [light_from_angles(-30, 0)] * 5
+
+
+@pytest.fixture(scope="module")
+def clip_run(tmp_path_factory):
+    """One run of a switched-light clip with audio beside a still, a clip that cannot be read, --relight."""
+    root = tmp_path_factory.mktemp("clips")
+    src = root / "in"
+    src.mkdir()
+    make_clip(src / "talk.mp4", SWITCHED, audio=True)
+    write_shadowed_face(src / "still.png", np.random.default_rng(3), light_from_angles(30, 0), source="ict")
+    (src / "broken.mov").write_bytes(b"\x00\x00\x00\x18ftypmp42" + os.urandom(2000))
+    out = root / "out"
+    done = run(str(src), "--out", str(out), "--relight=-60,10", *FAST)
+    return src, out, done
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_relit_clips_keep_size_rate_count_and_audio(clip_run):
+    src, out, _ = clip_run
+    source = ClipReader(src / "talk.mp4")
+    for name in ("relit.mp4", "relit_A-060E+10.mp4"):
+        relit = ClipReader(out / "talk" / name)
+        assert (relit.info.width, relit.info.height) == (source.info.width, source.info.height)
+        assert float(relit.info.rate) == pytest.approx(float(source.info.rate))
+        frames = list(relit)
+        assert len(frames) == len(SWITCHED)
+        assert relit.info.audio  # the input's AAC remuxed
+        relit.close()
+    source.close()
+    with av.open(str(out / "talk" / "relit.mp4")) as relit, av.open(str(src / "talk.mp4")) as given:
+        assert relit.streams.audio[0].codec_context.name == "aac"
+        assert relit.streams.audio[0].frames == given.streams.audio[0].frames
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_relit_clip_differs_from_the_input(clip_run):
+    """The relit frames are the relighting's, not the input's copied through."""
+    src, out, _ = clip_run
+    given = [f.rgb.astype(float) for f in ClipReader(src / "talk.mp4")]
+    relit = [f.rgb.astype(float) for f in ClipReader(out / "talk" / "relit.mp4")]
+    assert np.mean([np.abs(a - b).mean() for a, b in zip(given, relit)]) > 3.0
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_frames_jsonl_has_a_line_per_frame(clip_run):
+    _, out, _ = clip_run
+    got = lines(out / "talk")
+    assert [line["index"] for line in got] == list(range(len(SWITCHED)))
+    assert [line["time"] for line in got] == pytest.approx([i / RATE for i in range(len(SWITCHED))])
+    for line in got:
+        assert line["status"] == "ok"
+        (face,) = line["faces"]
+        assert {"box", "eyes", "pose", "status", "light"} <= set(face)
+        assert len(face["box"]) == 4 and len(face["eyes"]) == 2 and len(face["light"]) == 3
+    assert not (out / "talk" / "frames").exists()  # (only with --frames)
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_clip_beside_a_still_and_a_broken_clip(clip_run):
+    _, out, done = clip_run
+    records = {r["stem"]: r for r in json.loads((out / "summary.json").read_text())}
+    assert set(records) == {"talk", "still", "broken"}
+    assert records["still"]["status"] == "ok" and (out / "still" / "relit.png").is_file()
+    clip = records["talk"]
+    assert clip["status"] == "ok" and clip["clip"]["frames"] == len(SWITCHED)
+    assert clip["clip"]["faces_per_frame"] == {"1": len(SWITCHED)} and clip["clip"]["audio"] is True
+    assert records["broken"]["status"].startswith(f"{Path(records['broken']['source'])}: cannot read as a clip")
+    errors = [line for line in done.stderr.splitlines() if "broken.mov" in line]
+    assert len(errors) == 1 and errors[0].startswith("error: ") and "cannot read as a clip" in errors[0]
+    assert (out / "report.html").is_file()
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_a_switched_light_is_followed_within_a_few_frames(clip_run):
+    _, out, _ = clip_run
+    got = lines(out / "talk")
+    light = [line["faces"][0]["light"] for line in got]
+    raw = [line["faces"][0]["light_raw"] for line in got]
+    assert angle_deg(np.array(raw[0]), np.array(raw[-1])) > 40  # the estimates see the switch
+    for k in range(5 + CONFIRM - 1, len(got)):  # CONFIRM frames after the switch, the light is the new one
+        assert angle_deg(np.array(light[k]), np.array(raw[k])) < 5
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_resume_skips_a_finished_clip(clip_run):
+    src, out, _ = clip_run
+    before = (out / "talk" / "relit.mp4").stat().st_mtime_ns
+    again = run(str(src), "--out", str(out), "--relight=-60,10", "--resume", *FAST)
+    assert (out / "talk" / "relit.mp4").stat().st_mtime_ns == before
+    assert len(lines(out / "talk")) == len(SWITCHED)
+    records = {r["stem"]: r for r in json.loads((out / "summary.json").read_text())}
+    assert records["talk"]["clip"]["frames"] == len(SWITCHED), again.stderr
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_resume_redoes_an_unfinished_clip(tmp_path):
+    """A clip whose files are not all there is redone whole."""
+    clip = make_clip(tmp_path / "c.mp4", SWITCHED[:4])
+    out = tmp_path / "out"
+    assert run(str(clip), "--out", str(out), *FAST).returncode == 0
+    (out / "c" / "frames.jsonl").unlink()
+    assert run(str(clip), "--out", str(out), "--resume", *FAST).returncode == 0
+    assert len(lines(out / "c")) == 4
+    assert sum(1 for _ in ClipReader(out / "c" / "relit.mp4")) == 4
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_smoothing_steadies_a_noisy_light_and_follows_a_switch(tmp_path):
+    """The light jittering by a few degrees from frame to frame (as an estimate on a real clip does) comes out
+    steadier; switched, it is followed, and CONFIRM frames after the switch steadied again about the new light."""
+    rng = np.random.default_rng(11)
+    jitter = [light_from_angles(a + rng.normal(0, 4), rng.normal(0, 4)) for a in [30] * 8 + [-35] * 8]
+    clip = make_clip(tmp_path / "noisy.mp4", jitter, noise=0.01)
+    out = tmp_path / "out"
+    done = run(str(clip), "--out", str(out), *FAST)
+    assert done.returncode == 0, done.stderr
+    got = lines(out / "noisy")
+    assert all(line["status"] == "ok" for line in got)
+    light = [line["faces"][0]["light"] for line in got]
+    raw = [line["faces"][0]["light_raw"] for line in got]
+    before, after = slice(0, 8), slice(8 + CONFIRM, 16)
+    for part in (before, after):
+        steady, given = jumps(light[part]).mean(), jumps(raw[part]).mean()
+        print(f"frames {part.start}-{part.stop - 1}: mean frame-to-frame jump {given:.2f} deg estimated, "
+              f"{steady:.2f} smoothed")
+        assert steady < 0.6 * given
+    assert np.mean([angle_deg(np.array(a), np.array(b)) for a, b in zip(light[after], raw[after])]) < 8
+    assert angle_deg(np.array(light[7]), np.array(light[8 + CONFIRM])) > 40  # (the switch itself)
+
+
+def test_light_smoother_holds_an_outlier_and_follows_a_change():
+    s = LightSmoother()
+    a, b = light_from_angles(30, 0), light_from_angles(-30, 0)
+    for _ in range(5):
+        s.update(a)
+    assert angle_deg(s.update(b), b) < 1e-3  # a departing frame is fitted under its own estimate
+    assert angle_deg(s.update(a), a) < 1e-3 and angle_deg(s.light, a) < 1e-3  # a lone outlier: not followed
+    for _ in range(CONFIRM):
+        s.update(b)
+    assert angle_deg(s.light, b) < 1e-3  # CONFIRM frames in a row: a real change, followed
+
+
+def test_what_is_a_clip(tmp_path):
+    assert is_clip(tmp_path / "a.MP4") and is_clip(tmp_path / "a.webm") and not is_clip(tmp_path / "a.png")
+    from PIL import Image
+
+    still, moving = tmp_path / "still.gif", tmp_path / "moving.gif"
+    Image.new("L", (40, 40)).save(still)
+    frames = [Image.new("L", (40, 40), v) for v in (0, 128, 255)]
+    frames[0].save(moving, save_all=True, append_images=frames[1:], duration=100)
+    assert is_clip(moving) and not is_clip(still)
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_an_animated_gif_with_frames(tmp_path):
+    """An animated GIF is a clip; --frames writes each frame's own files too."""
+    from PIL import Image
+
+    depth, mask, albedo = draw_face(np.random.default_rng(7), (SIZE, SIZE), "ict")
+    images = [Image.fromarray((np.clip(render_scene(depth, albedo, light, mask).image, 0, 1) * 255).astype(np.uint8))
+              for light in (light_from_angles(a, 0) for a in (30, 0, -30))]  # (a GIF merges equal frames)
+    gif = tmp_path / "wave.gif"
+    images[0].save(gif, save_all=True, append_images=images[1:], duration=100, loop=0)
+    out = tmp_path / "out"
+    done = run(str(gif), "--out", str(out), "--frames", *FAST)
+    assert done.returncode == 0, done.stderr
+    relit = ClipReader(out / "wave" / "relit.mp4")
+    assert (relit.info.width, relit.info.height) == (SIZE, SIZE) and sum(1 for _ in relit) == 3
+    assert len(lines(out / "wave")) == 3
+    for k in range(3):
+        assert (out / "wave" / "frames" / f"{k:06d}" / "relit.png").is_file()
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_an_unreadable_frame_is_one_line_and_the_clip_goes_on(tmp_path):
+    """A clip whose third frame's data is damaged: that frame fails with one line, the others are relit, and the
+    relit clip keeps every frame (the damaged one as the last frame written)."""
+    depth, mask, albedo = draw_face(np.random.default_rng(7), (SIZE, SIZE), "ict")
+    path = tmp_path / "damaged.avi"
+    with av.open(str(path), "w") as out:
+        video = out.add_stream("mjpeg", rate=RATE)
+        video.width = video.height = SIZE
+        video.pix_fmt = "yuvj420p"
+        for i, light in enumerate(SWITCHED[:5]):
+            grey = (np.clip(render_scene(depth, albedo, light, mask).image, 0, 1) * 255 + 0.5).astype(np.uint8)
+            frame = av.VideoFrame.from_ndarray(np.repeat(grey[..., None], 3, axis=2), format="rgb24")
+            frame.pts = i
+            for packet in video.encode(frame):
+                if i == 2:  # a JPEG's start and nothing that decodes
+                    bad = av.Packet(b"\xff\xd8" + bytes(300))
+                    bad.pts, bad.dts, bad.time_base, bad.stream = packet.pts, packet.dts, packet.time_base, video
+                    packet = bad
+                out.mux(packet)
+        out.mux(video.encode(None))
+    done = run(str(path), "--out", str(tmp_path / "out"), *FAST[:-1])  # (not --quiet: the notes are said)
+    got = lines(tmp_path / "out" / "damaged")
+    assert [line["index"] for line in got] == list(range(5))
+    assert [line["status"] == "ok" for line in got] == [True, True, False, True, True]
+    assert "unreadable frame" in got[2]["status"]
+    said = [line for line in done.stderr.splitlines() if "unreadable frame" in line]
+    assert len(said) == 1 and said[0].startswith("error: ") and "frame 2" in said[0]
+    assert sum(1 for _ in ClipReader(tmp_path / "out" / "damaged" / "relit.mp4")) == 5
+
+
+def _plain_clip(path: Path, size: tuple[int, int], audio: str | None, codec: str = "libx264",
+                pix_fmt: str = "yuv420p") -> Path:
+    """A short clip of flat frames (no face: for the clip's reading and writing alone), with ``audio`` in that codec."""
+    w, h = size
+    with av.open(str(path), "w") as out:
+        video = out.add_stream(codec, rate=RATE)
+        video.width, video.height, video.pix_fmt = w, h, pix_fmt
+        sound = out.add_stream(audio, rate=16000) if audio else None
+        for i in range(4):
+            frame = av.VideoFrame.from_ndarray(np.full((h, w, 3), 50 * i, np.uint8), format="rgb24")
+            frame.pts = i
+            out.mux(video.encode(frame))
+        out.mux(video.encode(None))
+        if sound is not None:
+            for t in range(0, 6400, 1024):
+                chunk = av.AudioFrame.from_ndarray(np.zeros((1, min(1024, 6400 - t)), np.int16), format="s16",
+                                                   layout="mono")
+                chunk.sample_rate, chunk.pts = 16000, t
+                out.mux(sound.encode(chunk))
+            out.mux(sound.encode(None))
+    return path
+
+
+def _copied(src: Path, dst: Path) -> Path:
+    from shadowflow.nodes.app.clip_io import ClipEncoder
+
+    reader = ClipReader(src)
+    encoder = ClipEncoder(dst, reader.info, str(src))
+    for frame in reader:
+        encoder.write(frame.rgb, frame.pts, frame.time)
+    encoder.finish()
+    reader.close()
+    return dst
+
+
+def test_audio_mp4_cannot_hold_is_made_aac(tmp_path):
+    """PCM audio (a .mkv's, a .mov's) cannot go into MP4 as it is: it is encoded as AAC, the video as ever."""
+    out = _copied(_plain_clip(tmp_path / "pcm.mkv", (64, 48), "pcm_s16le"), tmp_path / "relit.mp4")
+    with av.open(str(out)) as got:
+        assert got.streams.audio[0].codec_context.name == "aac"
+        assert sum(1 for _ in got.decode(video=0)) == 4
+        assert abs(float(got.streams.audio[0].duration * got.streams.audio[0].time_base) - 0.4) < 0.1
+
+
+def test_odd_sided_clip_keeps_its_size(tmp_path):
+    """4:2:0 needs even sides: an odd-sided clip (an MJPEG's, a GIF's) is written 4:4:4 at its own size."""
+    out = _copied(_plain_clip(tmp_path / "odd.avi", (65, 47), None, "mjpeg", "yuvj444p"), tmp_path / "relit.mp4")
+    relit = ClipReader(out)
+    assert (relit.info.width, relit.info.height) == (65, 47) and sum(1 for _ in relit) == 4
