@@ -290,10 +290,18 @@ class _Features:
 
 
 def _inside(face: FoundFace, larger: FoundFace) -> bool:
-    """Whether both of ``face``'s eyes lie within ``larger``'s outline: a part of a face (an eye and
-    a brow, a nostril) that the mesh took for a face of its own."""
+    """Whether ``face`` is a part of ``larger`` that the mesh took for a face of its own: both its eyes within
+    ``larger``'s outline (an eye and a brow, a nostril), or, when the detector was unsure of it (under
+    ``SURE_DETECTION``), its mouth there: a face meshed over a found face's forehead, its brows taken for a mouth and
+    the hair for eyes (a webcam clip's forehead, detected at 0.38, came back relit as a patch over the real face)."""
     oval = larger.oval.astype(np.float32)
-    return all(cv2.pointPolygonTest(oval, (float(x), float(y)), False) >= 0 for x, y in face.eyes)
+
+    def within(x, y) -> bool:
+        return cv2.pointPolygonTest(oval, (float(x), float(y)), False) >= 0
+
+    if all(within(x, y) for x, y in face.eyes):
+        return True
+    return face.score < SURE_DETECTION and within(*np.vstack(face.outlines()["lips"]).mean(axis=0))
 
 
 def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:

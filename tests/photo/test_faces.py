@@ -353,3 +353,25 @@ def test_a_face_like_thing_the_mesh_doubts_is_refused_and_left_as_the_photo_has_
     flat = face.mesh.copy()
     flat[:, 2] = 0.0
     assert "flat" in not_a_face(F.FoundFace(flat, face.presence, face.score), astronaut)
+
+
+def test_a_face_meshed_over_a_found_faces_forehead_is_part_of_it(astronaut):
+    """A webcam clip's forehead and hair were detected (0.38) and meshed as a second face whose mouth lay on the real
+    face's brows; it was relit as a patch over the real one. An unsure face whose mouth lies within a larger found
+    face's outline is a part of it; a sure detection there (a face in front of another) and a face beside it are not."""
+    face = F.find_faces(astronaut)[0]
+    lips = np.vstack(face.outlines()["lips"]).mean(axis=0)
+    # the same face at 0.7 of its size, moved up until its mouth lies on the found face's brows
+    mesh = face.mesh.copy()
+    centre = face.eyes.mean(axis=0)
+    mesh[:, :2] = centre + 0.7 * (mesh[:, :2] - centre)
+    small_lips = centre + 0.7 * (lips - centre)
+    mesh[:, :2] += (centre - [0.0, 0.3 * face.iod]) - small_lips
+    over = F.FoundFace(mesh, 1.0, 0.38)
+    assert not all(cv2.pointPolygonTest(face.oval.astype(np.float32), tuple(map(float, e)), False) >= 0
+                   for e in over.eyes)  # its eyes lie past the found face's outline (the old rule kept it)
+    assert F._inside(over, face)
+    assert not F._inside(F.FoundFace(mesh, 1.0, 0.9), face)  # detected surely: kept
+    beside = face.mesh.copy()
+    beside[:, 0] += 3.0 * (face.oval[:, 0].max() - face.oval[:, 0].min())
+    assert not F._inside(F.FoundFace(beside, 1.0, 0.38), face)
