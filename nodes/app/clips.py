@@ -20,15 +20,13 @@ from ...flow.jsonsafe import json_safe
 from ..relight.products import relit_lights, relit_photo_8bit
 from .clip_io import ClipEncoder, ClipInfo, ClipReader, ClipFrame
 from .counts import status_lines
-from .outputs import face_record, face_status, relit_name
+from .outputs import CLIP_FILES, face_record, face_status, relit_name
 from .storage import cannot_write
-
-CLIP_FILES = ("relit.mp4", "frames.jsonl")  # a clip's folder; with --frames also frames/<index>/
 
 
 def clip_relit_name(light) -> str:
     """The clip relit by a ``--relight`` light: ``relit_A<az>E<el>.mp4``, as the stills' ``relit_<tag>.png``."""
-    return relit_name(light)[: -len(".png")] + ".mp4"
+    return relit_name(light, ".mp4")
 
 
 def clip_complete(folder: Path, extra_lights) -> bool:

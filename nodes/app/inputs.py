@@ -11,10 +11,10 @@ from typing import Iterator
 
 from ...flow.manifest import content_hash
 from ..photo.loader import IMAGE_SUFFIXES as STILL_SUFFIXES
+from ..photo.sidecar import sidecar_path
 from .clip_io import CLIP_SUFFIXES
 
 IMAGE_SUFFIXES = STILL_SUFFIXES | CLIP_SUFFIXES  # what a run takes from a folder or glob: stills and clips
-from ..photo.sidecar import sidecar_path
 
 
 def _output_folder(path: Path) -> bool:

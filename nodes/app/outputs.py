@@ -84,7 +84,8 @@ def safe_stem(path: str, taken: MutableSet[str], free: Callable[[str], bool] = l
 
 _FACE_FOLDER = re.compile(r"face-[0-9]+")
 _RELIT_FILE = re.compile(r"relit_A[+-][0-9]{3}E[+-][0-9]{2}\.(png|mp4)")
-CLIP_NAMES = ("relit.mp4", "frames.jsonl", "frames")  # a clip's folder (``clips``): its relit clips, lines, frames
+CLIP_FILES = ("relit.mp4", "frames.jsonl")  # a clip's folder (``clips``): its relit clip and its lines
+CLIP_NAMES = (*CLIP_FILES, "frames")  # and with --frames, each frame's files in frames/
 _TEMPORARY = re.compile(r"\..+\.tmp")  # an atomic write's, left by a kill
 
 
@@ -105,7 +106,7 @@ def run_output_folder(path: Path) -> bool:
     if not all(_run_name(n) for n in ours):
         return False
     # (a clip's folder stopped mid-way with --frames holds its frames/ alone: --resume takes it back)
-    return not ours or any(n in ours for n in ("normals.npy", "frames.jsonl", "relit.mp4", "frames"))
+    return not ours or any(n in ours for n in ("normals.npy", *CLIP_NAMES))
 
 
 def _run_name(name: str) -> bool:
@@ -204,25 +205,33 @@ def face_folder(frame: Frame, face: Frame) -> str:
     return "" if faces and face is faces[0] else f"face-{int(face.meta.get('face', 1))}"
 
 
-def relit_name(light: np.ndarray) -> str:
-    """The file of the photo relit by a ``--relight`` light: ``relit_A<az>E<el>.png`` (``light_tag``)."""
-    return f"relit_{light_tag(light)}.png"
+def relit_name(light: np.ndarray, suffix: str = ".png") -> str:
+    """The file of the photo relit by a ``--relight`` light: ``relit_A<az>E<el>.png`` (``light_tag``; a clip's
+    ``.mp4``)."""
+    return f"relit_{light_tag(light)}{suffix}"
 
 
-def write_outputs(frame: Frame, folder: Path, arrays: str = "grid") -> dict[str, str]:
+def write_outputs(frame: Frame, folder: Path, arrays: str = "grid", keep_relit: bool = False) -> dict[str, str]:
     """Write every output file of one photo's frame into ``folder``: the photo relit with every face
     (``relit.png``, ``relit_<light>.png``), the largest face's files beside them and each other face's
     in ``face-<k>/``; returns name (relative to ``folder``) -> path. Each file is encoded, written and
     let go before the next (a large photo's files are not all held at once, nor its relit photos), each relit
     photo composed by the relighting when its turn comes (``relight.products.relit_photo_8bit``). arrays: where
     the fit's arrays are written (``ARRAYS``, ``write_face``). The photo's page (``VIEW_NAME``) is the page's
-    own step (``view.PageNode``), the report's pictures the report's (``report.CardNode``)."""
+    own step (``view.PageNode``), the report's pictures the report's (``report.CardNode``): ``keep_relit`` keeps
+    the first relit photo as written (``data["relit_8bit"]``) for it, so it is composed once."""
     written = {}
     for face in faces_of(frame):
         sub = face_folder(frame, face)
         for name, path in write_face(face, folder / sub if sub else folder, arrays).items():
             written[f"{sub}/{name}" if sub else name] = path
-    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: png_bytes(bgr(relit_photo_8bit(frame, i)))
+    def relit_png(i: int) -> bytes:
+        relit = relit_photo_8bit(frame, i)
+        if i == 0 and keep_relit:
+            frame.data["relit_8bit"] = relit
+        return png_bytes(bgr(relit))
+
+    encoders = {"relit.png" if i == 0 else relit_name(light): lambda i=i: relit_png(i)
                 for i, light in enumerate(relit_lights(frame))}
     for name, encode in encoders.items():
         atomic_write_bytes(folder / name, encode())
@@ -389,7 +398,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        write_outputs(frame, folder, self.arrays)
+        write_outputs(frame, folder, self.arrays, keep_relit=True)
         frame.meta["outputs"] = str(folder)
         return frame
 

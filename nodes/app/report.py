@@ -31,13 +31,12 @@ from ...flow.frame import Frame
 from ...flow.recording import RecordingError
 from ..method.products import photo_8bit
 from ..photo.encoding import swapped_rb
-from ..relight.products import relit_photo_8bit
 from ..photo.input_error import InputError
 from ..photo.loader import read_photo
 from .counts import photo_status, tally, tally_text
 from .channels import CONVERGENCE, CONVERGENCE_LABELS, CONVERGENCE_MARKS, CONVERGENCE_PLOTS
 from .record import frame_name
-from .outputs import VIEW_NAME, bgr, faces_of
+from .outputs import VIEW_NAME, bgr
 from .view import SLIDER_SCRIPT, SLIDER_STYLE, face_marks, faces_crop
 
 REPORT_NAME = "report.html"
@@ -213,10 +212,10 @@ class CardNode:
         self.left = itertools.count(limit, -1)
 
     def __call__(self, frame: Frame) -> Frame:
-        faces = faces_of(frame) if not frame.meta.get("clip") else []  # (a clip's report card: not yet)
-        if faces and next(self.left) > 0:
+        relit = frame.data.get("relit_8bit")  # as the writer composed it for relit.png (a clip's frame: none)
+        if relit is not None and next(self.left) > 0:
             boxes = [(p.meta.get("placement") or {}).get("box") for p in (frame.parts or [frame])]
-            frame.meta["card"] = card_pictures(bgr(photo_8bit(frame)), bgr(relit_photo_8bit(frame, 0)), boxes)
+            frame.meta["card"] = card_pictures(bgr(photo_8bit(frame)), bgr(relit), boxes)
         return frame
 
 

@@ -59,6 +59,8 @@ DATA: dict[str, tuple[str, str]] = {
                      "relight_photo"),
     "live": ("``LiveFace``: what relights the face for any light in view.html (a preview of its box)",
              "relight_photo"),
+    "relit_8bit": ("(H, W, C) uint8 RGB the photo relit by the first light, as ``relit.png`` holds it: kept by the "
+                   "writer for the report's pictures (``report.CardNode``), composed once", "write"),
 }
 
 # frame.meta: key -> (what it holds, who writes it); all JSON-friendly, summarised in summary.json
