@@ -7,7 +7,8 @@ changing the light), whether it was lit evenly, and how far the side light moved
 
 - evenly lit faces relit frontally: the median and 95th percentile of H, and how many were written ``ok``
   with H over ``BAD_H``;
-- every relit face: how far ``SIDE_LIGHT`` moved its light (median);
+- every relit face: how far ``SIDE_LIGHT`` moved its light (median), and how far the frontal relighting moved its
+  skin's colour (``colour_shift``'s C: median and 95th percentile, of evenly lit faces and of all);
 - how many faces were found, relit, written doubtful, refused.
 
 A contact sheet (``contact_sheet``) shows the worst faces, input beside output.
@@ -29,7 +30,7 @@ from ..method.options import MethodOptions
 from ..method.products import photo_channels
 from ..model.shape_model import ShapeModel
 from ..photo.encoding import linear_to_srgb, srgb_to_linear
-from ..relight.harm import harm, light_move
+from ..relight.harm import colour_shift, harm, light_move
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 
@@ -121,7 +122,7 @@ def _face_rows(item: Item, photo: Frame, before: np.ndarray, relit: list, thumbs
             eyes = np.asarray(row["eyes"], np.float64)
             front = harm(before, relit[0], eyes)
             row.update(iod=float(np.linalg.norm(eyes[1] - eyes[0])), h=front.h, p=front.p, halves=front.halves,
-                       even=front.even)
+                       even=front.even, c=colour_shift(before, relit[0], eyes))
             if len(relit) > 1:
                 row["move"] = light_move(before, relit[1], eyes)
             if thumbs:
@@ -166,8 +167,10 @@ def _h_figures(rows: list[dict], prefix: str) -> dict:
     """The median, 95th percentile and worst H of ``rows`` (scored faces), and how many written ``ok`` exceed
     ``BAD_H``, as ``<prefix>h_median`` ...."""
     h = [r["h"] for r in rows]
+    c = [r["c"] for r in rows if "c" in r]
     return {f"{prefix}h_median": _percentile(h, 50), f"{prefix}h_p95": _percentile(h, 95),
-            f"{prefix}h_worst": max(h, default=None),
+            f"{prefix}h_worst": max(h, default=None), f"{prefix}c_median": _percentile(c, 50),
+            f"{prefix}c_p95": _percentile(c, 95),
             f"{prefix}ok_over_bad": len([r for r in rows if r["status"] == "ok" and r["h"] > BAD_H])}
 
 
@@ -190,11 +193,11 @@ def _fmt(value, spec: str) -> str:
 def format_table(rows: list[dict]) -> str:
     """Per face: input, face, status, score, even (halves ratio), H, P, the side light's move; then the figures."""
     lines = [f"{'input':44s} {'face':>4s} {'status':9s} {'score':>5s} {'halves':>6s} {'H %':>6s} {'P %':>6s} "
-             f"{'move':>6s}  reason"]
+             f"{'C %':>5s} {'move':>6s}  reason"]
     for r in rows:
         lines.append(f"{r['photo'][:44]:44s} {r['face']:4d} {r['status']:9s} {_fmt(r.get('score'), '5.2f')} "
                      f"{_fmt(r.get('halves'), '6.2f')} {_fmt(r.get('h'), '6.1f')} {_fmt(r.get('p'), '6.1f')} "
-                     f"{_fmt(r.get('move'), '6.2f')}  {r.get('reason', '')[:60]}")
+                     f"{_fmt(r.get('c'), '5.1f')} {_fmt(r.get('move'), '6.2f')}  {r.get('reason', '')[:60]}")
     s = summarise(rows)
     lines += ["", f"faces {s['faces']}: relit {s['relit']}, doubtful {s['doubtful']}, refused {s['refused']} "
               f"(inputs refused whole: {s['inputs_refused']})",
@@ -202,6 +205,8 @@ def format_table(rows: list[dict]) -> str:
               f"95th percentile {_fmt(s['even_h_p95'], '.1f')} %, written ok above {BAD_H:g} %: {s['even_ok_over_bad']}",
               f"every relit face: H median {_fmt(s['h_median'], '.1f')} %, 95th percentile {_fmt(s['h_p95'], '.1f')} %, "
               f"worst {_fmt(s['h_worst'], '.1f')} %, written ok above {BAD_H:g} %: {s['ok_over_bad']}",
+              f"colour shift C (white light: the skin's colour kept), median: evenly lit "
+              f"{_fmt(s['even_c_median'], '.1f')} %, every relit face {_fmt(s['c_median'], '.1f')} %",
               f"light moved by the {SIDE_LIGHT[0]} deg light (left minus right, blurred log ratio): median "
               f"{_fmt(s['move_median'], '.2f')}"]
     return "\n".join(lines)

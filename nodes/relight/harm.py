@@ -13,7 +13,10 @@ ellipse placed by the eyes (``face_ellipse``):
 
 A strong change of light raises H legitimately (new shadow edges, fine shading), so H judges faces lit
 evenly (``halves_ratio`` within ``EVEN``) relit frontally. ``light_move`` says whether a side light
-still moved the light: the blurred log ratio, image-left half minus image-right half.
+still moved the light: the blurred log ratio, image-left half minus image-right half. H is blind to colour: a
+white light changes a skin's level, never its colour, so ``colour_shift`` measures that apart: the RMS change of
+the skin's chromaticity (``ln R/G``, ``ln B/G``) over the ellipse, in % (pink skin turned grey-green by a
+relighting reads 7 %, kept pink 4 %; a JPEG's colour noise alone a few %).
 
 Arrays are (H, W) linear luminance or (H, W, 3) linear RGB on the photo's grid; eyes are (2, 2) photo
 pixels ``[[x, y], [x, y]]`` (either order).
@@ -95,3 +98,20 @@ def light_move(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> float
     if not left.size or not right.size:
         return float("nan")
     return float(left.mean() - right.mean())
+
+
+def colour_shift(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> float:
+    """The RMS change (%) of chromaticity (``ln R/G``, ``ln B/G`` of linear RGB, ``EPS`` added) from ``before`` to
+    ``after`` (H, W, 3) over the face's ellipse from ``eyes`` (2, 2) photo pixels; 0 for grey photos."""
+    if np.ndim(before) < 3 or np.shape(before)[-1] != 3:
+        return 0.0
+    ellipse = face_ellipse(eyes, np.shape(before)[:2], 0.0)
+    y0, y1, x0, x1 = ellipse.box
+    m = ellipse.mask
+
+    def chroma(image: np.ndarray) -> np.ndarray:
+        v = np.log(np.maximum(np.asarray(image, np.float32)[y0:y1, x0:x1][m], 0.0) + np.float32(EPS))
+        return np.stack([v[:, 0] - v[:, 1], v[:, 2] - v[:, 1]], axis=-1)
+
+    d = chroma(after) - chroma(before)
+    return 100.0 * float(np.sqrt(np.mean(np.sum(d.astype(np.float64) ** 2, axis=-1)))) if d.size else 0.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
-from shadowflow.nodes.relight.harm import face_ellipse, harm, light_move
+from shadowflow.nodes.relight.harm import colour_shift, face_ellipse, harm, light_move
 
 EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart
 
@@ -112,3 +112,20 @@ def test_the_summary_counts_evenly_lit_faces_and_the_ones_called_ok_that_are_har
     assert s["ok_over_bad"] == 1 and s["move_median"] == pytest.approx(0.4)
     assert "evenly lit (halves within 15 %): 2 faces" in format_table(rows)
     assert contact_sheet(rows) is None  # no thumbnails kept
+
+
+def test_a_white_light_keeps_the_skins_colour_and_a_tint_is_a_colour_shift():
+    """A change of level alone, however uneven, shifts no colour; the skin turned greyer (its red lowered against
+    its green, as a per-channel change of light did to pink skin) is a colour shift of about the log ratio; H does
+    not see it."""
+    photo = _skin()
+    yy, xx = np.mgrid[0:400, 0:400].astype(np.float32)
+    level = (0.6 + 0.9 * np.exp(-((xx - 120) ** 2 + (yy - 200) ** 2) / (2 * 150.0**2)))[..., None]
+    assert colour_shift(photo, photo * level, EYES) < 0.2  # (EPS, added to each channel, moves it a little)
+    greyer = photo * level * np.array([0.93, 1.0, 1.0], np.float32)  # ln 0.93: 7 % of red against green
+    assert colour_shift(photo, greyer, EYES) == pytest.approx(100 * -np.log(0.93), rel=0.05)
+    assert harm(photo, greyer, EYES).h < 1.5  # (as the level change alone: the test above)
+    outside = photo.copy()
+    outside[:40] *= np.array([0.5, 1.0, 1.0], np.float32)  # above the face's ellipse: not the face
+    assert colour_shift(photo, outside, EYES) == 0.0
+    assert colour_shift(photo[..., :1], photo[..., :1] * 0.5, EYES) == 0.0  # a grey photo has no colour to shift
