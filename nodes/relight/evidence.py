@@ -139,8 +139,12 @@ def shadow_evidence(photo: np.ndarray, albedo: np.ndarray, lighting: np.ndarray,
     seeds = read & gate & (support > 0.05) & (level < np.log(DARK))
     region = _without_specks(_closed(seeds, CLOSE * iod_px) & face & gate, (MIN_SIDE * iod_px) ** 2)
     clear = read & ~grow(region, PENUMBRA * iod_px)
-    log_c = local_average(np.log(shown / fitted), clear.astype(np.float32), CORRECT_SIGMA * iod_px,
-                          np.zeros_like(img))
+    # the correction is of the light's level only, the same in every channel: out of the shadows the skin's colour is
+    # its albedo's, and a colour read into the light (a skin pinker than the expected albedo) made the change of
+    # light tint the relit skin: pink brightened turned grey-green, and back again from frame to frame
+    log_c = local_average(np.log(brightness(shown) / fitted[..., 0])[..., None], clear.astype(np.float32),
+                          CORRECT_SIGMA * iod_px, np.zeros_like(img[..., :1]))
+    log_c = np.broadcast_to(log_c, img.shape)
     correction = np.exp(fade[..., None] * np.clip(log_c, *np.log(CORRECT_RANGE))).astype(np.float32)
     if not region.any():
         return ShadowEvidence(read, fade, correction, attached.astype(np.float32), fitted * ones)
