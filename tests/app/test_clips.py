@@ -320,3 +320,25 @@ def test_odd_sided_clip_keeps_its_size(tmp_path):
     out = _copied(_plain_clip(tmp_path / "odd.avi", (65, 47), None, "mjpeg", "yuvj444p"), tmp_path / "relit.mp4")
     relit = ClipReader(out)
     assert (relit.info.width, relit.info.height) == (65, 47) and sum(1 for _ in relit) == 4
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_eval_clips_measures_a_relit_clip_against_its_input(tmp_path):
+    """``eval clips --out`` runs a clip into a folder it keeps and measures its relit clip against it: one light
+    each side of a switch, every frame with its face; asked again, the finished run is measured, not redone."""
+    clip = make_clip(tmp_path / "talk.mp4", SWITCHED)
+    out, report = tmp_path / "out", tmp_path / "clips.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    command = [sys.executable, "-m", "shadowflow.nodes.app.cli", "eval", "clips", "--data", str(clip), "--out",
+               str(out), "--json", str(report)]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert "talk.mp4" in done.stdout and "flicker" in done.stdout
+    (row,) = json.loads(report.read_text())["rows"]
+    assert row["frames"] == len(SWITCHED) and row["with_face"] == len(SWITCHED) and row["pairs"] == len(SWITCHED) - 1
+    assert 0.0 <= row["flicker"] < 10.0 and row["h_median"] is not None
+    written = (out / "talk" / "relit.mp4").stat().st_mtime_ns
+    again = subprocess.run(command, capture_output=True, text=True, env=env, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert (out / "talk" / "relit.mp4").stat().st_mtime_ns == written
+    assert json.loads(report.read_text())["rows"][0]["flicker"] == pytest.approx(row["flicker"])

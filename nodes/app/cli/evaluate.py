@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
+import tempfile
 import time
 from contextlib import contextmanager
+from pathlib import Path
 
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
@@ -124,6 +127,44 @@ def cmd_eval_people(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_eval_clips(args: argparse.Namespace) -> int:
+    """Each clip of ``--data`` run as ``shadowflow run`` runs it (into ``--out``, kept and resumed; else a
+    temporary folder) and its relit clip measured against it (``clip_eval.clip_steadiness``)."""
+    from ..api import run
+    from ..clip_eval import clip_steadiness
+    from ..clip_io import is_clip
+    from ..inputs import expand_inputs
+
+    if not args.data:
+        raise ValueError("eval clips needs --data (a clip, or a folder of clips)")
+    clips = [p for p in expand_inputs([args.data], note=lambda msg: None) if is_clip(p)]
+    if not clips:
+        raise ValueError(f"{args.data}: no clips to evaluate")
+    t0 = time.perf_counter()
+    with contextlib.ExitStack() as stack:
+        out = args.out or stack.enter_context(tempfile.TemporaryDirectory(prefix="shadowflow-eval-"))
+        result = run(clips, out, record=(), resume=bool(args.out), quiet=True)
+        rows = []
+        print(f"{'clip':40s} {'frames':>6s} {'face':>5s} {'flicker':>8s} {'excess':>7s} {'H med':>6s}  status")
+        for rec in result.records:
+            row = {"source": rec["source"], "status": rec["status"]}
+            if rec.get("stem") and (Path(out) / rec["stem"] / "relit.mp4").is_file():
+                row.update(clip_steadiness(rec["source"], Path(out) / rec["stem"]))
+            rows.append(row)
+            print(_clip_line(row))
+    _write_report(args.json, {"data": str(args.data), "rows": rows, "seconds": time.perf_counter() - t0})
+    return 0
+
+
+def _clip_line(row: dict) -> str:
+    def f(value, spec: str) -> str:
+        return "-" if value is None else format(value, spec)
+
+    return (f"{Path(row['source']).name[:40]:40s} {f(row.get('frames'), 'd'):>6s} {f(row.get('with_face'), 'd'):>5s} "
+            f"{f(row.get('flicker'), '.2f'):>8s} {f(row.get('excess_change'), '.2f'):>7s} "
+            f"{f(row.get('h_median'), '.1f'):>6s}  {one_line(str(row['status']))[:60]}")
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.dask is not None:
         parse_dask(args.dask)  # before any work
@@ -131,6 +172,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return cmd_eval_yaleb(args)
     if args.benchmark == "people":
         return cmd_eval_people(args)
+    if args.benchmark == "clips":
+        return cmd_eval_clips(args)
 
     size = grid_size(args.size)
     at_least(args.n_test, 1, "--n-test")
@@ -173,11 +216,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def add_parser(sub) -> None:
     """``shadowflow eval``'s arguments."""
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
-    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people"], default="synthetic",
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people", "clips"],
+                   default="synthetic",
                    help="synthetic (default): rendered faces of --source; yaleb: real photos in --data; people: "
-                        "photos and clips of people in --data, scored without a reference (harm H, P)")
+                        "photos and clips of people in --data, scored without a reference (harm H, P); clips: "
+                        "the clips in --data relit and measured for steadiness (flicker, excess change, H)")
     e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders; eval people: a folder "
-                   "of photos, or one holding photos/ and clips/")
+                   "of photos, or one holding photos/ and clips/; eval clips: a clip or a folder of clips")
+    e.add_argument("--out", help="eval clips: run the clips into this folder and keep it (an earlier run there is "
+                   "resumed, its clips measured again); default: a temporary folder")
     e.add_argument("--clip-frames", type=int, default=3, metavar="N",
                    help="eval people: frames taken from each clip (default 3; 0: none)")
     e.add_argument("--sheet", metavar="PNG", help="eval people: write a contact sheet of the worst faces here")
