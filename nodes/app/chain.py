@@ -12,7 +12,7 @@ from .clips import ClipNode
 from .outputs import WriteNode
 from .record import FitRecorder, RecordNode
 from .report import CardNode
-from .steady import SteadyLightNode
+from .steady import SteadyLightNode, SteadyRelightNode, SteadyYawNode
 from .view import PageNode
 
 
@@ -25,7 +25,9 @@ def run_nodes(model: ShapeModel, options: MethodOptions, out: Path, protected: M
     the run's any more)."""
     observer = FitRecorder(recorder) if recorder is not None else None
     after = (RecordNode(recorder),) if recorder is not None else ()
-    # a clip's faces steadied once found (one thread: its frames in order), its frames relit for its clips; then
+    # a clip's faces steadied once found and once relit (one thread each: its frames in order), its frames relit for
+    # its clips; then
     # writing the files, the photo's page and the report's pictures: three steps, each reading what the run made
-    return [*photo_nodes(model, options, observer, after=after, after_faces=(SteadyLightNode(),)), ClipNode(),
+    return [*photo_nodes(model, options, observer, after=after, after_faces=(SteadyLightNode(),)),
+            SteadyYawNode(), SteadyRelightNode(), ClipNode(),
             WriteNode(out, protected, options.arrays, still_ours), PageNode(), CardNode()]

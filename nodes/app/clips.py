@@ -94,13 +94,15 @@ def _rgb(image: np.ndarray) -> np.ndarray:
 def frame_line(frame: Frame) -> dict:
     """A clip frame's line of ``frames.jsonl``: index, time (s), status, and its faces as ``summary.json`` lists a
     photo's (``face_record``: box, eyes, pose, status, light), each with the light estimated on that frame alone
-    (``light_raw``) when the clip's running light replaced it."""
+    (``light_raw``) when the clip's running light replaced it, and how its yaw was read (``yaw_read``: by the fit on
+    this frame, or carried from the last frame that read it)."""
     clip = frame.meta["clip"]
     faces = []
     for part in frame.parts:
         rec = face_record(frame, part, None)
-        if "light_raw" in part.meta:
-            rec["light_raw"] = part.meta["light_raw"]
+        for key in ("light_raw", "yaw_read"):
+            if key in part.meta:
+                rec[key] = part.meta[key]
         faces.append(rec)
     first = next((p for p in frame.parts if p.ok), None)
     status = face_status(first) if frame.ok and first is not None else frame.status

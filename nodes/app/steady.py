@@ -7,6 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...flow.frame import Frame
+from ..method.products import photo_channels
+from ..relight.nodes import LEFT, face_eyes, leave, left_as_it_was, relight_again, shown_share
+from ..relight.temporal import steady_layer
 
 # The constants of the steadying, in one place (measured on tests/app/test_clips.py's clips, docs/usage.md "Clips"):
 # ALPHA: the weight of a frame's own estimate in the running light (an exponential moving average of the unit
@@ -24,6 +27,10 @@ CONFIRM = 3
 # its box's sides; TRACK_MEMORY: a face unseen this many frames is forgotten (its light starts afresh).
 TRACK_MATCH = 0.5
 TRACK_MEMORY = 5
+# VIEW_EVERY: a tracked face read near frontal reads its view with the fit (``turned.ViewChoiceNode``: a fit of each
+# candidate view, two thirds of a frame's time) on its first frame and every this many frames after, and carries the
+# yaw read so to the frames between (``SteadyYawNode``); the view itself is frontal on each of them either way
+VIEW_EVERY = 10
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -63,8 +70,8 @@ class LightSmoother:
 
 
 class _Track:
-    def __init__(self, box: list, index: int):
-        self.box, self.seen, self.smoother = box, index, LightSmoother()
+    def __init__(self, box: list, index: int, number: int):
+        self.box, self.seen, self.smoother, self.number, self.born = box, index, LightSmoother(), number, index
 
     def near(self, box: list) -> float:
         """How far ``box``'s centre is from this track's, in this track's box sides (inf: too far to be it)."""
@@ -85,13 +92,14 @@ class SteadyLightNode:
     def __init__(self) -> None:
         self.clip: str | None = None
         self.tracks: list[_Track] = []
+        self.numbered = 0  # tracks begun in this clip: a track's number (``meta["track"]``) says which it is
 
     def __call__(self, frame: Frame) -> Frame:
         clip = frame.meta.get("clip")
         if not clip:
             return frame
         if clip["stem"] != self.clip:  # a new clip: nothing carried over
-            self.clip, self.tracks = clip["stem"], []
+            self.clip, self.tracks, self.numbered = clip["stem"], [], 0
         index = int(clip["index"])
         self.tracks = [t for t in self.tracks if index - t.seen <= TRACK_MEMORY]
         free = list(self.tracks)
@@ -101,11 +109,14 @@ class SteadyLightNode:
                 continue
             track = min(free, key=lambda t: t.near(box), default=None)
             if track is None or not np.isfinite(track.near(box)):
-                track = _Track(box, index)
+                track = _Track(box, index, self.numbered)
                 self.tracks.append(track)
+                self.numbered += 1
             else:
                 free.remove(track)
             track.box, track.seen = box, index
+            face.meta.update(track=track.number, track_age=index - track.born,
+                             view_refresh=(index - track.born) % VIEW_EVERY == 0)
             self._steady(face, track.smoother.update(face.data["light"]))
         return frame
 
@@ -115,3 +126,117 @@ class SteadyLightNode:
         face.data["light"] = light
         face.data["grid_light"] = face.data["alignment"].vector_to_model(light)
         face.meta.update(light=[round(float(x), 6) for x in light], light_source="steadied")
+
+
+class SteadyYawNode:
+    """For a clip's frames, once each face is fitted: a tracked face that read its view with the fit on this frame
+    (``meta["yaw_read"]``) gives its track the fit's share of the yaw read (the read yaw less the landmarks', averaged
+    with the track's readings before: each new one weighs a half); one
+    that did not (``meta["view_refresh"]`` False) is given the landmarks' yaw plus that share, as its track's last
+    reading had it (``yaw_read``: ``landmarks`` and ``carried``). Frames of a clip reach it in order."""
+
+    name = "steady_yaw"
+
+    def __init__(self) -> None:
+        self.clip: str | None = None
+        self.shares: dict[int, float] = {}
+
+    def __call__(self, frame: Frame) -> Frame:
+        clip = frame.meta.get("clip")
+        if not clip:
+            return frame
+        if clip["stem"] != self.clip:
+            self.clip, self.shares = clip["stem"], {}
+        for face in frame.parts:
+            pose = (face.meta.get("placement") or {}).get("pose")
+            number = face.meta.get("track")
+            if number is None or not pose:
+                continue
+            read = face.meta.get("yaw_read")
+            if read is not None:  # each reading averaged with the ones before (one fit's yaw varies by several deg)
+                share = float(pose["yaw"]) - float(read["landmarks"])
+                self.shares[number] = share if number not in self.shares else 0.5 * (self.shares[number] + share)
+            elif face.meta.get("view_refresh") is False and number in self.shares:
+                share = self.shares[number]
+                face.meta["yaw_read"] = {"landmarks": pose["yaw"], "carried": round(share, 2)}
+                pose["yaw"] = round(float(pose["yaw"]) + share, 1)
+        return frame
+
+
+# HONEST_CONFIRM: a tracked face's frames must say this many times in a row that it is to be left as it was (or
+# relit) before the clip's face changes to that: the honesty step's verdict on one frame flips on a face near its
+# bound (a webcam clip's 158 frames: 25 left as they were, scattered), and each flip is a step of the face's light
+HONEST_CONFIRM = 5
+# HONEST_RAMP: a tracked face changing between relit and left as it was does so over this many frames (its relit
+# face blended with the photo), not at once: on a webcam clip the two differ by 15 levels of the face's mean, a step
+# no steadying of the change of light hides (each switch alone raised the clip's flicker from 1.0 to 1.8 levels)
+HONEST_RAMP = 20
+
+
+class _Relit:
+    """What a track carries of its relit face: the honesty verdict it holds, the contrary verdicts in a row, the
+    running coarse change of each light (``relight.temporal``), and the frame it was last seen in."""
+
+    def __init__(self, left: bool, index: int):
+        self.left, self.against, self.carried, self.seen = left, 0, {}, index
+        self.share = 0.0 if left else 1.0  # how much of the relit face is shown (``HONEST_RAMP``)
+
+
+class SteadyRelightNode:
+    """For a clip's frames, after each face is relit: a tracked face (``meta["track"]``, ``SteadyLightNode``) is
+    left as it was, or relit, as its track holds (``HONEST_CONFIRM``), and each of its layers' change of light is
+    steadied by the running change of the frames before (``relight.temporal.steady_layer``). A face seen again
+    after a gap starts afresh. Frames of a clip reach it in order: it runs on one thread. Photos pass untouched."""
+
+    name = "steady_relight"
+
+    def __init__(self) -> None:
+        self.clip: str | None = None
+        self.tracks: dict[int, _Relit] = {}
+
+    def __call__(self, frame: Frame) -> Frame:
+        clip = frame.meta.get("clip")
+        if not clip:
+            return frame
+        if clip["stem"] != self.clip:
+            self.clip, self.tracks = clip["stem"], {}
+        index = int(clip["index"])
+        for face in frame.parts:
+            number = face.meta.get("track")
+            if number is None or not face.ok or "photo_layers" not in face.data:
+                continue
+            left = left_as_it_was(face)
+            track = self.tracks.get(number)
+            if track is None or track.seen != index - 1:  # a new face, or one lost a while: nothing carried
+                track = self.tracks[number] = _Relit(left, index)
+            photo = photo_channels(face)
+            self._honest(face, track, left, photo)
+            eyes = face_eyes(face)
+            if eyes is not None:
+                layers = []
+                for i, (light, layer) in enumerate(face.data["photo_layers"]):
+                    y0, y1, x0, x1 = layer.box
+                    layer, track.carried[i] = steady_layer(layer, np.atleast_3d(photo[y0:y1, x0:x1]), eyes,
+                                                           track.carried.get(i))
+                    layers.append((light, layer))
+                face.data["photo_layers"] = layers
+            track.seen = index
+        return frame
+
+    @staticmethod
+    def _honest(face: Frame, track: _Relit, left: bool, photo) -> None:
+        """The face left as it was or relit as its track holds; the track's verdict changed by ``HONEST_CONFIRM``
+        frames in a row that say otherwise, and its pixels moving to it over ``HONEST_RAMP`` frames."""
+        track.against = track.against + 1 if left != track.left else 0
+        if track.against >= HONEST_CONFIRM:
+            track.left, track.against = left, 0
+        if left and not track.left:
+            relight_again(face)
+        elif track.left and not left:
+            leave(face, photo, f"the frames before of this face would change at a fine scale: {LEFT}")
+        step = 1.0 / HONEST_RAMP
+        track.share = float(np.clip(track.share + (-step if track.left else step), 0.0, 1.0))
+        if 0.0 < track.share < 1.0:  # on the way between the two: the relit face shown so much
+            d = face.data
+            relit = d.get("photo_layers_relit") or d["photo_layers"]
+            d["photo_layers"] = [(light, shown_share(layer, photo, track.share)) for light, layer in relit]

@@ -55,8 +55,10 @@ DATA: dict[str, tuple[str, str]] = {
                      "the face", "relight_photo"),
     "photo_shadow": ("(h, w) bool, the face's cast and attached shadows in its box, at the photo's resolution",
                      "relight_photo"),
-    "photo_layers": ("list of (light (3,), ``FaceLayer``): the face relit, to compose into the photo",
-                     "relight_photo"),
+    "photo_layers": ("list of (light (3,), ``FaceLayer``): the face relit, to compose into the photo (a clip's "
+                     "steadied over its frames)", "relight_photo, steady_relight"),
+    "photo_layers_relit": ("``photo_layers`` as relit, of a face left as it was: a clip's track may relight it "
+                           "again", "relight_photo, steady_relight"),
     "live": ("``LiveFace``: what relights the face for any light in view.html (a preview of its box)",
              "relight_photo"),
     "relit_8bit": ("(H, W, C) uint8 RGB the photo relit by the first light, as ``relit.png`` holds it: kept by the "
@@ -78,6 +80,10 @@ META: dict[str, tuple[str, str]] = {
     "light": ("[x, y, z] the light used, input camera frame", "faces"),
     "light_source": ("sidecar | given | yaleb name | estimated | steadied (a clip's, app.steady)", "load, faces, steady"),
     "light_raw": ("[x, y, z] a clip's face's light estimated on its frame alone, before steadying", "steady"),
+    "track": ("which face of a clip this is over its frames (a number, from 0 in each clip)", "steady"),
+    "track_age": ("how many frames of its clip a face has been tracked before this one", "steady"),
+    "view_refresh": ("whether a clip's face near frontal reads its view (and yaw) with the fit on this frame "
+                     "(False: the yaw the frames before read is carried)", "steady"),
     "alignment": ("how the face was aligned (landmarks, eyes, centred crop)", "faces"),
     "model_view": ("[yaw, pitch] degrees of the turned model the face is fitted with (absent: frontal)",
                    "faces, view_choice"),
@@ -86,7 +92,9 @@ META: dict[str, tuple[str, str]] = {
     "view_choice": ("{\"yaw,pitch\": misfit} of each view a turned face (or one near frontal under a side light) "
                     "was fitted with; the least fits it (``turned.misfits``)", "view_choice"),
     "yaw_read": ("{\"landmarks\", \"fit\"}: the two yaws (degrees) whose mean is the face's pose's yaw "
-                 "(``turned.ViewChoiceNode``)", "view_choice"),
+                 "(``turned.ViewChoiceNode``); a clip's face between its readings: {\"landmarks\", \"carried\"}, "
+                 "the fit's share carried from its last reading (``app.steady.SteadyYawNode``)",
+                 "view_choice, steady_yaw"),
     "remap_scale": ("the brightness scale divided out", "remap"),
     "clipped_fraction": ("share of the seen face clipped (over-exposed photos)", "remap"),
     "iterations": ("fit iterations", "robust_fit"),

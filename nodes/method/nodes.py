@@ -22,10 +22,11 @@ from ..photo.placement import FacePlacement, face_on_grid, features_on_grid, mod
 from ..photo.sidecar import read_sidecar
 from ..photo.skin import skin
 from .albedo import FILL_CEILING, estimate_albedo
-from .options import INTEGRATORS, MethodOptions
 from .light import light_on_face
+from .options import INTEGRATORS, MethodOptions
 from .products import photo_channels
-from .quality import EYEWEAR_MARGIN, NO_FACE, assess, core_face, explained_variance, grown_region, unread_weights
+from .quality import (EYEWEAR_MARGIN, NO_FACE, TRACKED_FACE, assess, core_face, explained_variance, grown_region,
+                      unread_weights)
 from .relight import relight
 from .remap import SATURATION, clipped_pixels, expected_peak_shading, lambertian_remap, ratio_scale
 from .robust_fit import FitConfig, FitIteration, combine, fit, initial_normals
@@ -192,8 +193,9 @@ class FacesNode:
         if face.meta.get("light_source", "estimated") != "estimated":  # given: the same for every placement
             photo.data["light"], photo.meta["light_source"] = face.data["light"], face.meta["light_source"]
         made = self._face(photo, int(face.meta.get("face", 1)) - 1, placement, face.source)
-        if "light_raw" in face.meta:  # (a clip's steadied light: the frame's own estimate kept beside it)
-            made.meta["light_raw"] = face.meta["light_raw"]
+        # a clip's face's: its light's own estimate, which face it is over its frames (``app.steady``)
+        made.meta.update({k: v for k, v in face.meta.items() if k in ("light_raw", "track", "track_age",
+                                                                       "view_refresh")})
         return made
 
     def _face(self, frame: Frame, k: int, placement: FacePlacement, source: str | None = None) -> Frame:
@@ -469,8 +471,11 @@ class QualityNode:
                    even=evenly_lit(photo_channels(frame), None if placement is None else placement.eyes))
         q.signals["covered"] = float(np.mean(unread[seen])) if seen.any() else 0.0  # hair the fit left out
         frame.meta["quality"] = q.record()
-        if q.no_face:
+        if q.no_face and frame.meta.get("track_age", 0) < TRACKED_FACE:
             raise FrameFailed(f"{frame.source}: {NO_FACE} ({'; '.join(q.flags)})")
+        if q.no_face:  # a clip's face found where it was on the frames before is that face, however its fit went
+            age = frame.meta["track_age"]
+            frame.meta["quality"]["flags"] = [*q.flags, f"no face by its fit, yet tracked {age} frames"]
         return frame
 
 

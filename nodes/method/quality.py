@@ -34,6 +34,9 @@ from ..photo.placement import CUT_BY_FRAME
 from .robust_fit.robust import huber_weights
 
 NO_FACE = "no face found"  # a frame's (or a face candidate's) reason when it holds no face
+# a clip's face tracked this many frames (``meta["track_age"]``) is not refused as no face by its fit (a webcam face
+# fitted badly on one frame of 158, "explains 12 %", came back unrelit between relit frames)
+TRACKED_FACE = 3
 
 # thresholds set between real and rendered faces (good) and the hostile corpus of tests/method/test_quality.py
 # (bad); what each side measured: docs/tuning.md, "Quality"

@@ -127,7 +127,8 @@ class ViewChoiceNode:
     again in the chain, recorded), then views further out while the least misfit (``misfits``) is the last tried;
     the face's yaw is the mean of the landmarks' and the least misfit's (``least_misfit_yaw``), its view the one
     of least misfit (frontal when the landmarks read it within ``FRONTAL_YAW``). A face read near frontal
-    under a light near the view axis is left as the landmarks read it (they lean only under a side light). The
+    under a light near the view axis is left as the landmarks read it (they lean only under a side light), as is
+    one read near frontal on a clip's frame that is not to read its view again (``meta["view_refresh"]`` False). The
     frame is then that view's face as ``make_face`` made it, its pose's yaw the one read so, with
     ``meta["view_choice"]``: each view tried and its misfit, and ``meta["yaw_read"]``: the landmarks' and the fit's
     yaw; turned past ``placement.MAX_YAW``, it is refused."""
@@ -143,7 +144,10 @@ class ViewChoiceNode:
         if not candidates or self.model is None:
             return frame
         first = candidates[0]
-        if _near_frontal(first.pose.view) and _light_off_axis(frame.data["light"]) < FRONTAL_LIGHT:
+        if _near_frontal(first.pose.view) and (_light_off_axis(frame.data["light"]) < FRONTAL_LIGHT
+                                               or frame.meta.get("view_refresh") is False):
+            # fitted frontally whatever the fit reads: what the trials would give is the yaw read alone, which a
+            # clip's face reads on some of its frames and carries to the others (``app.steady``)
             return frame
         placements = {p.view[0]: p for p in candidates}
         trials = self._tried(frame, placements)

@@ -67,6 +67,52 @@ def layer_harm(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray) -> float:
     return harm(before, after, eyes - [x0, y0], within=layer.inside).h
 
 
+def left_flag(h: float) -> str:
+    """The quality flag of a face left as it was because relit it would change by ``h`` % (``harm``'s H)."""
+    return f"lit evenly, yet relit it would change by {h:.0f} % at a fine scale: {LEFT}"
+
+
+LEFT = "left as it was"
+
+
+def left_as_it_was(frame: Frame) -> bool:
+    """Whether the face ``frame`` comes back as it was (``PhotoRelightNode``'s honesty step, or ``leave``)."""
+    return any(f.endswith(LEFT) for f in (frame.meta.get("quality") or {}).get("flags", []))
+
+
+def leave(frame: Frame, photo: np.ndarray, why: str) -> None:
+    """The face ``frame`` made to come back as it was (``photo`` (H, W, C) linear, the whole photo), ``doubtful``
+    with ``why`` (ending in ``LEFT``), its score halved as the honesty step's flags halve it; its relit layers kept
+    (``photo_layers_relit``) so it can be relit again (``relight_again``)."""
+    d, quality = frame.data, frame.meta.setdefault("quality", {})
+    d["photo_layers_relit"] = d["photo_layers"]
+    d["photo_layers"] = [(light, unchanged(layer, np.atleast_3d(photo[layer.box[0]:layer.box[1],
+                                                                        layer.box[2]:layer.box[3]])))
+                         for light, layer in d["photo_layers"]]
+    quality["flags"] = [*quality.get("flags", []), why]
+    quality["score"] = round(float(quality.get("score", 0.0)) * 0.5, 3)
+
+
+def relight_again(frame: Frame) -> None:
+    """The face ``frame``, left as it was, given its relit layers back: the flag saying so taken off and its score
+    restored (the inverse of ``leave`` and of the honesty step)."""
+    d, quality = frame.data, frame.meta.get("quality") or {}
+    d["photo_layers"] = d.pop("photo_layers_relit")
+    kept = [f for f in quality.get("flags", []) if not f.endswith(LEFT)]
+    quality["score"] = round(float(quality.get("score", 0.0)) * 2.0 ** (len(quality.get("flags", [])) - len(kept)), 3)
+    quality["flags"] = kept
+
+
+def shown_share(layer: FaceLayer, photo: np.ndarray, share: float) -> FaceLayer:
+    """``layer`` shown ``share`` (0-1) of the way from the photo as it was (``photo`` (H, W, C) linear, the whole
+    photo) to it: its relit face and its gain blended so."""
+    y0, y1, x0, x1 = layer.box
+    crop = np.atleast_3d(photo[y0:y1, x0:x1]).astype(np.float32)
+    s = np.float32(share)
+    return FaceLayer(layer.box, layer.inside, s * layer.relit + (np.float32(1.0) - s) * crop,
+                     s * layer.gain + (np.float32(1.0) - s), layer.alpha)
+
+
 def unchanged(layer: FaceLayer, photo: np.ndarray) -> FaceLayer:
     """``layer`` made to leave its box of the photo (``photo`` (h, w, C), linear) as it is."""
     return FaceLayer(layer.box, layer.inside, np.asarray(photo, np.float32), np.ones_like(layer.gain), None)
@@ -115,7 +161,9 @@ class PhotoRelightNode:
             h = layer_harm(face, layers[0][1], eyes)
             report["harm"] = round(h, 2)
             if h > EVEN_HARM:
-                flags.append(f"lit evenly, yet relit it would change by {h:.0f} % at a fine scale: left as it was")
+                flags.append(left_flag(h))
+                # kept for a clip's face, whose frames before may say it is relit (``app.steady``)
+                frame.data["photo_layers_relit"] = layers
                 layers = [(light, unchanged(layer, face.layer_photo)) for light, layer in layers]
         if report.get("painted", 0.0) > PAINTED_DOUBT:
             flags.append(f"{100 * report['painted']:.0f} % of the face painted: the photo shows too little of it")

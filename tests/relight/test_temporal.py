@@ -1,0 +1,106 @@
+"""A face's change of light carried over a clip's frames (``relight.temporal``), on synthetic layers with known
+levels: a jittering level comes out steadier, a real change is followed, the face's grid moves with the eyes, the
+frame's fine texture stays its own, and the photo past the layer's reach stays the photo."""
+from __future__ import annotations
+
+import numpy as np
+
+from shadowflow.nodes.relight import temporal as T
+from shadowflow.nodes.relight.compose import FaceLayer, compose
+
+H = W = 200
+EYES = np.array([[80.0, 90.0], [120.0, 90.0]])
+YY, XX = np.mgrid[:H, :W]
+
+
+def photo(seed: int = 0) -> np.ndarray:
+    """(H, W, 3) a textured grey photo in linear light."""
+    rng = np.random.default_rng(seed)
+    return (0.25 + 0.05 * rng.random((H, W, 1))).repeat(3, axis=2).astype(np.float32)
+
+
+def layer(image: np.ndarray, k: float, dx: float = 0.0, fine: np.ndarray | None = None) -> FaceLayer:
+    """A face (a disc below the eyes, moved ``dx`` pixels) brightened ``k`` times, its gain fading to 1 around it
+    (0 change beyond 80 pixels from its centre); ``fine``: (H, W) a fine factor on the relit face."""
+    r = np.hypot(XX - 100 - dx, YY - 110)
+    inside = r < 50
+    fade = np.clip((80 - r) / 30, 0, 1)[..., None]
+    gain = np.where(inside[..., None], k, 1.0 + fade * (k - 1.0)).astype(np.float32)
+    relit = image * k * (1.0 if fine is None else fine[..., None])
+    return FaceLayer((0, H, 0, W), inside, relit.astype(np.float32), gain)
+
+
+def centre_level(lay: FaceLayer, image: np.ndarray, dx: float = 0.0) -> float:
+    """The mean factor of the relit face over the photo near its centre."""
+    r = np.hypot(XX - 100 - dx, YY - 110) < 20
+    return float(np.mean(lay.relit[r] / image[r]))
+
+
+def run(levels, dxs=None, image=None) -> list[float]:
+    image = photo() if image is None else image
+    dxs = [0.0] * len(levels) if dxs is None else dxs
+    carried, out = None, []
+    for k, dx in zip(levels, dxs):
+        steadied, carried = T.steady_layer(layer(image, k, dx), image, EYES + [dx, 0.0], carried)
+        out.append(centre_level(steadied, image, dx))
+    return out
+
+
+def test_a_jittering_level_comes_out_steadier():
+    levels = [2.0 * (1.1 if i % 2 else 1 / 1.1) for i in range(20)]
+    out = run(levels)
+    step_in = np.abs(np.diff(np.log(levels[10:]))).mean()
+    step_out = np.abs(np.diff(np.log(out[10:]))).mean()
+    # an exponential average with a frame's share 0.3 leaves 0.3 / 1.7 of an alternating step
+    assert step_out < 0.3 * step_in
+    assert abs(np.mean(np.log(out[10:])) - np.log(2.0)) < 0.02  # about the level the frames share
+
+
+def test_a_real_change_is_followed_within_a_few_frames():
+    out = run([1.0] * 5 + [3.0] * 10)
+    assert out[0] == np.float32(1.0) or abs(out[0] - 1.0) < 1e-5  # the first frame as it came
+    assert abs(out[5] - 3.0) > 0.5  # the change is averaged in, not taken at once
+    assert abs(np.log(out[5 + 8]) - np.log(3.0)) < 0.05  # ... and followed within eight frames
+
+
+def test_the_grid_moves_with_the_face():
+    """A face moving across the frame under a steady light needs no correction: the carried change moves with it."""
+    dxs = [3.0 * i for i in range(10)]
+    out = run([2.0] * 10, dxs)
+    assert max(abs(v - 2.0) for v in out) < 0.02
+    grid = T.FaceGrid.from_eyes(EYES + [12.0, 0.0])
+    field = np.exp(-((XX - 112.0) ** 2 + (YY - 110.0) ** 2) / 800.0).astype(np.float32)
+    values, known = T.to_grid(field, grid, (0, H, 0, W))
+    back, weight = T.from_grid(values, known, grid, (0, H, 0, W))
+    on = weight > 0.99
+    assert on[110, 112] and np.abs(back - field)[on].max() < 0.02
+    moved = T.FaceGrid.from_eyes(EYES)
+    shifted, _ = T.to_grid(field, moved, (0, H, 0, W))
+    assert np.abs(shifted - values)[known].max() > 0.2  # the grid is the face's, not the photo's
+
+
+def test_the_frames_fine_texture_stays_its_own():
+    image = photo()
+    rng = np.random.default_rng(5)
+    carried = None
+    for k in [2.0, 2.6, 1.5]:
+        fine = (1.0 + 0.2 * rng.standard_normal((H, W))).astype(np.float32)
+        lay = layer(image, k, fine=fine)
+        steadied, carried = T.steady_layer(lay, image, EYES, carried)
+    factor = np.log(steadied.relit[..., 0] / lay.relit[..., 0])[lay.inside]
+    fine_log = np.log(fine)[lay.inside]
+    # the correction is smooth: it does not follow the frame's fine pattern
+    assert abs(np.corrcoef(factor, fine_log)[0, 1]) < 0.25
+    assert factor.std() < 0.1 * fine_log.std() + 0.02
+
+
+def test_the_photo_past_the_layers_reach_is_untouched():
+    image = photo()
+    carried = None
+    for k in [2.0, 1.2, 2.8]:
+        steadied, carried = T.steady_layer(layer(image, k), image, EYES, carried)
+    before, after = compose(image, [layer(image, 2.8)]), compose(image, [steadied])
+    beyond = np.hypot(XX - 100, YY - 110) >= 80 + 5 * T.COARSE * 40  # the change's reach and its blur's
+    assert np.array_equal(after[beyond], image[beyond])
+    assert np.array_equal(before[beyond], after[beyond])
+    assert not np.allclose(after[~beyond], before[~beyond])  # (within it, the change was steadied)
