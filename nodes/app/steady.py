@@ -29,8 +29,12 @@ TRACK_MATCH = 0.5
 TRACK_MEMORY = 5
 # VIEW_EVERY: a tracked face read near frontal reads its view with the fit (``turned.ViewChoiceNode``: a fit of each
 # candidate view, two thirds of a frame's time) on its first frame and every this many frames after, and carries the
-# yaw read so to the frames between (``SteadyYawNode``); the view itself is frontal on each of them either way
+# yaw read so to the frames between (``SteadyYawNode``); the view itself is frontal on each of them either way.
+# VIEW_LIGHT_DEG: ... and reads it again when its light moved this far since (the landmarks lean away from a side
+# light: a switch of the light from +30 to -30 deg moved their yaw by 10 deg, and the share carried from before it
+# then added to that lean instead of taking it away)
 VIEW_EVERY = 10
+VIEW_LIGHT_DEG = 10.0
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -72,6 +76,16 @@ class LightSmoother:
 class _Track:
     def __init__(self, box: list, index: int, number: int):
         self.box, self.seen, self.smoother, self.number, self.born = box, index, LightSmoother(), number, index
+        self.read_at: tuple[int, np.ndarray] | None = None  # the frame and light its view was last read with the fit
+
+    def view_refresh(self, index: int, light: np.ndarray) -> bool | str:
+        """Whether this frame of the face reads its view with the fit (``VIEW_EVERY``): True, or "light" when its
+        light moved (``VIEW_LIGHT_DEG``: the readings before are of another light); False when it does not."""
+        moved = self.read_at is not None and angle_deg(light, self.read_at[1]) > VIEW_LIGHT_DEG
+        if self.read_at is None or index - self.read_at[0] >= VIEW_EVERY or moved:
+            self.read_at = (index, np.asarray(light, np.float64))
+            return "light" if moved else True
+        return False
 
     def near(self, box: list) -> float:
         """How far ``box``'s centre is from this track's, in this track's box sides (inf: too far to be it)."""
@@ -115,9 +129,10 @@ class SteadyLightNode:
             else:
                 free.remove(track)
             track.box, track.seen = box, index
+            light = track.smoother.update(face.data["light"])
             face.meta.update(track=track.number, track_age=index - track.born,
-                             view_refresh=(index - track.born) % VIEW_EVERY == 0)
-            self._steady(face, track.smoother.update(face.data["light"]))
+                             view_refresh=track.view_refresh(index, light))
+            self._steady(face, light)
         return frame
 
     @staticmethod
@@ -131,7 +146,7 @@ class SteadyLightNode:
 class SteadyYawNode:
     """For a clip's frames, once each face is fitted: a tracked face that read its view with the fit on this frame
     (``meta["yaw_read"]``) gives its track the fit's share of the yaw read (the read yaw less the landmarks', averaged
-    with the track's readings before: each new one weighs a half); one
+    with the track's readings before, each new one weighing a half, unless its light moved since); one
     that did not (``meta["view_refresh"]`` False) is given the landmarks' yaw plus that share, as its track's last
     reading had it (``yaw_read``: ``landmarks`` and ``carried``). Frames of a clip reach it in order."""
 
@@ -153,9 +168,11 @@ class SteadyYawNode:
             if number is None or not pose:
                 continue
             read = face.meta.get("yaw_read")
-            if read is not None:  # each reading averaged with the ones before (one fit's yaw varies by several deg)
+            if read is not None:  # each reading averaged with the ones before under that light (one fit's yaw
+                # varies by several degrees)
                 share = float(pose["yaw"]) - float(read["landmarks"])
-                self.shares[number] = share if number not in self.shares else 0.5 * (self.shares[number] + share)
+                fresh = number not in self.shares or face.meta.get("view_refresh") == "light"
+                self.shares[number] = share if fresh else 0.5 * (self.shares[number] + share)
             elif face.meta.get("view_refresh") is False and number in self.shares:
                 share = self.shares[number]
                 face.meta["yaw_read"] = {"landmarks": pose["yaw"], "carried": round(share, 2)}

@@ -82,8 +82,9 @@ META: dict[str, tuple[str, str]] = {
     "light_raw": ("[x, y, z] a clip's face's light estimated on its frame alone, before steadying", "steady"),
     "track": ("which face of a clip this is over its frames (a number, from 0 in each clip)", "steady"),
     "track_age": ("how many frames of its clip a face has been tracked before this one", "steady"),
-    "view_refresh": ("whether a clip's face near frontal reads its view (and yaw) with the fit on this frame "
-                     "(False: the yaw the frames before read is carried)", "steady"),
+    "view_refresh": ("whether a clip's face near frontal reads its view (and yaw) with the fit on this frame: True, "
+                     "\"light\" (its light moved since the last reading), or False (the yaw read before is carried)",
+                     "steady"),
     "alignment": ("how the face was aligned (landmarks, eyes, centred crop)", "faces"),
     "model_view": ("[yaw, pitch] degrees of the turned model the face is fitted with (absent: frontal)",
                    "faces, view_choice"),

@@ -342,3 +342,19 @@ def test_eval_clips_measures_a_relit_clip_against_its_input(tmp_path):
     assert again.returncode == 0, again.stderr
     assert (out / "talk" / "relit.mp4").stat().st_mtime_ns == written
     assert json.loads(report.read_text())["rows"][0]["flicker"] == pytest.approx(row["flicker"])
+
+
+@pytest.mark.slow  # (whole CLI runs)
+def test_a_clip_face_reads_its_view_with_the_fit_on_its_first_frame_and_carries_it(clip_run):
+    """A near-frontal face under a side light reads its yaw with the fit (a fit of each candidate view) on its track's
+    first frame, and carries the fit's share of the yaw to the frames after, fitted frontally without the trials,
+    until its light moves."""
+    _, out, _ = clip_run
+    reads = [line["faces"][0].get("yaw_read") or {} for line in lines(out / "talk")]
+    assert "fit" in reads[0]
+    share = (reads[0]["fit"] - reads[0]["landmarks"]) / 2
+    assert all(r.get("carried") == pytest.approx(share, abs=0.05) for r in reads[1:5])
+    # the light switched sides (frame 5): the landmarks lean the other way, so the view is read again, afresh
+    assert "fit" in reads[5]
+    assert all(r.get("carried") == pytest.approx((reads[5]["fit"] - reads[5]["landmarks"]) / 2, abs=0.05)
+               for r in reads[6:])

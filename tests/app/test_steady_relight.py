@@ -94,7 +94,7 @@ def test_a_face_seen_again_after_a_gap_starts_afresh():
     assert abs(level(node(photo).parts[0]) - 5.0) < 1e-4  # a photo passes untouched
 
 
-def yaw_frame(index: int, landmarks: float, refresh: bool, fit: float | None = None, track: int = 0) -> Frame:
+def yaw_frame(index: int, landmarks: float, refresh: bool | str, fit: float | None = None, track: int = 0) -> Frame:
     """A clip's frame of one tracked face whose landmarks read ``landmarks`` degrees of yaw; read by the fit too
     (``fit``), its pose's yaw the two's mean, as ``turned.ViewChoiceNode`` leaves it."""
     frame = Frame(index, f"clip frame {index}")
@@ -119,6 +119,9 @@ def test_the_yaw_the_fit_read_is_carried_to_the_frames_between():
     assert again.meta["placement"]["pose"]["yaw"] == 3.0
     # the carried share the two readings' mean: a single fit's yaw varies
     assert node(yaw_frame(5, 1.0, False)).parts[0].meta["placement"]["pose"]["yaw"] == -1.0
+    moved = yaw_frame(6, -5.0, "light", fit=5.0)  # read under a light moved since: the readings before are not
+    node(moved)  # averaged in
+    assert node(yaw_frame(7, -5.0, False)).parts[0].meta["placement"]["pose"]["yaw"] == 0.0
     other = node(yaw_frame(6, 5.0, False, track=1)).parts[0]  # a face never read: as its landmarks say
     assert other.meta["placement"]["pose"]["yaw"] == 5.0 and "yaw_read" not in other.meta
 
