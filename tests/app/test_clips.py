@@ -358,3 +358,27 @@ def test_a_clip_face_reads_its_view_with_the_fit_on_its_first_frame_and_carries_
     assert "fit" in reads[5]
     assert all(r.get("carried") == pytest.approx((reads[5]["fit"] - reads[5]["landmarks"]) / 2, abs=0.05)
                for r in reads[6:])
+
+
+def test_a_clip_whose_first_frames_come_unevenly_is_written_whole(tmp_path):
+    """A phone's clip (variable frame rate) whose first two frames come close together (read back, at one time): with
+    the encoder's B-frames its packets' decode times ran backwards and the relit clip could not be written."""
+    from fractions import Fraction
+
+    src = tmp_path / "phone.mp4"
+    with av.open(str(src), "w") as out:
+        video = out.add_stream("libx264", rate=25)
+        video.width = video.height = 64
+        video.pix_fmt, video.time_base = "yuv420p", Fraction(1, 25000)
+        video.options = {"bf": "0"}  # (as the phone wrote it: with B-frames this very writer fails the same way)
+        for i, pts in enumerate([0, 275] + [1275 + 1000 * k for k in range(22)]):
+            image = np.full((64, 64, 3), (7 * i) % 255, np.uint8)
+            image[:, : 2 + 2 * i] = 255  # a moving edge: frames the encoder does not skip
+            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
+            frame.pts, frame.time_base = pts, Fraction(1, 25000)
+            out.mux(video.encode(frame))
+        out.mux(video.encode(None))
+    given = [f.time for f in ClipReader(src)]
+    assert given[0] == given[1]  # (two frames at one time, as that phone's clip read back)
+    got = [f.time for f in ClipReader(_copied(src, tmp_path / "copy.mp4"))]
+    assert len(got) == len(given) == 24 and got == sorted(got) and got[-1] == pytest.approx(given[-1], abs=0.05)
