@@ -180,14 +180,15 @@ class SteadyYawNode:
         return frame
 
 
-# HONEST_CONFIRM: a tracked face's frames must say this many times in a row that it is to be left as it was (or
-# relit) before the clip's face changes to that: the honesty step's verdict on one frame flips on a face near its
-# bound (a webcam clip's 158 frames: 25 left as they were, scattered), and each flip is a step of the face's light
-HONEST_CONFIRM = 5
-# HONEST_RAMP: a tracked face changing between relit and left as it was does so over this many frames (its relit
-# face blended with the photo), not at once: on a webcam clip the two differ by 15 levels of the face's mean, a step
-# no steadying of the change of light hides (each switch alone raised the clip's flicker from 1.0 to 1.8 levels)
-HONEST_RAMP = 20
+# HONEST_CONFIRM: a tracked face's frames must say this many times in a row that it is to be left as it was (key
+# True) or relit (False) before the clip's face changes to that: the honesty step's verdict on one frame flips on a
+# face near its bound (a webcam clip's 158 frames: 25 left as they were, scattered), and each flip is a step of the
+# face's light. HONEST_RAMP: ... and it changes over this many frames (its relit face blended with the photo), not at
+# once: the two differ by 15 levels of that face's mean, a step no steadying of the change of light hides. Taken
+# away soon when it harms (2 frames, over 8: held 5 and blended over 20, a harmed face showed orange blotches for 15
+# frames), given back slowly
+HONEST_CONFIRM = {True: 2, False: 5}
+HONEST_RAMP = {True: 8, False: 20}
 
 
 class _Relit:
@@ -245,13 +246,13 @@ class SteadyRelightNode:
         """The face left as it was or relit as its track holds; the track's verdict changed by ``HONEST_CONFIRM``
         frames in a row that say otherwise, and its pixels moving to it over ``HONEST_RAMP`` frames."""
         track.against = track.against + 1 if left != track.left else 0
-        if track.against >= HONEST_CONFIRM:
+        if track.against >= HONEST_CONFIRM[left]:
             track.left, track.against = left, 0
         if left and not track.left:
             relight_again(face)
         elif track.left and not left:
             leave(face, photo, f"the frames before of this face would change at a fine scale: {LEFT}")
-        step = 1.0 / HONEST_RAMP
+        step = 1.0 / HONEST_RAMP[track.left]
         track.share = float(np.clip(track.share + (-step if track.left else step), 0.0, 1.0))
         if 0.0 < track.share < 1.0:  # on the way between the two: the relit face shown so much
             d = face.data

@@ -1,6 +1,7 @@
 """A clip's relit faces held steady after relighting (``app.steady.SteadyRelightNode``), on frames made by hand: the
 honesty step's verdict on single frames does not flip the face between relit and left as it was, a real change of
-verdict is followed after ``HONEST_CONFIRM`` frames, and each frame's change of light is carried (its level steadied)."""
+verdict is followed after ``HONEST_CONFIRM`` frames, and each frame's change of light is carried (its level
+steadied)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -19,7 +20,8 @@ INSIDE = np.hypot(XX - 60, YY - 65) < 35
 
 
 def relit_layer(k: float) -> FaceLayer:
-    return FaceLayer((0, H, 0, W), INSIDE, PHOTO * np.float32(k), np.where(INSIDE[..., None], k, 1.0).astype(np.float32))
+    gain = np.where(INSIDE[..., None], k, 1.0).astype(np.float32)
+    return FaceLayer((0, H, 0, W), INSIDE, PHOTO * np.float32(k), gain)
 
 
 def clip_frame(index: int, left: bool, k: float = 2.0, track: int = 0) -> Frame:
@@ -45,7 +47,7 @@ def level(face: Frame) -> float:
 
 def test_single_frames_left_as_they_were_do_not_flip_the_face():
     node = SteadyRelightNode()
-    verdicts = [False, False, True, False, True, True, False, False, True, False]
+    verdicts = [False, False, True, False, True, False, False, True, False, True]
     faces = [node(clip_frame(i, left)).parts[0] for i, left in enumerate(verdicts)]
     assert not any(left_as_it_was(f) for f in faces)
     assert all(abs(level(f) - 2.0) < 1e-4 for f in faces)  # every frame relit, as the face's frames mostly say
@@ -53,18 +55,23 @@ def test_single_frames_left_as_they_were_do_not_flip_the_face():
 
 
 def test_a_lasting_verdict_is_followed_after_its_confirmation():
+    """A relighting that harms is taken away after HONEST_CONFIRM[True] frames say so, blended out over
+    HONEST_RAMP[True]; given back after HONEST_CONFIRM[False], over HONEST_RAMP[False]."""
     node = SteadyRelightNode()
-    after = HONEST_RAMP + 10
-    verdicts = [False] * 4 + [True] * (HONEST_CONFIRM + after)
+    out_frames = HONEST_CONFIRM[True] + HONEST_RAMP[True] + 5
+    back_frames = HONEST_CONFIRM[False] + HONEST_RAMP[False] + 5
+    verdicts = [False] * 4 + [True] * out_frames + [False] * back_frames
     faces = [node(clip_frame(i, left)).parts[0] for i, left in enumerate(verdicts)]
-    switch = 4 + HONEST_CONFIRM - 1
-    assert [left_as_it_was(f) for f in faces] == [False] * switch + [True] * (after + 1)
-    # the face moves to the photo as it was over HONEST_RAMP frames, in steps no larger than the ramp's
     levels = np.array([level(f) for f in faces])
-    steps = np.diff(levels[switch - 1:])
-    assert np.all(steps <= 1e-6) and -steps.min() < 1.5 / HONEST_RAMP
-    assert levels[switch + HONEST_RAMP // 2] > 1.2
-    assert abs(levels[-1] - 1.0) < 0.01
+    leave = 4 + HONEST_CONFIRM[True] - 1
+    back = 4 + out_frames + HONEST_CONFIRM[False] - 1
+    expected = [False] * leave + [True] * (back - leave) + [False] * (len(faces) - back)
+    assert [left_as_it_was(f) for f in faces] == expected
+    for start, ramp, sign in ((leave, HONEST_RAMP[True], -1), (back, HONEST_RAMP[False], 1)):
+        steps = sign * np.diff(levels[start - 1:start + ramp + 3])
+        assert np.all(steps >= -1e-6) and steps.max() < 1.5 / ramp  # one way, in steps no larger than the ramp's
+        assert 1.1 < levels[start + ramp // 2] < 1.9
+    assert abs(levels[4 + out_frames - 1] - 1.0) < 0.05 and abs(levels[-1] - 2.0) < 0.05
 
 
 def test_a_face_left_from_its_first_frames_stays_left_through_single_relit_frames():
