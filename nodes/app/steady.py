@@ -143,7 +143,26 @@ class SteadyLightNode:
         face.meta.update(light=[round(float(x), 6) for x in light], light_source="steadied")
 
 
-class SteadyYawNode:
+class _PerClip:
+    """A node's state over one clip's frames, started afresh (``fresh``) when a frame of another clip comes."""
+
+    def __init__(self) -> None:
+        self.clip: str | None = None
+        self.fresh()
+
+    def fresh(self) -> None:
+        raise NotImplementedError
+
+    def clip_of(self, frame: Frame) -> dict | None:
+        """The frame's clip (``meta["clip"]``), the state made afresh if it is a new one; None for a photo."""
+        clip = frame.meta.get("clip")
+        if clip and clip["stem"] != self.clip:
+            self.clip = clip["stem"]
+            self.fresh()
+        return clip
+
+
+class SteadyYawNode(_PerClip):
     """For a clip's frames, once each face is fitted: a tracked face that read its view with the fit on this frame
     (``meta["yaw_read"]``) gives its track the fit's share of the yaw read (the read yaw less the landmarks', averaged
     with the track's readings before, each new one weighing a half, unless its light moved since); one
@@ -152,16 +171,12 @@ class SteadyYawNode:
 
     name = "steady_yaw"
 
-    def __init__(self) -> None:
-        self.clip: str | None = None
+    def fresh(self) -> None:
         self.shares: dict[int, float] = {}
 
     def __call__(self, frame: Frame) -> Frame:
-        clip = frame.meta.get("clip")
-        if not clip:
+        if not self.clip_of(frame):
             return frame
-        if clip["stem"] != self.clip:
-            self.clip, self.shares = clip["stem"], {}
         for face in frame.parts:
             pose = (face.meta.get("placement") or {}).get("pose")
             number = face.meta.get("track")
@@ -200,7 +215,7 @@ class _Relit:
         self.share = 0.0 if left else 1.0  # how much of the relit face is shown (``HONEST_RAMP``)
 
 
-class SteadyRelightNode:
+class SteadyRelightNode(_PerClip):
     """For a clip's frames, after each face is relit: a tracked face (``meta["track"]``, ``SteadyLightNode``) is
     left as it was, or relit, as its track holds (``HONEST_CONFIRM``), and each of its layers' change of light is
     steadied by the running change of the frames before (``relight.temporal.steady_layer``). A face seen again
@@ -208,16 +223,13 @@ class SteadyRelightNode:
 
     name = "steady_relight"
 
-    def __init__(self) -> None:
-        self.clip: str | None = None
+    def fresh(self) -> None:
         self.tracks: dict[int, _Relit] = {}
 
     def __call__(self, frame: Frame) -> Frame:
-        clip = frame.meta.get("clip")
+        clip = self.clip_of(frame)
         if not clip:
             return frame
-        if clip["stem"] != self.clip:
-            self.clip, self.tracks = clip["stem"], {}
         index = int(clip["index"])
         for face in frame.parts:
             number = face.meta.get("track")

@@ -32,18 +32,25 @@ class Ellipse:
     iod: float
 
 
-def face_ellipse(eyes: np.ndarray, shape: tuple[int, int], margin: float = 0.45) -> Ellipse:
-    """The face's ellipse from its eyes (2, 2), in a crop of an (H, W) photo around it grown by ``margin`` eye
-    distances (the blur's reach). The ellipse follows the eyes' line (a rolled face's is rolled)."""
+def eye_axes(eyes: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """``(mid, iod, u, down)`` of a face's eyes (2, 2) photo pixels, either order: their midpoint, their distance, the
+    unit vector along them toward the image's right and the one across them toward the chin (image rows grow
+    downward); ``ValueError`` when they are less than a pixel apart."""
     e = np.asarray(eyes, np.float64).reshape(2, 2)
     left, right = (e[0], e[1]) if e[0, 0] <= e[1, 0] else (e[1], e[0])
     across = right - left
     iod = float(np.linalg.norm(across))
     if iod < 1.0:
         raise ValueError(f"eyes {e.tolist()} are less than a pixel apart")
-    u = across / iod  # toward the image's right, along the eyes
-    down = np.array([-u[1], u[0]])  # image rows grow downward
-    centre = (left + right) / 2.0 + ELLIPSE_DROP * iod * down
+    u = across / iod
+    return (left + right) / 2.0, iod, u, np.array([-u[1], u[0]])
+
+
+def face_ellipse(eyes: np.ndarray, shape: tuple[int, int], margin: float = 0.45) -> Ellipse:
+    """The face's ellipse from its eyes (2, 2), in a crop of an (H, W) photo around it grown by ``margin`` eye
+    distances (the blur's reach). The ellipse follows the eyes' line (a rolled face's is rolled)."""
+    mid, iod, u, down = eye_axes(eyes)
+    centre = mid + ELLIPSE_DROP * iod * down
     reach = (max(ELLIPSE_AXES) + margin) * iod
     x0, x1 = max(0, int(centre[0] - reach)), min(shape[1], int(np.ceil(centre[0] + reach)) + 1)
     y0, y1 = max(0, int(centre[1] - reach)), min(shape[0], int(np.ceil(centre[1] + reach)) + 1)
@@ -51,7 +58,6 @@ def face_ellipse(eyes: np.ndarray, shape: tuple[int, int], margin: float = 0.45)
     dx, dy = xx - centre[0], yy - centre[1]
     a = (dx * u[0] + dy * u[1]) / (ELLIPSE_AXES[0] * iod)
     b = (dx * down[0] + dy * down[1]) / (ELLIPSE_AXES[1] * iod)
-    mid = (left + right) / 2.0
     side = -((xx - mid[0]) * u[0] + (yy - mid[1]) * u[1])  # > 0 on the image's left of the axis
     return Ellipse(a * a + b * b <= 1.0, side.astype(np.float32), (y0, y1, x0, x1), iod)
 

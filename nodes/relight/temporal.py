@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..photo.evenness import eye_axes
 from .compose import FaceLayer, compose
 from .fields import blur, smoothstep
 from .harm import EPS
@@ -36,17 +37,10 @@ class FaceGrid:
 
     @classmethod
     def from_eyes(cls, eyes: np.ndarray) -> FaceGrid:
-        e = np.asarray(eyes, np.float64).reshape(2, 2)
-        left, right = (e[0], e[1]) if e[0, 0] <= e[1, 0] else (e[1], e[0])
-        across = right - left
-        iod = float(np.linalg.norm(across))
-        if iod < 1.0:
-            raise ValueError(f"eyes {e.tolist()} are less than a pixel apart")
-        u = across / iod
-        down = np.array([-u[1], u[0]])
+        mid, iod, u, down = eye_axes(eyes)
         (x0, x1), (y0, y1) = SPAN
         step_x, step_y = (x1 - x0) * iod / (GRID - 1), (y1 - y0) * iod / (GRID - 1)
-        origin = (left + right) / 2.0 + x0 * iod * u + y0 * iod * down
+        origin = mid + x0 * iod * u + y0 * iod * down
         return cls(np.array([[u[0] * step_x, down[0] * step_y, origin[0]],
                              [u[1] * step_x, down[1] * step_y, origin[1]]], np.float64))
 
@@ -130,9 +124,8 @@ def steady_layer(layer: FaceLayer, photo: np.ndarray, eyes: np.ndarray, before: 
     """One frame's ``layer`` of a face steadied by the face's running coarse change ``before`` (None: the first
     frame, kept as it is): ``(layer, carried)``, the carried change for the next frame. ``photo`` (h, w, C) linear,
     the layer's box of the photo; ``eyes`` (2, 2) photo pixels."""
-    e = np.asarray(eyes, np.float64).reshape(2, 2)
-    iod = float(np.linalg.norm(e[1] - e[0]))
-    grid = FaceGrid.from_eyes(e)
+    _, iod, _, _ = eye_axes(eyes)
+    grid = FaceGrid.from_eyes(eyes)
     own = coarse_change(layer, photo, iod)
     own_grid, own_known = to_grid(own, grid, layer.box)
     running = carry(before, own_grid, own_known, alpha)
