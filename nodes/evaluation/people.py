@@ -186,7 +186,8 @@ def summarise(rows: list[dict]) -> dict:
             **_h_figures(even, "even_"), **_h_figures(scored, ""), "move_median": _percentile(moves, 50)}
 
 
-def _fmt(value, spec: str) -> str:
+def figure(value, spec: str) -> str:
+    """``value`` formatted by ``spec``, or "-" when there is none (a table's cell)."""
     return "-" if value is None else format(value, spec)
 
 
@@ -195,20 +196,22 @@ def format_table(rows: list[dict]) -> str:
     lines = [f"{'input':44s} {'face':>4s} {'status':9s} {'score':>5s} {'halves':>6s} {'H %':>6s} {'P %':>6s} "
              f"{'C %':>5s} {'move':>6s}  reason"]
     for r in rows:
-        lines.append(f"{r['photo'][:44]:44s} {r['face']:4d} {r['status']:9s} {_fmt(r.get('score'), '5.2f')} "
-                     f"{_fmt(r.get('halves'), '6.2f')} {_fmt(r.get('h'), '6.1f')} {_fmt(r.get('p'), '6.1f')} "
-                     f"{_fmt(r.get('c'), '5.1f')} {_fmt(r.get('move'), '6.2f')}  {r.get('reason', '')[:60]}")
+        lines.append(f"{r['photo'][:44]:44s} {r['face']:4d} {r['status']:9s} {figure(r.get('score'), '5.2f')} "
+                     f"{figure(r.get('halves'), '6.2f')} {figure(r.get('h'), '6.1f')} {figure(r.get('p'), '6.1f')} "
+                     f"{figure(r.get('c'), '5.1f')} {figure(r.get('move'), '6.2f')}  {r.get('reason', '')[:60]}")
     s = summarise(rows)
     lines += ["", f"faces {s['faces']}: relit {s['relit']}, doubtful {s['doubtful']}, refused {s['refused']} "
               f"(inputs refused whole: {s['inputs_refused']})",
-              f"evenly lit (halves within 15 %): {s['even']} faces, H median {_fmt(s['even_h_median'], '.1f')} %, "
-              f"95th percentile {_fmt(s['even_h_p95'], '.1f')} %, written ok above {BAD_H:g} %: {s['even_ok_over_bad']}",
-              f"every relit face: H median {_fmt(s['h_median'], '.1f')} %, 95th percentile {_fmt(s['h_p95'], '.1f')} %, "
-              f"worst {_fmt(s['h_worst'], '.1f')} %, written ok above {BAD_H:g} %: {s['ok_over_bad']}",
+              f"evenly lit (halves within 15 %): {s['even']} faces, H median {figure(s['even_h_median'], '.1f')} %, "
+              f"95th percentile {figure(s['even_h_p95'], '.1f')} %, written ok above {BAD_H:g} %: "
+              f"{s['even_ok_over_bad']}",
+              f"every relit face: H median {figure(s['h_median'], '.1f')} %, 95th percentile "
+              f"{figure(s['h_p95'], '.1f')} %, "
+              f"worst {figure(s['h_worst'], '.1f')} %, written ok above {BAD_H:g} %: {s['ok_over_bad']}",
               f"colour shift C (white light: the skin's colour kept), median: evenly lit "
-              f"{_fmt(s['even_c_median'], '.1f')} %, every relit face {_fmt(s['c_median'], '.1f')} %",
+              f"{figure(s['even_c_median'], '.1f')} %, every relit face {figure(s['c_median'], '.1f')} %",
               f"light moved by the {SIDE_LIGHT[0]} deg light (left minus right, blurred log ratio): median "
-              f"{_fmt(s['move_median'], '.2f')}"]
+              f"{figure(s['move_median'], '.2f')}"]
     return "\n".join(lines)
 
 

@@ -471,10 +471,10 @@ class QualityNode:
                    even=evenly_lit(photo_channels(frame), None if placement is None else placement.eyes))
         q.signals["covered"] = float(np.mean(unread[seen])) if seen.any() else 0.0  # hair the fit left out
         frame.meta["quality"] = q.record()
-        if q.no_face and frame.meta.get("track_age", 0) < TRACKED_FACE:
+        age = frame.meta.get("track_age", 0)
+        if q.no_face and age < TRACKED_FACE:
             raise FrameFailed(f"{frame.source}: {NO_FACE} ({'; '.join(q.flags)})")
         if q.no_face:  # a clip's face found where it was on the frames before is that face, however its fit went
-            age = frame.meta["track_age"]
             frame.meta["quality"]["flags"] = [*q.flags, f"no face by its fit, yet tracked {age} frames"]
         return frame
 

@@ -13,7 +13,7 @@ from pathlib import Path
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ....flow.replay.text import one_line
-from ...evaluation.people import contact_sheet, evaluate_people, format_table, json_rows, people_inputs
+from ...evaluation.people import contact_sheet, evaluate_people, figure, format_table, json_rows, people_inputs
 from ...evaluation.people import summarise as people_summary
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
 from ...evaluation.yaleb_benchmark import HELD_OUT_LIGHTS, INPUT_LIGHTS, evaluate_yaleb, format_report, summarise
@@ -157,9 +157,7 @@ def cmd_eval_clips(args: argparse.Namespace) -> int:
 
 
 def _clip_line(row: dict) -> str:
-    def f(value, spec: str) -> str:
-        return "-" if value is None else format(value, spec)
-
+    f = figure
     return (f"{Path(row['source']).name[:40]:40s} {f(row.get('frames'), 'd'):>6s} {f(row.get('with_face'), 'd'):>5s} "
             f"{f(row.get('flicker'), '.2f'):>8s} {f(row.get('excess_change'), '.2f'):>7s} "
             f"{f(row.get('h_median'), '.1f'):>6s}  {one_line(str(row['status']))[:60]}")
