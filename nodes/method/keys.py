@@ -55,6 +55,8 @@ DATA: dict[str, tuple[str, str]] = {
                      "the face", "relight_photo"),
     "photo_shadow": ("(h, w) bool, the face's cast and attached shadows in its box, at the photo's resolution",
                      "relight_photo"),
+    "photo_foreign": ("(h, w) float32 in [0, 1], with ``foreign_shadows``: how far each pixel of the face's box is in "
+                      "shadows the face does not cast", "relight_photo"),
     "photo_layers": ("list of (light (3,), ``FaceLayer``): the face relit, to compose into the photo (a clip's "
                      "steadied over its frames)", "relight_photo, steady_relight"),
     "photo_layers_relit": ("``photo_layers`` as relit, of a face left as it was: a clip's track may relight it "
@@ -101,6 +103,8 @@ META: dict[str, tuple[str, str]] = {
     "iterations": ("fit iterations", "robust_fit"),
     "converged": ("whether the fit met its stopping rule", "robust_fit"),
     "final_sigma": ("the fit's last residual scale, radians", "robust_fit"),
+    "foreign_shadows": ("with ``foreign_shadows``: the shadows the face does not cast, their count and share of the "
+                        "face", "relight_photo"),
     "relight": ("what the face's relighting did under the first light: exposure, painted share, lift's 95th percentile", "relight_photo"),
     "quality": ("score, flags and signals: is there a face, did the fit work (``quality``)", "quality"),
     "outputs": ("the folder the outputs were written to", "write"),

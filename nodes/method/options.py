@@ -104,6 +104,10 @@ class MethodOptions:
     # the side of a frontal face its light reaches less: its albedo raised toward its mirror's level, at this
     # strength (``relight.albedo.mirror_raise``); 0: measured as it is
     mirror_lift: float = 1.0
+    # shadows the face does not cast (a hat's brim, leaves, a hand) found and lifted under any light
+    # (``relight.foreign``); off by default: on ordinary photos a smile's cheeks, a temple and stubble were taken for
+    # them (docs/relighting.md, "Shadows from elsewhere")
+    foreign_shadows: bool = False
     # larger photos are reduced to this many pixels when read (memory and time stay bounded); None: never
     max_pixels: int | None = MAX_WORK_PIXELS
     # how the photo's values relate to light (``photo.encoding``): "auto" (colour sRGB, grey linear), "srgb",

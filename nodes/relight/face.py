@@ -58,7 +58,8 @@ class FaceRelight:
     (``Features``), or None. segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel
     is the person, or None (the whole feather). hair: (Hm, Wm) bool, what the fit left out as covering the face's
     upper part, or None. hair_matte: (h, w, C) linear photo -> (h, w) how sure a hair segmentation is that each
-    pixel is hair, or None (no such model here).
+    pixel is hair, or None (no such model here). model_normals: (Hm, Wm, 3) the fitted model's own normals, or None
+    (``shown_light.ShownLight``: they tell the shadows the face does not cast).
 
     Measured once: where the face is (``at``, a ``FaceBox``: ``box``, ``face``, ``layer_box``, ``layer_face``,
     ``layer_photo`` are its), the light the photo shows there (``shown_light``, a ``ShownLight``: ``shadow`` is its)
@@ -72,13 +73,15 @@ class FaceRelight:
                  fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, mirror: np.ndarray | None = None,
                  features: Features | None = None,
                  segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None,
-                 hair_matte: Callable[[np.ndarray], np.ndarray] | None = None):
+                 hair_matte: Callable[[np.ndarray], np.ndarray] | None = None,
+                 model_normals: np.ndarray | None = None):
         self.mask, self.depth, self.iod = mask, depth, iod_px
         self.feather = FEATHER * iod_px
         self.at = at = FaceBox(photo, alignment, mask, outline, segment, self.feather, features)
         self.box, self.face, self.layer_box, self.layer_face, self.layer_photo = (
             at.box, at.face, at.layer_box, at.layer_face, at.layer_photo)
-        self.shown_light = sl = ShownLight(at, normals, lit, albedo, light, iod_px, encoding, hair, hair_matte)
+        self.shown_light = sl = ShownLight(at, normals, lit, albedo, light, iod_px, encoding, hair, hair_matte,
+                                                  model_normals)
         self.paint = Paint(at, sl, eyes, eye_contrast, midline, mirror, fill_detail, iod_px)
         # (ratio, strength): how far the side lit less may be raised toward its mirror
         self.mirror_raise = _mirror_raise(at, sl, midline, mirror_lift, iod_px)
@@ -86,6 +89,16 @@ class FaceRelight:
         self.alpha = inner_alpha(at.face, self.feather, distance_inside(at.face))
         self.layer_alpha = at.in_layer(self.alpha)
         self.report: dict[str, float] = {}
+
+    def foreign_lift(self) -> np.ndarray | None:
+        """(h, w, C) float32 on the layer's box: how much the shadows the face does not cast are lifted under any
+        light (the light the photo would show without them over the light it shows), 1 elsewhere; None without
+        such shadows."""
+        sl = self.shown_light
+        if not sl.evidence.foreign.any():
+            return None
+        lift = sl.evidence.without_foreign(sl.fitted) / sl.photo_lighting
+        return self.at.in_layer(np.where(self.at.face[..., None], lift, np.float32(1.0)) - 1.0) + np.float32(1.0)
 
     def new_lighting(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(S', L'_u, k')`` (h, w) each for ``light`` (3,): the direct light less its cast shadow traced on the fit's
@@ -114,7 +127,9 @@ class FaceRelight:
         smooth = smooth_change(shown, at.face, CHANGE_SIGMA * self.iod)
         change = smooth_change(new / smooth, at.face, CHANGE_SIGMA * self.iod) * (smooth / shown)
         same = np.float32(shadows_kept(sl.light, s))
-        g = same + (np.float32(1.0) - same) * change * cast_share[..., None] * self._lifted(new)
+        # kept as it is under the photo's own light but for the shadows the face does not cast, lifted under any
+        kept = sl.evidence.without_foreign(sl.fitted) / shown if sl.evidence.foreign.any() else np.float32(1.0)
+        g = same * kept + (np.float32(1.0) - same) * change * cast_share[..., None] * self._lifted(new)
         keep = shine_kept(brightness(shown), brightness(new) * cast_share, shine_lobe(sl.normals, sl.light, s))
         no_fill = np.zeros(at.shape, np.float32)
         unexposed = relit_face(at.photo, g, g, no_fill, sl.shine, keep)

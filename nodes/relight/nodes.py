@@ -30,6 +30,7 @@ from ..photo.placement import FacePlacement
 from .compose import FaceLayer, compose
 from .face import FaceRelight
 from .face_box import Features
+from .foreign import found
 from .harm import harm
 from .products import albedo_on_grid
 
@@ -59,11 +60,13 @@ def face_yaw(frame: Frame) -> float:
 
 
 def layer_harm(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray) -> float:
-    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there, over the face's own
-    pixels (``layer.inside``); ``eyes`` (2, 2) photo pixels."""
+    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there with the shadows the face
+    does not cast lifted (``FaceRelight.foreign_lift``: that change is the one asked for, its edges the shadows'),
+    over the face's own pixels (``layer.inside``); ``eyes`` (2, 2) photo pixels."""
     y0, y1, x0, x1 = layer.box
-    before = face.layer_photo
-    after = compose(before, [dataclasses.replace(layer, box=(0, y1 - y0, 0, x1 - x0))])
+    after = compose(face.layer_photo, [dataclasses.replace(layer, box=(0, y1 - y0, 0, x1 - x0))])
+    lift = face.foreign_lift()
+    before = face.layer_photo if lift is None else face.layer_photo * lift
     return harm(before, after, eyes - [x0, y0], within=layer.inside).h
 
 
@@ -122,8 +125,10 @@ class PhotoRelightNode:
     """The face relit at the photo's own resolution, in colour when the input is (``face.FaceRelight``), all of it
     in the box around the face (plus the feather): the albedo and shadows there (``photo_albedo``,
     ``photo_shadow``, ``photo_box``), one ``FaceLayer`` per light (``relight_light``, then each of
-    ``extra_lights``) for ``compose`` to put into the photo, and what the relighting did (``meta["relight"]``). The
-    face's own exposure is kept, and nothing beyond the face's feather changes."""
+    ``extra_lights``) for ``compose`` to put into the photo, and what the relighting did (``meta["relight"]``). With
+    ``foreign_shadows``, the shadows the face does not cast too (``meta["foreign_shadows"]``: how many and their share
+    of the face; ``photo_foreign``: how far each pixel of the box is in them). The face's own exposure is kept, and
+    nothing beyond the face's feather changes."""
 
     name = "relight_photo"
 
@@ -143,6 +148,9 @@ class PhotoRelightNode:
             layers = self._honest(frame, face, layers, report, quality)
         d.update(photo_box=face.box, photo_albedo=face.albedo, photo_shadow=face.shadow, photo_layers=layers)
         frame.meta["relight"] = report
+        if self.options.foreign_shadows:
+            frame.meta["foreign_shadows"] = found(face.shown_light.evidence.foreign, face.at.face, face.iod)
+            d["photo_foreign"] = face.shown_light.evidence.foreign
         d["live"] = face.live_data()
         return frame
 
@@ -204,7 +212,15 @@ class PhotoRelightNode:
             encoding=encoding, outline=placement.outlines["oval"][0] if meshed else None, eyes=eyes,
             eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
             mirror_lift=self.options.mirror_lift, mirror=None if m.mirrors_by_column else m.mirror,
-            features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m))
+            features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m),
+            model_normals=foreign_cue(frame) if self.options.foreign_shadows else None)
+
+
+def foreign_cue(frame: Frame) -> np.ndarray | None:
+    """(Hm, Wm, 3) the fitted model's own normals (model camera frame), against whose shading the shadows the face
+    does not cast are found (``shown_light.ShownLight``); None without a fit."""
+    fit = frame.data.get("fit")
+    return None if fit is None else frame.data["model"].to_image(fit.model_normals.astype(np.float32))
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

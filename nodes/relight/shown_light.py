@@ -17,6 +17,7 @@ from .albedo import expected_albedo, smooth_coarse
 from .evidence import ShadowEvidence, shadow_evidence, shadow_gate
 from .face_box import FaceBox
 from .fields import blur, brightness, distance_inside, grow
+from .foreign import foreign_shadows
 from .lift import LIT_SHADING, exposure_target, photo_light, precision, signal
 from .shading import AMBIENT_RIM, AMBIENT_SIGMA, Shading, fit_ambient
 from .shine import SHEEN_SCALE, glints, sheen
@@ -31,6 +32,8 @@ MOUTH_MARGIN = 0.03
 # how rough skin may be, against the lit skin's median (``skin.strands``), before it is taken for hair's strands or a
 # beard
 ROUGH = 2.5
+# ... and what the fit took for hair over the forehead is skin in a shadow when no rougher than this (hair is strands)
+COVER_SMOOTH = 1.5
 ROUGH_FLOOR = 0.01  # the least texture (log brightness) lit skin is taken to have (a render's has none)
 STRAND_FLOOR = 0.05  # of the skin's typical brightness, added before the log (``skin.strands``' floor)
 # a dark pixel's colour is told over a Gaussian of this many interocular distances (it is noisy)
@@ -51,6 +54,8 @@ SHADOW_MEMBERSHIP = 0.5
 GLINT_REACH = 0.1
 GLINT_FEATURE_MARGIN = 0.05
 GLINT_EDGE = 0.1
+# the model's normals take over where a shadow from elsewhere falls, fading out over this many interocular distances
+FOREIGN_NORMALS = 0.03
 
 
 class ShownLight:
@@ -60,7 +65,9 @@ class ShownLight:
     iod_px: the face's interocular distance in photo pixels; encoding: the photo's file's ("srgb" or "linear"): its
     noise floor is read in it; hair: (Hm, Wm) bool, what the fit left out as covering the face's upper part, or
     None; hair_matte: (h, w, C) linear photo -> (h, w) how sure a hair segmentation is that each pixel is hair, or
-    None.
+    None; model_normals: (Hm, Wm, 3) the fitted model's own normals (model camera frame), or None: given, the
+    shadows the face does not cast are looked for against their shading, and they take the place of ``normals`` in
+    them (None: none are looked for).
 
     ``normals`` (h, w, 3), ``light`` (3,) unit, ``direct`` (h, w) its direct light; ``skin`` and ``dark_by_make``
     (h, w) bool; ``shading`` (``Shading``), ``fitted`` (h, w) its lighting; ``expected`` (h, w, C) the skin's
@@ -71,7 +78,7 @@ class ShownLight:
 
     def __init__(self, at: FaceBox, normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, light: np.ndarray,
                  iod_px: float, encoding: str, hair: np.ndarray | None,
-                 hair_matte: Callable[[np.ndarray], np.ndarray] | None):
+                 hair_matte: Callable[[np.ndarray], np.ndarray] | None, model_normals: np.ndarray | None = None):
         self.at, self.iod = at, iod_px
         self.normals = np.nan_to_num(normals_to_input(normals, at.mask, at.al, at.shape)).astype(np.float32)
         s = np.asarray(light, np.float64)
@@ -81,10 +88,21 @@ class ShownLight:
         coarse = smooth_coarse(scalar_to_input(albedo, at.mask, at.al, at.shape), at.face,
                                COARSE_SMOOTH * max(at.al.scale, 1.0))
         fit_shadow = at.on_photo(~np.asarray(lit, bool))
+        ambient = self._ambient(direct)
+        model_n = None if model_normals is None else np.nan_to_num(
+            normals_to_input(model_normals, at.mask, at.al, at.shape)).astype(np.float32)
+        foreign = np.zeros(at.shape, bool) if model_n is None else self._foreign(model_n, fit_shadow, ambient)
+        if foreign.any():
+            # what the fit took for hair but is smooth skin in such a shadow (a brim's at the hairline) is read as skin
+            self.skin = self.skin | (self.covered_smooth & grow(foreign, MEASURE_CLEAR * iod_px))
+            # where a shadow from elsewhere falls, the normals that explained its darkness turned from the light to do
+            # so: the model's own normals there say how the face is shaped
+            self.normals = _blended(self.normals, model_n, foreign, FOREIGN_NORMALS * iod_px)
+            self.direct = direct = np.clip(self.normals @ self.light.astype(np.float32), 0.0, None)
         gate = shadow_gate(fit_shadow, direct, at.face, iod_px)
-        self.shading = Shading(self.normals, self._ambient(direct), self.light)
+        self.shading = Shading(self.normals, ambient, self.light)
         lighting = self.shading.lighting()
-        self.expected, self.evidence = self._shadows(coarse, lighting, direct, gate)
+        self.expected, self.evidence = self._shadows(coarse, lighting, direct, gate, foreign)
         # the light the photo shows: the fitted shading, its shadows and its errors as the photo's skin shows them
         self.fitted = lighting
         self.photo_lighting = photo_light(self.evidence.lighting(lighting))
@@ -105,29 +123,57 @@ class ShownLight:
         """(h, w) bool: the face's pixels whose darkness may be a shadow's: off the eyes, brows, lips and mouth, off
         hair (the fit's cover, the hair matte), smooth as skin is, of the skin's colour (in its shade too)."""
         at, f = self.at, self.at.features
+        # (h, w) bool what the fit took for hair yet is skin-like, where the face is large enough to tell
+        self.covered_smooth = None
         dark_by_make = at.outlined([*f.eyes, *f.brows], EYE_MARGIN * iod_px) | at.outlined(
             [*f.lips, *f.nostrils], MOUTH_MARGIN * iod_px)
         self.dark_by_make = dark_by_make
         out = at.face & ~dark_by_make & ~np.any(at.photo >= 0.995, axis=-1)
+        covered = np.zeros(out.shape, bool)
         if hair is not None:
-            out &= ~grow(at.on_photo(hair), max(at.al.scale, 1.0))
+            covered = grow(at.on_photo(hair), max(at.al.scale, 1.0)) & out
+            out &= ~covered
         if hair_matte is not None:
             out &= hair_matte(at.photo) < 0.5
         if iod_px < SKIN_MIN_IOD:
             return out
-        out &= ~_rough(at.photo, out, iod_px)
+        texture = _roughness(at.photo, out, iod_px)
+        out &= texture <= ROUGH
+        # what the fit took for hair coming in over the forehead, yet is as smooth as the skin: a brim's shadow may
+        # be (``_foreign`` reads it; the rest of the relighting does not)
+        self.covered_smooth = covered & (texture <= COVER_SMOOTH)
         if at.photo.shape[-1] == 3:
             blurred = cv2.GaussianBlur(at.photo, (0, 0), max(COLOUR_SCALE * iod_px, 1.0))
             lit = out & (direct >= MEASURE_DIRECT)  # the skin's colour is the lit skin's
-            out &= skin_distance(blurred, at.face, shade=True, keep_out=dark_by_make, reference=lit) < MAX_CHROMA_DISTANCE
+            of_skin = skin_distance(blurred, at.face, shade=True, keep_out=dark_by_make, reference=lit) < MAX_CHROMA_DISTANCE
+            out &= of_skin
+            self.covered_smooth &= of_skin
         return out
 
-    def _shadows(self, coarse: np.ndarray, lighting: np.ndarray, direct: np.ndarray,
-                 gate: np.ndarray) -> tuple[np.ndarray, ShadowEvidence]:
-        """The skin's expected albedo (h, w, C) and the photo's shadows (``ShadowEvidence``), twice: the second time
-        the albedo is measured off the first time's shadows, whose darkness had pulled it down."""
+    def _foreign(self, normals: np.ndarray, fit_shadow: np.ndarray, ambient: float) -> np.ndarray:
+        """(h, w) bool the shadows the face does not cast (``foreign.foreign_shadows``), read against the model's own
+        normals' shading (``normals`` (h, w, 3)): the normals that explain the photo's shading explain part of such a
+        shadow as the face turning from the light."""
+        at = self.at
+        if self.covered_smooth is None:  # a face too small to tell skin's texture from a beard's: none told
+            return np.zeros(at.shape, bool)
+        direct = np.clip(normals @ self.light.astype(np.float32), 0.0, None)
+        # out of the fitted shape's own shadows and their margin (by its terminator and its nose's shadow the model's
+        # shape is off, and its shading with it)
+        gate = shadow_gate(fit_shadow, direct, at.face, self.iod)
+        lighting = Shading(normals, ambient, self.light).lighting()
+        return foreign_shadows(at.photo, lighting, self.skin | self.covered_smooth, gate, at.face,
+                               self.iod)
+
+    def _shadows(self, coarse: np.ndarray, lighting: np.ndarray, direct: np.ndarray, gate: np.ndarray,
+                 foreign: np.ndarray) -> tuple[np.ndarray, ShadowEvidence]:
+        """The skin's expected albedo (h, w, C) and the photo's shadows (``ShadowEvidence``; ``foreign`` (h, w) bool
+        those the face does not cast, found already: a matched albedo follows them), twice: the second time the albedo
+        is measured off the first time's shadows, whose darkness had pulled it down."""
         photo, face = self.at.photo, self.at.face
-        clear = self.skin & (direct >= MEASURE_DIRECT) & ~gate
+        if foreign.any():  # the fit's albedo map took their darkness for the skin's: the lit skin's there instead
+            coarse = np.where(grow(foreign, MEASURE_CLEAR * self.iod), np.float32(np.nan), coarse)
+        clear = self.skin & (direct >= MEASURE_DIRECT) & ~gate & ~grow(foreign, MEASURE_CLEAR * self.iod)
         expected = evidence = None
         for _ in range(2):
             measured = clear if evidence is None else clear & ~grow(evidence.membership > 0.5,
@@ -135,7 +181,7 @@ class ShownLight:
             if measured.sum() < 50:  # a face lit all from the side: its lit skin, wherever it is
                 measured = self.skin & (direct >= MEASURE_DIRECT)
             expected = expected_albedo(photo, lighting, measured, coarse, face, MATCH_SIGMA * self.iod)
-            evidence = shadow_evidence(photo, expected, lighting, direct, self.skin, gate, face, self.iod)
+            evidence = shadow_evidence(photo, expected, lighting, direct, self.skin, gate, face, self.iod, foreign)
             if not evidence.found:
                 break
         return expected, evidence
@@ -159,13 +205,22 @@ class ShownLight:
         return (excess * self.photo_lighting).astype(np.float32)
 
 
-def _rough(photo: np.ndarray, smooth_guess: np.ndarray, iod_px: float) -> np.ndarray:
-    """(h, w) bool: what of ``photo`` (h, w, C) is as rough as hair's strands or a beard (``skin.strands`` over the
-    median of the ``smooth_guess`` (h, w) bool skin's, over ``ROUGH``)."""
+def _blended(normals: np.ndarray, model_normals: np.ndarray, where: np.ndarray, sigma_px: float) -> np.ndarray:
+    """(h, w, 3) float32 unit ``normals`` turned to ``model_normals`` (h, w, 3) on ``where`` (h, w) bool, fading out
+    over ``sigma_px`` beyond it."""
+    b = np.clip(2.0 * blur(where.astype(np.float32), max(sigma_px, 1.0)), 0.0, 1.0)[..., None]
+    mixed = (np.float32(1.0) - b) * normals + b * model_normals
+    length = np.linalg.norm(mixed, axis=-1, keepdims=True)
+    return np.where(length > 1e-6, mixed / np.maximum(length, 1e-6), normals).astype(np.float32)
+
+
+def _roughness(photo: np.ndarray, smooth_guess: np.ndarray, iod_px: float) -> np.ndarray:
+    """(h, w) float32: how rough ``photo`` (h, w, C) is (``skin.strands``) against the median of the ``smooth_guess``
+    (h, w) bool skin's: hair's strands and a beard are over ``ROUGH``."""
     lit_level = float(np.median(photo[smooth_guess].sum(axis=-1))) if smooth_guess.sum() > 50 else 1.0
     texture = strands(photo, iod_px, STRAND_FLOOR * lit_level)
     typical = float(np.median(texture[smooth_guess])) if smooth_guess.sum() > 50 else ROUGH_FLOOR
-    return texture > np.float32(ROUGH * max(typical, ROUGH_FLOOR))
+    return (texture / np.float32(max(typical, ROUGH_FLOOR))).astype(np.float32)
 
 
 def _file_values(photo: np.ndarray, encoding: str) -> np.ndarray:

@@ -114,7 +114,7 @@ def method_options(args: argparse.Namespace) -> MethodOptions:
                          extra_lights=tuple(parse_light(x) for x in args.relight or ()),
                          novel_yaw_deg=args.view_angle, novel_size=args.view_size,
                          eye_contrast=args.eye_contrast, fill_detail=args.fill_detail, mirror_lift=args.mirror_lift,
-                         max_pixels=_max_pixels(args.max_megapixels),
+                         foreign_shadows=args.foreign_shadows, max_pixels=_max_pixels(args.max_megapixels),
                          encoding=args.encoding, arrays=args.arrays, frames=args.frames)
 
 
@@ -188,6 +188,28 @@ def cmd_run(args: argparse.Namespace) -> int:
     return code
 
 
+def _relight_arguments(r: argparse.ArgumentParser) -> None:
+    """``shadowflow run``'s arguments that say how a face is relit."""
+    r.add_argument("--relight", action="append", metavar="A,E|X,Y,Z",
+                   help="also relight toward this light (angles in degrees or a vector, as --light; repeatable): "
+                        "relit_A<az>E<el>.png per light, beside relit.png (frontal)")
+    r.add_argument("--eye-contrast", type=float, default=MethodOptions.eye_contrast, metavar="C",
+                   help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
+                        f"lids) at this contrast (default {MethodOptions.eye_contrast:g}; 0: off, the eye stays the smooth fill; "
+                        "1: as the photo shows it)")
+    r.add_argument("--fill-detail", type=float, default=MethodOptions.fill_detail, metavar="C",
+                   help="a frontal face's shadowed side, filled from the fit's smooth albedo, gets the detail its lit "
+                        f"side shows across the face (nostrils, lips, skin) at this strength (default {MethodOptions.fill_detail:g}; "
+                        "0: off, the smooth fill)")
+    r.add_argument("--mirror-lift", type=float, default=1.0, metavar="C",
+                   help="the side of a frontal face the photo's light reaches less keeps its measured albedo no darker "
+                        "than the other side's, seen across the face, at this strength (default 1; 0: off, as measured)")
+    r.add_argument("--foreign-shadows", action="store_true",
+                   help="also find the shadows the face does not cast (a hat's brim, leaves, a hand) and lift them "
+                        "under any light, the photo's own too (off by default: on ordinary photos a smile's cheeks, "
+                        "a temple or stubble can be taken for one)")
+
+
 def add_parser(sub) -> None:
     """``shadowflow run``'s arguments."""
     r = sub.add_parser("run", help="recover shape, albedo and shadows of face images")
@@ -221,20 +243,7 @@ def add_parser(sub) -> None:
                    help="auto (default): find every face by its landmarks (MediaPipe's detector and face mesh); "
                         "centre: take the image as one frontal face framed like the model grid; "
                         "X1,Y1,X2,Y2: one face with these eye centres, in the image; a sidecar's eyes win")
-    r.add_argument("--relight", action="append", metavar="A,E|X,Y,Z",
-                   help="also relight toward this light (angles in degrees or a vector, as --light; repeatable): "
-                        "relit_A<az>E<el>.png per light, beside relit.png (frontal)")
-    r.add_argument("--eye-contrast", type=float, default=MethodOptions.eye_contrast, metavar="C",
-                   help="with detected eyes, an eye in shadow or grazing light gets the lit eye's detail (irises, "
-                        f"lids) at this contrast (default {MethodOptions.eye_contrast:g}; 0: off, the eye stays the smooth fill; "
-                        "1: as the photo shows it)")
-    r.add_argument("--fill-detail", type=float, default=MethodOptions.fill_detail, metavar="C",
-                   help="a frontal face's shadowed side, filled from the fit's smooth albedo, gets the detail its lit "
-                        f"side shows across the face (nostrils, lips, skin) at this strength (default {MethodOptions.fill_detail:g}; "
-                        "0: off, the smooth fill)")
-    r.add_argument("--mirror-lift", type=float, default=1.0, metavar="C",
-                   help="the side of a frontal face the photo's light reaches less keeps its measured albedo no darker "
-                        "than the other side's, seen across the face, at this strength (default 1; 0: off, as measured)")
+    _relight_arguments(r)
     r.add_argument("--view-angle", type=float, default=45.0, metavar="DEG",
                    help="novel_view.png: the surface turned this far about the vertical axis (default 45; -90..90)")
     r.add_argument("--view-size", type=int, metavar="PX",

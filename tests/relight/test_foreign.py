@@ -1,0 +1,147 @@
+"""Shadows the face does not cast (``relight/foreign.py``, their light in ``relight/evidence.py``, their lift in
+``relight/face.py``), on a rendered face whose truth is known: an ICT-FaceKit identity, skin-coloured with a fine
+texture, lit from 20 degrees with a room's light of 0.2, a hat's brim's shadow laid over its brow and eyes (0.35 of
+the light left, a penumbra of 2 px), a darker patch of skin (0.7) on a cheek. The fit is taken as exact, so what is
+checked is the shadow's finding and lifting: relit by its own light, the face comes back as the photo without the
+brim; without looking for such shadows it keeps it."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy import ndimage
+from shadowflow.nodes.evaluation.occluders import KINDS, brim, lay_shadow, occluder
+from shadowflow.nodes.evaluation.scenes import draw_face
+from shadowflow.nodes.geometry.integrate import fill_holes
+from shadowflow.nodes.geometry.normals import normals_from_depth
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.shadow import shadow_maps
+from shadowflow.nodes.model.canonical import canonical_eyes
+from shadowflow.nodes.photo.align import Alignment
+from shadowflow.nodes.relight.face import FaceRelight
+from shadowflow.nodes.relight.foreign import found as shadows_found
+
+GRID = (256, 256)  # the eyes 72 px apart: a face large enough to tell skin from a beard (``SKIN_MIN_IOD``)
+TOP, LEFT = 40, 50  # the model grid's corner in the photo
+FRAME = (340, 360)
+SKIN = np.array([0.75, 0.55, 0.42], np.float32)
+AMBIENT = 0.2
+LIGHT = light_from_angles(-20.0)
+LEFT_IN_SHADE = 0.35
+
+
+def _in_photo(values: np.ndarray, fill=False) -> np.ndarray:
+    out = np.full(FRAME, fill, values.dtype)
+    out[TOP:TOP + GRID[0], LEFT:LEFT + GRID[1]] = values
+    return out
+
+
+@pytest.fixture(scope="module")
+def scene():
+    depth, mask, _ = draw_face(np.random.default_rng(3), GRID, "ict")
+    depth = fill_holes(depth, mask)
+    normals = normals_from_depth(depth)
+    shadows = shadow_maps(depth, normals, LIGHT)
+    shading = AMBIENT + (1 - AMBIENT) * np.clip(np.nan_to_num(normals) @ LIGHT, 0.0, None) * shadows.lit
+    yy, xx = np.mgrid[0:FRAME[0], 0:FRAME[1]] / 200.0
+    texture = 1.0 + 0.06 * np.random.default_rng(5).standard_normal(GRID)  # pores: the skin's own, kept when lifted
+    eyes = canonical_eyes(GRID) + [LEFT, TOP]
+    iod = float(eyes[1, 0] - eyes[0, 0])
+    patch = _in_photo(np.zeros(GRID, bool))
+    patch[TOP + 168:TOP + 198, LEFT + 50:LEFT + 88] = True
+    albedo = SKIN * _in_photo(texture.astype(np.float32), 1.0)[..., None] * np.where(patch, 0.7, 1.0)[..., None]
+    image = np.dstack([0.2 + 0.2 * xx, 0.3 - 0.1 * yy, np.full_like(xx, 0.25)]).astype(np.float32)
+    face_px = _in_photo(mask)
+    image[face_px] = (albedo * _in_photo(shading.astype(np.float32), 0.0)[..., None])[face_px]
+    blocked = brim(FRAME, eyes, np.random.default_rng(1))  # the first draw: its edge 0.36 iod below the eyes
+    clean = np.round(image * 255) / 255
+    photo = (np.round(lay_shadow(image, blocked, LEFT_IN_SHADE, 2.0) * 255) / 255).astype(np.float32)
+
+    def relight(looked_for: bool) -> FaceRelight:
+        return FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                           mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan),
+                           depth=depth, light=LIGHT, iod_px=iod, model_normals=normals if looked_for else None)
+
+    return SimpleNamespace(photo=photo, clean=clean.astype(np.float32), blocked=blocked, face=face_px, eyes=eyes,
+                           iod=iod, patch=patch, relit=relight(True), plain=relight(False))
+
+
+def _box(values, face: FaceRelight):
+    y0, y1, x0, x1 = face.box
+    return values[y0:y1, x0:x1]
+
+
+def test_a_brims_shadow_is_found_where_it_falls_and_nowhere_else(scene):
+    """The shadow found covers the brim's shade where the fitted shape is lit (out of its own shadows' gate), and
+    leaves the lit skin, the darker patch of skin (0.7 of the skin) among it, alone: a third to two thirds of the
+    face."""
+    face = scene.relit
+    foreign = face.shown_light.evidence.foreign
+    core = _box(scene.blocked > 0.5, face) & face.at.face & (face.shown_light.evidence.gate < 0.01)
+    lit = _box(scene.blocked < 0.01, face) & face.at.face
+    assert np.mean(foreign[core] > 0.9) > 0.9
+    assert np.mean(foreign[lit] > 0.1) < 0.02
+    assert foreign[_box(scene.patch, face)].max() < 0.1
+    found = shadows_found(face.shown_light.evidence.foreign, face.at.face, face.iod)
+    assert 1 <= found["count"] <= 3 and 0.3 < found["area"] < 0.7  # the brim's, and its slivers the gate cuts off
+
+
+def test_not_looked_for_none_is_found(scene):
+    assert not scene.plain.shown_light.evidence.foreign.any()
+    assert scene.plain.foreign_lift() is None
+
+
+def test_relit_by_its_own_light_the_face_comes_back_without_the_shadow_its_texture_kept(scene):
+    """Under the photo's own light the face is kept as it was but for the shadow: its shaded skin comes back to
+    within 10 % of the photo without the brim (median), its pores the photo's (their fine detail, a high-pass of the
+    log, 90 % of the clean photo's or more, and the ratio to it varying by under 2 %), and the lit skin is left to
+    1 %. Not looked for, the shadow stays (under 40 % of the light)."""
+    face = scene.relit
+    relit = face.relit(LIGHT)
+    clean, photo = _box(scene.clean, face), _box(scene.photo, face)
+    core = _box(scene.blocked > 0.5, face) & face.at.face & (face.shown_light.evidence.gate < 0.01)
+    core = ndimage.binary_erosion(core, iterations=4) & face.shown_light.skin  # past the penumbra
+    ratio = relit.mean(axis=-1)[core] / clean.mean(axis=-1)[core]
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.1)
+    assert np.std(np.log(ratio)) < 0.02
+
+    def fine(image):
+        log = np.log(image.mean(axis=-1) + 1e-4)
+        return (log - ndimage.gaussian_filter(log, 3.0))[core]
+    assert np.sum(fine(relit) * fine(clean)) / np.sum(fine(clean) ** 2) > 0.9
+    lit = _box(scene.blocked < 0.01, face) & face.at.face & face.shown_light.skin
+    np.testing.assert_allclose(np.median(relit.mean(axis=-1)[lit] / photo.mean(axis=-1)[lit]), 1.0, atol=0.01)
+    kept = scene.plain.relit(LIGHT)
+    assert np.median(kept.mean(axis=-1)[core] / clean.mean(axis=-1)[core]) < 0.4
+
+
+def test_the_lift_of_the_shadow_is_what_the_harm_measure_leaves_out(scene):
+    """``foreign_lift``: the shadow's core raised by about the inverse of what it keeps (1 / 0.35), the lit skin
+    by nothing, 1 around the face."""
+    face = scene.relit
+    lift = face.foreign_lift()
+    y0, y1, x0, x1 = face.layer_box
+    core = (scene.blocked[y0:y1, x0:x1] > 0.99) & face.layer_face
+    assert np.median(lift[core].mean(axis=-1)) == pytest.approx(1.0 / LEFT_IN_SHADE, rel=0.15)
+    assert np.all(lift[~face.layer_face] == 1.0)
+
+
+def test_occluders_keep_their_share_of_the_light_in_their_core_and_all_of_it_outside():
+    """Each kind of shadow drawn from the eyes covers part of the photo, not all of it; laid over it, its core keeps
+    ``ambient`` of the light (cooler in colour, the blue raised over the red), its outside all of it, and its
+    penumbra between; an unknown kind is named in the error."""
+    eyes = np.array([[80.0, 90.0], [140.0, 90.0]])
+    photo = np.full((200, 220, 3), 0.5, np.float32)
+    for kind in KINDS:
+        blocked = occluder(kind, photo.shape[:2], eyes, np.random.default_rng(0)) > 0.5
+        assert 0.02 < blocked.mean() < 0.9, kind
+        laid = lay_shadow(photo, blocked, 0.3, 3.0)
+        inner = ndimage.binary_erosion(blocked, iterations=15, border_value=1)
+        outer = ndimage.binary_erosion(~blocked, iterations=15, border_value=1)
+        assert inner.any() and outer.any()
+        np.testing.assert_allclose(laid[inner].mean(axis=-1), 0.5 * 0.3, rtol=0.02)
+        assert np.all(laid[inner][:, 2] > laid[inner][:, 0])
+        np.testing.assert_allclose(laid[outer], 0.5, atol=1e-4)
+        edge = blocked & ~ndimage.binary_erosion(blocked, border_value=1)
+        assert np.all((laid[edge].mean(axis=-1) > 0.16) & (laid[edge].mean(axis=-1) < 0.49))
+    with pytest.raises(ValueError, match="unknown shadow kind 'cloud'"):
+        occluder("cloud", (10, 10), eyes, np.random.default_rng(0))
