@@ -39,6 +39,9 @@ FACE_FILES = ("normals.npy", "mask.png", "weights.npy", "depth.npy", "grid.json"
 ARRAYS = ("grid", "photo")
 VIEW_NAME = "view.html"  # the photo's page (``view.PageNode``)
 OUTPUT_FILES = (*FACE_FILES, "relit.png", VIEW_NAME)
+# a face's files written only with an option: how far each pixel is in a shadow the face does not cast (0-255), with
+# --foreign-shadows
+OPTIONAL_FACE_FILES = ("foreign_shadow.png",)
 
 
 def real_path(path: str | Path) -> Path:
@@ -111,7 +114,7 @@ def run_output_folder(path: Path) -> bool:
 
 def _run_name(name: str) -> bool:
     """Whether a run writes a file or folder of this name in an output folder (a photo's or a clip's)."""
-    return name in OUTPUT_FILES or name in CLIP_NAMES or bool(_RELIT_FILE.fullmatch(name) or
+    return name in OUTPUT_FILES or name in OPTIONAL_FACE_FILES or name in CLIP_NAMES or bool(_RELIT_FILE.fullmatch(name) or
                                                                _FACE_FOLDER.fullmatch(name))
 
 
@@ -247,7 +250,8 @@ def novel_view_8bit(face: Frame) -> np.ndarray:
 
 
 def write_face(face: Frame, folder: Path, arrays: str = "grid") -> dict[str, str]:
-    """One face's files (``FACE_FILES``) into ``folder``; returns name -> path. The images are on the
+    """One face's files (``FACE_FILES``, and ``foreign_shadow.png`` when the face's shadows from elsewhere were looked
+    for) into ``folder``; returns name -> path. The images are on the
     photo's pixel grid, made from the face's box (``face_products``); the fit's arrays (normals, weights,
     depth) on its model grid (``grid_products``, placed on the photo by ``grid.json``), or with ``arrays``
     "photo" on the photo's pixel grid."""
@@ -278,6 +282,8 @@ def write_face(face: Frame, folder: Path, arrays: str = "grid") -> dict[str, str
         "novel_view.png": lambda: png_bytes(novel_view_8bit(face)),
         "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face)),  # the fit's resolution, the photo's frame
     }
+    if "foreign" in p:
+        encoders["foreign_shadow.png"] = lambda: png(np.round(255.0 * np.clip(p.pop("foreign"), 0.0, 1.0)).astype(np.uint8))
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
     for name, encode in encoders.items():
@@ -421,6 +427,8 @@ def face_record(frame: Frame, face: Frame, stem: str | None) -> dict:
     q = face.meta.get("quality") or {}
     rec.update(status=face_status(face), quality={"score": q.get("score"), "flags": q.get("flags", [])} if q else None,
                light=face.meta.get("light"))
+    if "foreign_shadows" in face.meta:  # with --foreign-shadows: how many, and their share of the face
+        rec["foreign_shadows"] = face.meta["foreign_shadows"]
     if face.ok and stem is not None:
         sub = face_folder(frame, face)
         rec["dir"] = f"{stem}/{sub}" if sub else stem

@@ -258,8 +258,9 @@ def _card(out: Path, r: dict, thumbs: dict | None = None, pictures: CardPictures
 
 
 def _face_line(k: int, f: dict) -> str:
-    """A face's line on its photo's card: its status, how it was found, how far it is turned and tilted, and the
-    view of the model it was fitted with when not the frontal one."""
+    """A face's line on its photo's card: its status, how it was found, how far it is turned and tilted, the view
+    of the model it was fitted with when not the frontal one, and, when they were looked for, the shadows from
+    elsewhere it lifted."""
     status = str(f.get("status", ""))
     cls = "ok" if status == "ok" else "doubtful"
     pose = f.get("pose") or {}
@@ -268,8 +269,15 @@ def _face_line(k: int, f: dict) -> str:
     view = f.get("model_view") or {}
     if isinstance(view.get("yaw"), (int, float)) and isinstance(view.get("pitch"), (int, float)):
         turn += f"; fitted with heads at {round(view['yaw']):+d}°, {round(view['pitch']):+d}°"  # "+0", never "-0"
+    foreign = f.get("foreign_shadows")
+    lifted = ""
+    if isinstance(foreign, dict) and isinstance(foreign.get("count"), int):  # looked for (--foreign-shadows)
+        share = foreign.get("area") if isinstance(foreign.get("area"), (int, float)) else 0.0
+        lifted = (f"<br><span class=meta>shadows from elsewhere: {foreign['count']}, over {100 * share:.0f} % of "
+                  "the face, lifted</span>" if foreign["count"] else
+                  "<br><span class=meta>shadows from elsewhere: none found</span>")
     return (f"<li><span class={cls}>face {k}: {_text(status)}</span> <span class=meta>"
-            f"({_text(f.get('found', ''))}{turn})</span>")
+            f"({_text(f.get('found', ''))}{turn})</span>{lifted}")
 
 
 def _alike(before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

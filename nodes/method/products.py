@@ -52,7 +52,8 @@ def face_products(frame: Frame, arrays: bool = True
                   ) -> tuple[tuple[int, int, int, int], dict[str, np.ndarray]]:
     """One face's results on the photo's pixels inside its ``product_box`` ``(row0, row1, col0, col1)``
     (beyond it each is NaN, or False): ``(box, {mask, normals, weights, depth, albedo, lit})`` as
-    ``input_grid_products`` describes them, each (h, w[, C]) the box's size; without ``arrays``, only
+    ``input_grid_products`` describes them (and ``foreign`` (h, w) float32 in [0, 1] when the face's shadows from
+    elsewhere were looked for), each (h, w[, C]) the box's size; without ``arrays``, only
     mask, albedo and lit (the fit's arrays are written on its own grid, ``grid_products``). Only the box
     is computed: a 4-megapixel photo's background costs nothing."""
     d = frame.data
@@ -65,6 +66,9 @@ def face_products(frame: Frame, arrays: bool = True
     nan = np.float32(np.nan)
     out = {"mask": mask, "albedo": squeeze_channels(in_encoding(frame, np.where(mask[..., None], albedo, nan))),
            "lit": mask & ~shadow}
+    if "photo_foreign" in d:  # with foreign_shadows: how far each pixel is in the shadows the face does not cast
+        out["foreign"] = np.where(mask, _in_box(np.asarray(d["photo_foreign"], np.float32), d["photo_box"], box, 0.0),
+                                  np.float32(0.0))
     if not arrays:
         return box, out
     y0, y1, x0, x1 = box

@@ -1,0 +1,50 @@
+"""What a run writes of the shadows a face does not cast (``--foreign-shadows``): ``foreign_shadow.png`` beside the
+face's other files, their count and share of the face in ``summary.json``, a line on the report's card; and,
+without the option, none of these (a run's files as they were)."""
+import json
+
+import cv2
+import numpy as np
+import shadowflow
+from shadowflow.nodes.evaluation.occluders import brim, lay_shadow
+from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.options import MethodOptions
+
+
+def _brimmed_face(folder):
+    """A rendered face (its eyes 72 px apart) lit from 20 degrees, a brim's shadow laid over its brow and eyes (0.35
+    of the light left); the shadow (H, W) in [0, 1]."""
+    photo = write_shadowed_face(folder / "face.png", np.random.default_rng(4), light_from_angles(20), grid=(256, 256))
+    eyes = np.asarray(json.loads(photo.with_suffix(".json").read_text())["eyes"], np.float64)
+    image = cv2.imread(str(photo), cv2.IMREAD_GRAYSCALE).astype(np.float32) / 255.0  # a grey file is linear
+    blocked = brim(image.shape, eyes, np.random.default_rng(1))
+    cv2.imwrite(str(photo), np.round(np.clip(lay_shadow(image, blocked, 0.35, 2.0), 0, 1) * 255).astype(np.uint8))
+    return photo, cv2.GaussianBlur(blocked, (0, 0), 2.0)
+
+
+def test_a_run_with_foreign_shadows_writes_their_map_count_and_line(tmp_path, procedural_model):
+    photo, blocked = _brimmed_face(tmp_path)
+    run = shadowflow.run([photo], tmp_path / "out", model=procedural_model,
+                         options=MethodOptions(foreign_shadows=True), record=())
+    record = run.records[0]
+    face = record["faces"][0]
+    assert face["foreign_shadows"]["count"] >= 1 and face["foreign_shadows"]["area"] > 0.2, face
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary[0]["faces"][0]["foreign_shadows"] == face["foreign_shadows"]
+    found = cv2.imread(str(tmp_path / "out" / "face" / "foreign_shadow.png"), cv2.IMREAD_UNCHANGED)
+    mask = cv2.imread(str(tmp_path / "out" / "face" / "mask.png"), cv2.IMREAD_UNCHANGED) > 0
+    assert found.shape == mask.shape and found.dtype == np.uint8
+    assert np.all(found[~mask] == 0)
+    assert np.mean(found[mask & (blocked < 0.01)] > 25) < 0.05  # the lit face is in none
+    assert np.mean(found[mask & (blocked > 0.99)] > 128) > 0.5  # the brim's core mostly in
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert f"shadows from elsewhere: {face['foreign_shadows']['count']}, over" in page
+
+
+def test_a_run_without_it_writes_none_of_them(tmp_path, procedural_model):
+    photo, _ = _brimmed_face(tmp_path)
+    run = shadowflow.run([photo], tmp_path / "out", model=procedural_model, record=())
+    assert "foreign_shadows" not in run.records[0]["faces"][0]
+    assert not (tmp_path / "out" / "face" / "foreign_shadow.png").exists()
+    assert "shadows from elsewhere" not in (tmp_path / "out" / "report.html").read_text()
