@@ -13,6 +13,7 @@ from pathlib import Path
 from ....flow.distributed import local_map, ordered_map
 from ....flow.files import atomic_write_bytes
 from ....flow.replay.text import one_line
+from ...evaluation import foreign_shadows
 from ...evaluation.people import contact_sheet, evaluate_people, figure, format_table, json_rows, people_inputs
 from ...evaluation.people import summarise as people_summary
 from ...evaluation.synthetic import evaluate, model_floor, table_header, table_row
@@ -163,9 +164,28 @@ def _clip_line(row: dict) -> str:
             f"{f(row.get('h_median'), '.1f'):>6s}  {one_line(str(row['status']))[:60]}")
 
 
+def cmd_eval_shadows(args: argparse.Namespace) -> int:
+    if not args.data:
+        raise ValueError("eval shadows needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
+    model = model_arg(args.model)
+    subjects = [s.strip() for s in args.subjects.split(",") if s.strip()] if args.subjects else None
+    t0 = time.perf_counter()
+    print(one_line(f"shadows the face does not cast ({', '.join(foreign_shadows.KINDS)}) laid over Yale B photos, "
+                   f"seed {args.seed}; relit frontally {'without' if args.not_looked_for else 'with'} "
+                   "--foreign-shadows, the light known"))
+    rows = foreign_shadows.evaluate(args.data, model, subjects, args.seed, looked_for=not args.not_looked_for)
+    summary = foreign_shadows.summarise(rows)
+    print(foreign_shadows.format_table(rows, summary))
+    _write_report(args.json, {"rows": rows, "summary": summary, "seed": args.seed,
+                              "seconds": time.perf_counter() - t0})
+    return 0
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     if args.dask is not None:
         parse_dask(args.dask)  # before any work
+    if args.benchmark == "shadows":
+        return cmd_eval_shadows(args)
     if args.benchmark == "yaleb":
         return cmd_eval_yaleb(args)
     if args.benchmark == "people":
@@ -214,12 +234,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def add_parser(sub) -> None:
     """``shadowflow eval``'s arguments."""
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
-    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people", "clips"],
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people", "clips", "shadows"],
                    default="synthetic",
                    help="synthetic (default): rendered faces of --source; yaleb: real photos in --data; people: "
                         "photos and clips of people in --data, scored without a reference (harm H, P); clips: "
-                        "the clips in --data relit and measured for steadiness (flicker, excess change, H)")
-    e.add_argument("--data", help="eval yaleb: folder holding the yaleBxx subject folders; eval people: a folder "
+                        "the clips in --data relit and measured for steadiness (flicker, excess change, H); "
+                        "shadows: a brim's, leaves' and a hand's shadows laid over Yale B photos in --data, relit "
+                        "frontally with --foreign-shadows (the share of each shadow removed)")
+    e.add_argument("--subjects", metavar="yaleB01,...", help="eval shadows: only these subjects (default: all)")
+    e.add_argument("--seed", type=int, default=0, help="eval shadows: the seed the shadows are drawn with (default 0)")
+    e.add_argument("--not-looked-for", action="store_true",
+                   help="eval shadows: relight without --foreign-shadows (what the rest of the relighting makes of them)")
+    e.add_argument("--data", help="eval yaleb, eval shadows: folder holding the yaleBxx subject folders; eval people: a folder "
                    "of photos, or one holding photos/ and clips/; eval clips: a clip or a folder of clips")
     e.add_argument("--out", help="eval clips: run the clips into this folder and keep it (an earlier run there is "
                    "resumed, its clips measured again); default: a temporary folder")
