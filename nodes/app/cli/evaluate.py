@@ -116,7 +116,8 @@ def cmd_eval_people(args: argparse.Namespace) -> int:
     model = model_arg(args.model)
     t0 = time.perf_counter()
     with _mapper(args.dask) as mapper:
-        rows = evaluate_people(items, model, MethodOptions(), mapper=mapper, thumbs=bool(args.sheet))
+        rows = evaluate_people(items, model, MethodOptions(foreign_shadows=args.foreign_shadows), mapper=mapper,
+                               thumbs=bool(args.sheet))
     print(format_table(rows))
     if args.sheet:
         sheet = contact_sheet(rows, args.worst)
@@ -251,6 +252,8 @@ def add_parser(sub) -> None:
                    "resumed, its clips measured again); default: a temporary folder")
     e.add_argument("--clip-frames", type=int, default=3, metavar="N",
                    help="eval people: frames taken from each clip (default 3; 0: none)")
+    e.add_argument("--foreign-shadows", action="store_true",
+                   help="eval people: relight as run --foreign-shadows does (shadows the face does not cast lifted)")
     e.add_argument("--sheet", metavar="PNG", help="eval people: write a contact sheet of the worst faces here")
     e.add_argument("--worst", type=int, default=24, metavar="N", help="eval people: faces on the sheet (default 24)")
     e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
