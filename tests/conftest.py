@@ -47,6 +47,25 @@ def procedural_model():
     return train_shape_model(depths, 60, source="procedural")
 
 
+def brimmed_face(folder: Path) -> tuple[Path, np.ndarray]:
+    """A rendered face (its eyes 72 px apart) lit from 20 degrees, a hat's brim's shadow laid over its brow and eyes
+    (0.35 of the light left, a penumbra of 2 px), written as ``folder/face.png`` (a linear grey file) with its
+    sidecar; and the shadow (H, W) in [0, 1]."""
+    import json
+
+    import cv2
+    from shadowflow.nodes.evaluation.occluders import brim, lay_shadow
+    from shadowflow.nodes.evaluation.scenes import write_shadowed_face
+    from shadowflow.nodes.geometry.reflectance import light_from_angles
+
+    photo = write_shadowed_face(folder / "face.png", np.random.default_rng(4), light_from_angles(20), grid=(256, 256))
+    eyes = np.asarray(json.loads(photo.with_suffix(".json").read_text())["eyes"], np.float64)
+    image = cv2.imread(str(photo), cv2.IMREAD_GRAYSCALE).astype(np.float32) / 255.0
+    blocked = brim(image.shape, eyes, np.random.default_rng(1))
+    cv2.imwrite(str(photo), np.round(np.clip(lay_shadow(image, blocked, 0.35, 2.0), 0, 1) * 255).astype(np.uint8))
+    return photo, cv2.GaussianBlur(blocked, (0, 0), 2.0)
+
+
 def random_unit(n: int, rng: np.random.Generator, min_z: float = 0.05) -> np.ndarray:
     v = rng.standard_normal((n, 3))
     v[:, 2] = np.abs(v[:, 2]) + min_z

@@ -163,7 +163,9 @@ function liveGain(f, s, cast) {
     }
     for (let c = 0; c < C; c++) {
       const j = C * i + c, raise = k ? Math.pow(f.raise_ratio[j], k) : 1;
-      g[j] = face[i] ? same + (1 - same) * Math.exp(avg[j]) * (f.smooth[j] / f.shown[j]) * castShare[i] * raise : 1;
+      // the shadows from elsewhere (f.kept) lifted under any light, the photo's own too
+      g[j] = face[i] ? same * (f.kept ? f.kept[j] : 1)
+        + (1 - same) * Math.exp(avg[j]) * (f.smooth[j] / f.shown[j]) * castShare[i] * raise : 1;
       mean += kept(f, j, i, g, keep);
       lift0 += g[j] / C;
     }
@@ -304,7 +306,8 @@ async function prepare() {
       fade8: await unpack(A.fade8, Uint8Array), reach8: await unpack(A.reach8, Uint8Array),
       raise_ratio: A.raise_ratio ? await unpack(A.raise_ratio, Float32Array) : null,
       raise8: A.raise8 ? await unpack(A.raise8, Uint8Array) : null,
-      shine: A.shine ? await unpack(A.shine, Float32Array) : null });
+      shine: A.shine ? await unpack(A.shine, Float32Array) : null,
+      kept: A.kept ? await unpack(A.kept, Float32Array) : null });
     f.linear = Float32Array.from(f.photo8, v => f.encoding === 'srgb' ? srgbToLinear(v / 255) : v / 255);
     const make = (part) => {
       const canvas = document.createElement('canvas');

@@ -179,7 +179,7 @@ class FaceRelight:
             alpha=self.layer_alpha, beyond=at.layer_beyond, person=at.layer_person,
             raise_ratio=None if self.mirror_raise is None else in_layer(self.mirror_raise[0] - 1.0) + 1.0,
             raise_strength=None if self.mirror_raise is None else in_layer(self.mirror_raise[1]),
-            shine=in_layer(sl.shine) if sl.shine.any() else None)
+            shine=in_layer(sl.shine) if sl.shine.any() else None, foreign_lift=self.foreign_lift())
         y0, _, x0, _ = at.box
         ly0, _, lx0, _ = at.layer_box
         to_box = at.al.cropped(lx0 - x0, ly0 - y0).matrix

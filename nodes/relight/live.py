@@ -59,7 +59,8 @@ class LiveFace:
     the preview pixels the change of light and the skin's lift are averaged over; raise_ratio (h, w, C) float32 and
     raise8 (h, w) uint8, or None: how far the side lit less may be raised toward its mirror (``albedo.mirror_raise``'s
     ratio and strength); shine (h, w, C) float32 or None: the photo's shine, in light (``shine.sheen``), which a new
-    light keeps as far as ``shine.shine_kept`` says."""
+    light keeps as far as ``shine.shine_kept`` says; kept (h, w, C) float32 or None: how much the shadows the face does
+    not cast are lifted under any light (``FaceRelight.foreign_lift``; None: none looked for)."""
 
     box: tuple[int, int, int, int]
     photo8: np.ndarray
@@ -85,6 +86,7 @@ class LiveFace:
     raise_ratio: np.ndarray | None = None
     raise8: np.ndarray | None = None
     shine: np.ndarray | None = None
+    kept: np.ndarray | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -96,7 +98,8 @@ class LiveArrays:
     """The product's arrays for a face's live page, on its layer box (h, w): photo, shown, more, fill (h, w, C); normals
     (h, w, 3); relative, paint (h, w) float; face, skin (h, w) bool; alpha (h, w); beyond (h, w) bool or None, the
     face's own skin past the face; person (h, w) float or None (``compose.outside_gain``); raise_ratio (h, w, C),
-    raise_strength (h, w), or None (``albedo.mirror_raise``)."""
+    raise_strength (h, w), or None (``albedo.mirror_raise``); foreign_lift (h, w, C) or None
+    (``FaceRelight.foreign_lift``)."""
 
     photo: np.ndarray
     shown: np.ndarray
@@ -113,6 +116,7 @@ class LiveArrays:
     raise_ratio: np.ndarray | None = None
     raise_strength: np.ndarray | None = None
     shine: np.ndarray | None = None
+    foreign_lift: np.ndarray | None = None
 
 
 def live_relight_data(box: tuple[int, int, int, int], arrays: LiveArrays, want: float | None, ambient: float,
@@ -172,7 +176,8 @@ def live_relight_data(box: tuple[int, int, int, int], arrays: LiveArrays, want: 
                     raise8=None if arrays.raise_strength is None else
                     np.round(np.where(f, area(arrays.raise_strength), 0.0) * 255.0).astype(np.uint8),
                     shine=None if arrays.shine is None else
-                    np.where(f[..., None], area(np.atleast_3d(arrays.shine)), 0.0).astype(np.float32))
+                    np.where(f[..., None], area(np.atleast_3d(arrays.shine)), 0.0).astype(np.float32),
+                    kept=None if arrays.foreign_lift is None else inside(arrays.foreign_lift))
 
 
 def blur_radius(sigma: float) -> int:
@@ -242,7 +247,8 @@ def live_gain(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None
     change = np.exp(log_change) * (smooth / live.shown) * cast_share[..., None]
     if live.raise_ratio is not None:  # the side lit less raised toward its mirror as far as the new light brightens it
         change = change * lifted(live.raise_ratio, live.raise8 / np.float32(255.0), brightness(new) / brightness(live.shown))
-    g = same + (np.float32(1.0) - same) * change
+    kept = np.float32(1.0) if live.kept is None else live.kept  # the shadows from elsewhere lifted under any light
+    g = same * kept + (np.float32(1.0) - same) * change
     g = np.where(face[..., None], g, np.float32(1.0))
     shown_well = usable(live.relative, brightness(g), live.encoding) > 0.9
     gain = np.float32(exposure_gain(live.want, _kept(live, photo, g, keep), skin & (direct >= LIT_SHADING) & shown_well))

@@ -6,25 +6,12 @@ import json
 import cv2
 import numpy as np
 import shadowflow
-from shadowflow.nodes.evaluation.occluders import brim, lay_shadow
-from shadowflow.nodes.evaluation.scenes import write_shadowed_face
-from shadowflow.nodes.geometry.reflectance import light_from_angles
+from conftest import brimmed_face
 from shadowflow.nodes.method.options import MethodOptions
 
 
-def _brimmed_face(folder):
-    """A rendered face (its eyes 72 px apart) lit from 20 degrees, a brim's shadow laid over its brow and eyes (0.35
-    of the light left); the shadow (H, W) in [0, 1]."""
-    photo = write_shadowed_face(folder / "face.png", np.random.default_rng(4), light_from_angles(20), grid=(256, 256))
-    eyes = np.asarray(json.loads(photo.with_suffix(".json").read_text())["eyes"], np.float64)
-    image = cv2.imread(str(photo), cv2.IMREAD_GRAYSCALE).astype(np.float32) / 255.0  # a grey file is linear
-    blocked = brim(image.shape, eyes, np.random.default_rng(1))
-    cv2.imwrite(str(photo), np.round(np.clip(lay_shadow(image, blocked, 0.35, 2.0), 0, 1) * 255).astype(np.uint8))
-    return photo, cv2.GaussianBlur(blocked, (0, 0), 2.0)
-
-
 def test_a_run_with_foreign_shadows_writes_their_map_count_and_line(tmp_path, procedural_model):
-    photo, blocked = _brimmed_face(tmp_path)
+    photo, blocked = brimmed_face(tmp_path)
     run = shadowflow.run([photo], tmp_path / "out", model=procedural_model,
                          options=MethodOptions(foreign_shadows=True), record=())
     record = run.records[0]
@@ -43,7 +30,7 @@ def test_a_run_with_foreign_shadows_writes_their_map_count_and_line(tmp_path, pr
 
 
 def test_a_run_without_it_writes_none_of_them(tmp_path, procedural_model):
-    photo, _ = _brimmed_face(tmp_path)
+    photo, _ = brimmed_face(tmp_path)
     run = shadowflow.run([photo], tmp_path / "out", model=procedural_model, record=())
     assert "foreign_shadows" not in run.records[0]["faces"][0]
     assert not (tmp_path / "out" / "face" / "foreign_shadow.png").exists()
