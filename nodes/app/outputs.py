@@ -114,8 +114,8 @@ def run_output_folder(path: Path) -> bool:
 
 def _run_name(name: str) -> bool:
     """Whether a run writes a file or folder of this name in an output folder (a photo's or a clip's)."""
-    return name in OUTPUT_FILES or name in OPTIONAL_FACE_FILES or name in CLIP_NAMES or bool(_RELIT_FILE.fullmatch(name) or
-                                                               _FACE_FOLDER.fullmatch(name))
+    return name in OUTPUT_FILES or name in OPTIONAL_FACE_FILES or name in CLIP_NAMES or bool(
+        _RELIT_FILE.fullmatch(name) or _FACE_FOLDER.fullmatch(name))
 
 
 _LOCK_HOLDER = re.compile(rb"pid [0-9]+ on \S")  # what a run writes in its folder's ``.lock``: pid N on HOST, ...
@@ -283,7 +283,8 @@ def write_face(face: Frame, folder: Path, arrays: str = "grid") -> dict[str, str
         "mesh.ply": lambda: mesh_ply_bytes(photo_mesh(face)),  # the fit's resolution, the photo's frame
     }
     if "foreign" in p:
-        encoders["foreign_shadow.png"] = lambda: png(np.round(255.0 * np.clip(p.pop("foreign"), 0.0, 1.0)).astype(np.uint8))
+        encoders["foreign_shadow.png"] = lambda: png(
+            np.round(255.0 * np.clip(p.pop("foreign"), 0.0, 1.0)).astype(np.uint8))
     folder.mkdir(parents=True, exist_ok=True)
     written = {}
     for name, encode in encoders.items():

@@ -56,7 +56,8 @@ def live_payload(live: LiveFace) -> dict:
             "sigma": live.sigma, "change_sigma": live.change_sigma, "held_sigma": live.held_sigma,
             "arrays": {name: _packed(getattr(live, name)) for name in
                        ("photo8", "shown", "more", "fill", "relative", "paint8", "normals16", "flags", "alpha8",
-                        "depth", "fade8", "reach8", "raise_ratio", "raise8", "shine", "kept") if getattr(live, name) is not None}}
+                        "depth", "fade8", "reach8", "raise_ratio", "raise8", "shine", "kept")
+                       if getattr(live, name) is not None}}
 
 
 def _photo_jpeg(frame: Frame) -> tuple[str, tuple[int, int]]:

@@ -21,6 +21,10 @@ sockets, nostrils, lips, glasses and moles are dark by their albedo and are not 
 shadow's light from the skin beside them as far as they are dark themselves, and are lifted with it. ``membership``
 also says how far each pixel is in a shadow for ``shadow.png``.
 
+Shadows the face does not cast (``foreign``: a brim's, a hand's, found by ``foreign.foreign_shadows``) join the
+photo's own; their light is read across their edge (``_foreign_shade``) and how far each pixel is in them is their
+region blurred by their penumbra (``_half_in``, ``_penumbra``).
+
 Arrays are on the face's box at the photo's resolution (h, w[, C]), linear; lengths in interocular distances.
 """
 from __future__ import annotations
@@ -109,12 +113,11 @@ class ShadowEvidence:
         return bool((self.membership > 0.5).any())
 
 
-def shadow_gate(fit_shadow: np.ndarray, direct: np.ndarray, face: np.ndarray, iod_px: float,
-                margin: float = GATE_MARGIN) -> np.ndarray:
+def shadow_gate(fit_shadow: np.ndarray, direct: np.ndarray, face: np.ndarray, iod_px: float) -> np.ndarray:
     """(h, w) bool: where the fitted shape lets a shadow fall on the face (``face`` (h, w) bool): its own shadows
     (``fit_shadow`` (h, w) bool: cast or attached on the model grid, brought to the photo) and its terminator's band
-    (``direct`` (h, w) ``max(n . s, 0)`` under ``GATE_DIRECT``), grown by ``margin`` interocular distances."""
-    return grow(np.asarray(fit_shadow, bool) | (np.asarray(direct) < GATE_DIRECT), margin * iod_px) & face
+    (``direct`` (h, w) ``max(n . s, 0)`` under ``GATE_DIRECT``), grown by ``GATE_MARGIN``."""
+    return grow(np.asarray(fit_shadow, bool) | (np.asarray(direct) < GATE_DIRECT), GATE_MARGIN * iod_px) & face
 
 
 def closed(seeds: np.ndarray, radius: float) -> np.ndarray:
@@ -199,12 +202,13 @@ def shadow_evidence(photo: np.ndarray, albedo: np.ndarray, lighting: np.ndarray,
 
 def _foreign_shade(photo: np.ndarray, read: np.ndarray, region: np.ndarray, lit: np.ndarray, penumbra_px: float,
                    iod_px: float) -> np.ndarray:
-    """(h, w, C) float32 the light in the shadows from elsewhere ``region`` (h, w) bool: the share of the ``lit`` (h, w)
-    light they leave, read off the ``photo`` (h, w, C) across their edge (the skin just inside over the skin just outside, ``EDGE_RING`` wide,
-    beyond their penumbra, ``penumbra_px``, either side, averaged along the edge over ``EDGE_SIGMA`` and carried inward): there the skin
-    and the shape are the same on both sides, and what the fitted shading and albedo get wrong (a forehead brighter
-    than the model's) cancels. A share, not a level: the shape's shading goes on in such a shadow as the photo shows
-    it (the room's light, a window's, the sky's, comes from a side too), and the lifted skin keeps it."""
+    """(h, w, C) float32 the light in the shadows from elsewhere ``region`` (h, w) bool: the share of the ``lit``
+    (h, w) light they leave, read off the ``photo`` (h, w, C) across their edge: its skin (``read``) just inside over
+    just outside, on rings ``EDGE_RING`` wide beyond their penumbra (``penumbra_px``) either side, averaged along the
+    edge over ``EDGE_SIGMA`` and carried inward. There the skin and the shape are the same on both sides, and what
+    the fitted shading and albedo get wrong (a forehead brighter than the model's) cancels. A share, not a level:
+    the shape's shading goes on in such a shadow as the photo shows it (the room's light, a window's, the sky's,
+    comes from a side too), and the lifted skin keeps it."""
     # the photo's own light, not over the expected albedo: that is matched to the lit skin outside and carried in,
     # and a step across the edge is the skin's albedo beside the shadow against the face's elsewhere
     log_share = np.log(np.maximum(photo, 1e-5)) - np.log(np.maximum(lit, 1e-5))[..., None]
@@ -234,8 +238,7 @@ def _half_in(level: np.ndarray, read: np.ndarray, region: np.ndarray, near: np.n
     where their skin (``read``) shows less than half-way between the ``lit`` (h, w) light and the ``shade`` (h, w, C)
     (``level`` (h, w) the light its skin shows, 3 x 3 median), gaps closed. What is not skin (an eye, a brow, a
     beard) is in as far as the skin around it is: a shadow covers all alike. Blurred by the penumbra it is how far
-    each pixel is in them, smooth, so the skin's own texture (pores, freckles) stays its own and is lifted with it
-    (a membership read pixel by pixel took a pore's light for a shadow's and flattened it)."""
+    each pixel is in them, smooth, so the skin's own texture (pores, freckles) stays its own and is lifted with it."""
     dark = brightness(shade)
     partial = np.clip((lit - level) / np.maximum(lit - dark, 1e-4), 0.0, 1.0)
     around = local_average(np.where(read, partial, 0.0), read.astype(np.float32), ACROSS * iod_px,

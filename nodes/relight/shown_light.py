@@ -145,7 +145,8 @@ class ShownLight:
         if at.photo.shape[-1] == 3:
             blurred = cv2.GaussianBlur(at.photo, (0, 0), max(COLOUR_SCALE * iod_px, 1.0))
             lit = out & (direct >= MEASURE_DIRECT)  # the skin's colour is the lit skin's
-            of_skin = skin_distance(blurred, at.face, shade=True, keep_out=dark_by_make, reference=lit) < MAX_CHROMA_DISTANCE
+            of_skin = skin_distance(blurred, at.face, shade=True, keep_out=dark_by_make,
+                                    reference=lit) < MAX_CHROMA_DISTANCE
             out &= of_skin
             self.covered_smooth &= of_skin
         return out

@@ -245,8 +245,10 @@ def add_parser(sub) -> None:
     e.add_argument("--subjects", metavar="yaleB01,...", help="eval shadows: only these subjects (default: all)")
     e.add_argument("--seed", type=int, default=0, help="eval shadows: the seed the shadows are drawn with (default 0)")
     e.add_argument("--not-looked-for", action="store_true",
-                   help="eval shadows: relight without --foreign-shadows (what the rest of the relighting makes of them)")
-    e.add_argument("--data", help="eval yaleb, eval shadows: folder holding the yaleBxx subject folders; eval people: a folder "
+                   help="eval shadows: relight without --foreign-shadows (what the rest of the relighting makes of "
+                        "them)")
+    e.add_argument("--data", help="eval yaleb, eval shadows: folder holding the yaleBxx subject folders; eval "
+                   "people: a folder "
                    "of photos, or one holding photos/ and clips/; eval clips: a clip or a folder of clips")
     e.add_argument("--out", help="eval clips: run the clips into this folder and keep it (an earlier run there is "
                    "resumed, its clips measured again); default: a temporary folder")
