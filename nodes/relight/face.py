@@ -81,7 +81,7 @@ class FaceRelight:
         self.box, self.face, self.layer_box, self.layer_face, self.layer_photo = (
             at.box, at.face, at.layer_box, at.layer_face, at.layer_photo)
         self.shown_light = sl = ShownLight(at, normals, lit, albedo, light, iod_px, encoding, hair, hair_matte,
-                                                  model_normals)
+                                           model_normals)
         self.paint = Paint(at, sl, eyes, eye_contrast, midline, mirror, fill_detail, iod_px)
         # (ratio, strength): how far the side lit less may be raised toward its mirror
         self.mirror_raise = _mirror_raise(at, sl, midline, mirror_lift, iod_px)
@@ -94,11 +94,16 @@ class FaceRelight:
         """(h, w, C) float32 on the layer's box: how much the shadows the face does not cast are lifted under any
         light (the light the photo would show without them over the light it shows), 1 elsewhere; None without
         such shadows."""
-        sl = self.shown_light
-        if not sl.evidence.foreign.any():
+        lift = self._foreign_lift()
+        if lift is None:
             return None
-        lift = sl.evidence.without_foreign(sl.fitted) / sl.photo_lighting
         return self.at.in_layer(np.where(self.at.face[..., None], lift, np.float32(1.0)) - 1.0) + np.float32(1.0)
+
+    def _foreign_lift(self) -> np.ndarray | None:
+        """(h, w, C) float32 on the face's box: the light the photo would show without the shadows the face does not
+        cast over the light it shows; None without such shadows."""
+        sl = self.shown_light
+        return sl.evidence.without_foreign(sl.fitted) / sl.photo_lighting if sl.evidence.foreign.any() else None
 
     def new_lighting(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(S', L'_u, k')`` (h, w) each for ``light`` (3,): the direct light less its cast shadow traced on the fit's
@@ -128,7 +133,8 @@ class FaceRelight:
         change = smooth_change(new / smooth, at.face, CHANGE_SIGMA * self.iod) * (smooth / shown)
         same = np.float32(shadows_kept(sl.light, s))
         # kept as it is under the photo's own light but for the shadows the face does not cast, lifted under any
-        kept = sl.evidence.without_foreign(sl.fitted) / shown if sl.evidence.foreign.any() else np.float32(1.0)
+        kept = self._foreign_lift()
+        kept = np.float32(1.0) if kept is None else kept
         g = same * kept + (np.float32(1.0) - same) * change * cast_share[..., None] * self._lifted(new)
         keep = shine_kept(brightness(shown), brightness(new) * cast_share, shine_lobe(sl.normals, sl.light, s))
         no_fill = np.zeros(at.shape, np.float32)
