@@ -30,20 +30,13 @@ from ..photo.loader import read_photo
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .occluders import KINDS, lay_shadow, occluder
+from .people import figure
 from .yaleb import build_ground_truth
-from .yaleb_benchmark import least_squares_gain
+from .yaleb_benchmark import gained_psnr
 
 LIGHTS = ((0, 0), (25, 0), (-25, 0))
 AMBIENT = (0.25, 0.45)  # the share of the light a shadow's core keeps, drawn uniformly
 PENUMBRA = (0.01, 0.06)  # its penumbra's Gaussian width, eye distances, drawn uniformly
-
-
-def psnr(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> float:
-    """dB of ``relit`` (H, W) against ``photo`` over ``region`` (H, W) bool after the least-squares gain."""
-    r = np.nan_to_num(np.asarray(relit, np.float64))
-    p = np.asarray(photo, np.float64)
-    mse = float(np.mean((p[region] - least_squares_gain(r, p, region) * r[region]) ** 2))
-    return 10.0 * np.log10(1.0 / max(mse, 1e-12))
 
 
 def removed_share(relit: np.ndarray, relit_clean: np.ndarray, photo: np.ndarray, photo_clean: np.ndarray,
@@ -99,8 +92,8 @@ def evaluate_subject(folder: str | Path, model: ShapeModel, options: MethodOptio
             relit = np.nan_to_num(shadowed_out["relit"]).astype(np.float64)
             found = shadowed_frame.parts[0].meta.get("foreign_shadows") or {}
             row.update(removed=removed_share(relit, relit_clean, shadowed, clean, region),
-                       psnr=psnr(relit, subject.frontal, region),
-                       psnr_clean=None if frontal else psnr(relit_clean, subject.frontal, region),
+                       psnr=gained_psnr(relit, subject.frontal, region),
+                       psnr_clean=None if frontal else gained_psnr(relit_clean, subject.frontal, region),
                        found_area=found.get("area", 0.0))
             row["gap"] = None if frontal else row["psnr_clean"] - row["psnr"]
             rows.append(row)
@@ -144,8 +137,7 @@ def summarise(rows: list[dict]) -> list[dict]:
 
 def format_table(rows: list[dict], summary: list[dict]) -> str:
     """Each photo's line, then the means (``summarise``)."""
-    def f(value, spec: str) -> str:
-        return "-" if value is None else format(value, spec)
+    f = figure
     lines = [f"{'subject':8} {'light':>7} {'kind':6} {'ambient':>7} {'removed':>8} {'relit dB':>8} "
              f"{'clean dB':>8} {'gap dB':>7} {'found':>6}"]
     for r in rows:

@@ -59,6 +59,15 @@ def least_squares_gain(relit: np.ndarray, photo: np.ndarray, region: np.ndarray)
     return float(np.sum(p * r) / max(np.sum(r**2), 1e-12))
 
 
+def gained_psnr(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> float:
+    """dB of ``relit`` (H, W) against ``photo`` over ``region`` (H, W) bool after the least-squares gain; NaN in
+    ``relit`` counts as 0."""
+    r = np.nan_to_num(np.asarray(relit, np.float64))
+    p = np.asarray(photo, np.float64)
+    mse = float(np.mean((p[region] - least_squares_gain(r, p, region) * r[region]) ** 2))
+    return 10.0 * np.log10(1.0 / max(mse, 1e-12))
+
+
 def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
     """(PSNR dB, SSIM) of ``relit`` against ``photo`` over ``region`` after the least-squares
     gain ``g = <photo, relit> / <relit, relit>``; images (H, W) in [0, 1]."""
@@ -71,10 +80,9 @@ def relight_scores(relit: np.ndarray, photo: np.ndarray, region: np.ndarray) -> 
     r = np.nan_to_num(np.asarray(relit, np.float64))
     p = np.asarray(photo, np.float64)
     g = least_squares_gain(r, p, region)
-    mse = float(np.mean((p[region] - g * r[region]) ** 2))
     _, smap = structural_similarity(p, np.where(region, g * r, p), data_range=1.0, full=True, gaussian_weights=True,
                                     sigma=1.5, use_sample_covariance=False)
-    return 10.0 * np.log10(1.0 / max(mse, 1e-12)), float(np.mean(smap[region]))
+    return gained_psnr(r, p, region), float(np.mean(smap[region]))
 
 
 SEAM_BAND = 0.06  # of the face's width, each side of its vertical midline
