@@ -264,7 +264,7 @@ class StoredRun:
             self.shout(f"error: {lost}; finished frames are written; run again with --resume to complete the job")
         counts = tally(self.ledger.store.records)  # as the report counts them
         stopped = self.pipeline.stopped and self.ledger.storage is None
-        return RunResult(self.out, counts["photos"], counts["photos"] - counts["ok"], stopped, self.ledger.storage,
+        return RunResult(self.out, counts["inputs"], counts["inputs"] - counts["inputs ok"], stopped, self.ledger.storage,
                          lost, report, counts)
 
     def _report(self) -> Path | None:

@@ -170,3 +170,23 @@ def test_a_faces_line_says_how_far_it_is_turned_and_tilted_and_which_view_fitted
     frontal = _face_line(2, {"status": "ok", "found": "detected", "pose": {"yaw": -1.6, "pitch": -13.4, "roll": 0.0}})
     assert "turned -2°, tilted -13°)" in frontal and "fitted with" not in frontal
     assert "turned" not in _face_line(3, {"status": "ok", "found": "given"})  # eyes given: no pose
+
+
+def test_a_clip_is_counted_as_a_clip_of_frames_not_as_a_photo_without_faces(tmp_path):
+    """A clip's record has no faces of its own (its frames have them, ``frames.jsonl``): the run said "1 photos
+    (1 ok ...); 0 faces" of a relit clip. It is counted as a clip, its frames by their faces' status, and a run of
+    clips only names no photos; the exit code's inputs count the clip once."""
+    from shadowflow.nodes.app.counts import tally, tally_text
+
+    clip = {"stem": "talk", "source": "talk.mp4", "status": "ok", "faces": [],
+            "clip": {"frames": 30, "frame_status": {"ok": 27, "doubtful: the face is small": 2, "no face found": 1}}}
+    lost = {"stem": "wall", "source": "wall.mp4", "status": "wall.mp4: no face in any of its 4 frames", "faces": [],
+            "clip": {"frames": 4, "frame_status": {"no face found": 4}}}
+    t = tally([clip, lost])
+    assert tally_text(t) == ("2 clips (1 ok, 1 failed) of 34 frames (27 with a face ok, 2 doubtful, 5 without)")
+    assert (t["inputs"], t["inputs ok"]) == (2, 1)
+    still = {"stem": "still", "source": "still.png", "status": "ok", "faces": [{"status": "ok"}]}
+    t = tally([clip, still])
+    assert tally_text(t) == ("1 photo (1 ok, 0 doubtful, 0 failed); 1 face (1 ok, 0 doubtful, 0 refused); "
+                             "1 clip (1 ok, 0 failed) of 30 frames (27 with a face ok, 2 doubtful, 1 without)")
+    assert (t["inputs"], t["inputs ok"]) == (2, 2)
