@@ -414,6 +414,10 @@ class WriteNode:
 FACE_FIELDS = ("quality", "light", "light_source", "alignment", "iterations", "converged", "final_sigma")
 
 
+# summary.json's "harm" of a face, from the relighting's report: its name there -> its name in the report
+HARM_FIELDS = {"h": "harm", "added_edges": "added_edges", "colour_blotches": "colour_blotches"}
+
+
 def face_status(face: Frame) -> str:
     """``ok``, ``doubtful: <flags>`` (outputs written, to be looked at) or the reason it failed."""
     flags = (face.meta.get("quality") or {}).get("flags")
@@ -428,6 +432,10 @@ def face_record(frame: Frame, face: Frame, stem: str | None) -> dict:
     q = face.meta.get("quality") or {}
     rec.update(status=face_status(face), quality={"score": q.get("score"), "flags": q.get("flags", [])} if q else None,
                light=face.meta.get("light"))
+    relit = face.meta.get("relight") or {}
+    harm = {name: relit[key] for name, key in HARM_FIELDS.items() if key in relit}
+    if harm:  # what the honesty step measured (``relight.nodes.harm_flag``)
+        rec["harm"] = harm
     if "foreign_shadows" in face.meta:  # with --foreign-shadows: how many, and their share of the face
         rec["foreign_shadows"] = face.meta["foreign_shadows"]
     if face.ok and stem is not None:

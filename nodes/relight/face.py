@@ -77,6 +77,7 @@ class FaceRelight:
                  model_normals: np.ndarray | None = None):
         self.mask, self.depth, self.iod = mask, depth, iod_px
         self.feather = FEATHER * iod_px
+        self.made: dict[tuple, tuple] = {}  # per ``light_key`` relit: (h, w) its shading, (h, w) how far painted
         self.at = at = FaceBox(photo, alignment, mask, outline, segment, self.feather, features)
         self.box, self.face, self.layer_box, self.layer_face, self.layer_photo = (
             at.box, at.face, at.layer_box, at.layer_face, at.layer_photo)
@@ -92,16 +93,14 @@ class FaceRelight:
 
     def foreign_lift(self) -> np.ndarray | None:
         """(h, w, C) float32 on the layer's box: how much the shadows the face does not cast are lifted under any
-        light (the light the photo would show without them over the light it shows), 1 elsewhere; None without
-        such shadows."""
+        light (``_foreign_lift``), 1 elsewhere; None without such shadows."""
         lift = self._foreign_lift()
         if lift is None:
             return None
         return self.at.in_layer(np.where(self.at.face[..., None], lift, np.float32(1.0)) - 1.0) + np.float32(1.0)
 
     def _foreign_lift(self) -> np.ndarray | None:
-        """(h, w, C) float32 on the face's box: the light the photo would show without the shadows the face does not
-        cast over the light it shows; None without such shadows."""
+        """(h, w, C) float32 on the face's box: the light the photo would show without its foreign shadows over it."""
         sl = self.shown_light
         return sl.evidence.without_foreign(sl.fitted) / sl.photo_lighting if sl.evidence.foreign.any() else None
 
@@ -149,6 +148,7 @@ class FaceRelight:
         lift = brightness(g)
         weight = fill_weight(usable(sl.relative, lift, sl.encoding), p.paintable_share)
         fill = p.fill if p.eyes is None else p.eyes.apply(p.fill, 1.0 - weight)
+        self.made[light_key(s)] = (unshadowed * cast_share, weight)
         painted = np.float32(gain) * fill * new * (same + (np.float32(1.0) - same) * cast_share[..., None])
         self.report = {"exposure": gain, "painted": float(weight[at.face].mean()) if at.face.any() else 0.0,
                        "lift_p95": float(np.percentile(lift[at.face], 95)) if at.face.any() else 1.0}
@@ -192,6 +192,11 @@ class FaceRelight:
         return live_relight_data(at.layer_box, arrays, sl.want, sl.shading.ambient, sl.light, self.depth,
                                  self.mask, to_box, sl.encoding, self.feather, CHANGE_SIGMA * self.iod,
                                  HELD_SIGMA * self.iod)
+
+
+def light_key(light: np.ndarray) -> tuple:
+    """``light`` (3,) as a key: its direction, rounded."""
+    return tuple(np.round(np.asarray(light, np.float64) / np.linalg.norm(light), 6))
 
 
 def _mirror_raise(at: FaceBox, sl: ShownLight, midline: np.ndarray | None, mirror_lift: float,

@@ -18,6 +18,12 @@ white light changes a skin's level, never its colour, so ``colour_shift`` measur
 the skin's chromaticity (``ln R/G``, ``ln B/G``) over the ellipse, in % (pink skin turned grey-green by a
 relighting reads 7 %, kept pink 4 %; a JPEG's colour noise alone a few %).
 
+Two measures judge any light, side light too. A relighting lifts a shadow and changes the shading: it
+takes edges away (a shadow's rim) and never adds one, and a white light never changes the skin's colour
+at a fine scale. ``added_edges`` is the share of the face where the relit photo has an edge the input
+has not (a pasted patch's rim, a painted slab's outline); ``colour_blotches`` the RMS of the high-passed
+change of chromaticity (orange or green blotches, coloured speckle in a beard, a grey-blue patch).
+
 Arrays are (H, W) linear luminance or (H, W, 3) linear RGB on the photo's grid; eyes are (2, 2) photo
 pixels ``[[x, y], [x, y]]`` (either order).
 """
@@ -34,6 +40,12 @@ HIGH_PASS = 0.15  # the high-pass's Gaussian, eye distances
 BLOTCH = 0.20  # a high-passed log ratio beyond this is a blotch (P)
 # added to linear luminance before the log: a pixel at a few levels of 255 is noise, and its ratio means nothing
 EPS = 2e-3
+# ``added_edges``: the log luminance (floored at ``EDGE_FLOOR``, linear) smoothed over ``EDGE_BLUR`` eye distances, an
+# edge where its slope exceeds the input's by ``EDGE_STEP`` (log units per eye distance): a patch's rim or a paint's
+# outline (pasted patches read 11-26 % of a face, lifted shadows and new shading 0-10 %)
+EDGE_FLOOR = 0.01
+EDGE_BLUR = 0.02
+EDGE_STEP = 2.0
 
 
 @dataclass(frozen=True)
@@ -74,10 +86,7 @@ def harm(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within: np.nda
     (a turned face's ellipse reaches past its outline, and the face's change of light against the background
     there is a step, not harm)."""
     ellipse = face_ellipse(eyes, np.shape(before)[:2], 3.0 * HIGH_PASS)
-    m = ellipse.mask
-    if within is not None:
-        y0, y1, x0, x1 = ellipse.box
-        m = m & np.asarray(within, bool)[y0:y1, x0:x1]
+    m = _face_mask(ellipse, within)
     if not m.any():
         raise ValueError(f"eyes {np.asarray(eyes).tolist()}: the face's ellipse is outside the photo")
     r = log_ratio(before, after, ellipse)
@@ -85,6 +94,62 @@ def harm(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within: np.nda
     h = 100.0 * float(np.sqrt(np.mean(high.astype(np.float64) ** 2)))
     p = 100.0 * float(np.mean(np.abs(high) > BLOTCH))
     return Harm(h, p, halves_ratio(before, ellipse))
+
+
+def _face_mask(ellipse: Ellipse, within: np.ndarray | None) -> np.ndarray:
+    """(h, w) bool: the ellipse's mask on its crop, within ``within`` (H, W) bool on the photo when given."""
+    m = ellipse.mask
+    if within is not None:
+        y0, y1, x0, x1 = ellipse.box
+        m = m & np.asarray(within, bool)[y0:y1, x0:x1]
+    return m
+
+
+def added_edges(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within: np.ndarray | None = None,
+                new_light: np.ndarray | None = None) -> float:
+    """The share (%) of the face's ellipse from ``eyes`` (2, 2) photo pixels (within ``within`` (H, W) bool, if
+    given) where ``after`` has an edge ``before`` has not: the slope of log luminance (``EDGE_FLOOR`` added,
+    smoothed over ``EDGE_BLUR`` eye distances, per eye distance) of ``after`` exceeds ``before``'s by ``EDGE_STEP``,
+    beyond the slope of ``new_light`` (H, W), the new light's shading, when given (its terminator and cast shadows
+    are edges it adds rightly). ``before``, ``after`` (H, W) or (H, W, 3) linear."""
+    ellipse = face_ellipse(eyes, np.shape(before)[:2], 3.0 * HIGH_PASS)
+    m = _face_mask(ellipse, within)
+    if not m.any():
+        return 0.0
+    y0, y1, x0, x1 = ellipse.box
+
+    def slope(image: np.ndarray) -> np.ndarray:
+        log = np.log(np.maximum(luminance(image)[y0:y1, x0:x1], 0.0) + np.float32(EDGE_FLOOR)).astype(np.float32)
+        log = cv2.GaussianBlur(log, (0, 0), EDGE_BLUR * ellipse.iod)
+        gx, gy = cv2.Sobel(log, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(log, cv2.CV_32F, 0, 1, ksize=3)
+        return np.hypot(gx, gy) * np.float32(ellipse.iod / 8.0)  # Sobel's 3x3 weighs a unit slope 8
+
+    added = slope(after) - slope(before)
+    if new_light is not None:
+        added -= slope(new_light)
+    return 100.0 * float(np.mean(added[m] > EDGE_STEP))
+
+
+def colour_blotches(before: np.ndarray, after: np.ndarray, eyes: np.ndarray,
+                    within: np.ndarray | None = None) -> float:
+    """The RMS (%) over the face's ellipse (as ``added_edges``) of the high-passed change of chromaticity (``ln
+    R/G`` and ``ln B/G`` of linear RGB, ``EPS`` added; the high-pass ``harm``'s): what a white light's change
+    cannot do. 0 for grey photos."""
+    if np.ndim(before) < 3 or np.shape(before)[-1] != 3:
+        return 0.0
+    ellipse = face_ellipse(eyes, np.shape(before)[:2], 3.0 * HIGH_PASS)
+    m = _face_mask(ellipse, within)
+    if not m.any():
+        return 0.0
+    y0, y1, x0, x1 = ellipse.box
+    logs = [np.log(np.maximum(np.asarray(image, np.float32)[y0:y1, x0:x1], 0.0) + np.float32(EPS))
+            for image in (before, after)]
+    total = 0.0
+    for c in (0, 2):
+        d = ((logs[1][..., c] - logs[1][..., 1]) - (logs[0][..., c] - logs[0][..., 1])).astype(np.float32)
+        high = (d - _masked_blur(d, m, HIGH_PASS * ellipse.iod))[m]
+        total += float(np.mean(high.astype(np.float64) ** 2))
+    return 100.0 * float(np.sqrt(total))
 
 
 def light_move(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> float:

@@ -28,10 +28,10 @@ from ..photo.encoding import linear_to_srgb
 from ..photo.mediapipe import person_share
 from ..photo.placement import FacePlacement
 from .compose import FaceLayer, compose
-from .face import FaceRelight
+from .face import FaceRelight, light_key
 from .face_box import Features
 from .foreign import found
-from .harm import harm
+from .harm import added_edges, colour_blotches, harm
 from .products import albedo_on_grid
 
 # an evenly lit face whose relit face would change more than this at a fine scale (``harm``'s H, %) comes back as it
@@ -44,6 +44,16 @@ PAINTED_DOUBT = 0.5
 # face's, and a head turned toward the light looks evenly lit whatever the light (a render turned 45 degrees into a
 # light from 45 degrees, relit frontally, changed by 13 % with nothing harmed)
 EVEN_YAW = 25.0
+# a face, under any light, whose relit face would add edges the photo has not and the new light does not make (% of
+# the face, ``harm.added_edges``, over the pixels painted less than ``PAINTED_EDGES``: where the photo held too little
+# to lift, the fill's shading is new by design) and change its colour at a fine scale (%, ``harm.colour_blotches``) by
+# more than ``edges / ADDED_EDGES + blotches / COLOUR_BLOTCHES = 1`` comes back as it was. On the people set relit
+# frontally, the faces seen damaged by hard side light (a painted slab's outline, pasted patches, orange and green
+# blotches) read 1.01-3.7 by that sum, the faces seen good or acceptable at most 0.89; Yale B's photos lit from
+# +-70 degrees (40 % of the face painted), relit frontally, at most 0.68
+ADDED_EDGES = 7.2
+COLOUR_BLOTCHES = 16.0
+PAINTED_EDGES = 0.5
 
 
 def face_eyes(frame: Frame) -> np.ndarray | None:
@@ -59,15 +69,52 @@ def face_yaw(frame: Frame) -> float:
     return 0.0 if pose is None else float(pose.view[0])
 
 
-def layer_harm(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray) -> float:
-    """``harm``'s H (%) of ``layer`` put into its box of the photo, against the photo there with the shadows the face
-    does not cast lifted (``FaceRelight.foreign_lift``: that change is the one asked for, its edges the shadows'),
-    over the face's own pixels (``layer.inside``); ``eyes`` (2, 2) photo pixels."""
+def layer_pair(face: FaceRelight, layer: FaceLayer) -> tuple[np.ndarray, np.ndarray]:
+    """(before, after) (h, w, C) linear on ``layer``'s box: the photo there with the shadows the face does not cast
+    lifted (``FaceRelight.foreign_lift``: that change is the one asked for, its edges the shadows'), and ``layer``
+    put into it."""
     y0, y1, x0, x1 = layer.box
     after = compose(face.layer_photo, [dataclasses.replace(layer, box=(0, y1 - y0, 0, x1 - x0))])
     lift = face.foreign_lift()
-    before = face.layer_photo if lift is None else face.layer_photo * lift
-    return harm(before, after, eyes - [x0, y0], within=layer.inside).h
+    return (face.layer_photo if lift is None else face.layer_photo * lift), after
+
+
+def made_under(face: FaceRelight, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(h, w) float32 each on the layer's box (0 around the face's box), for the face relit by ``light`` (3,): the
+    lighting it gives the fit's surface, its cast shadow with it (where the new light's own edges are), and how far
+    each pixel was painted (where the photo held too little to lift)."""
+    if light_key(light) not in face.made:
+        face.relit(light)
+    return tuple(face.at.in_layer(np.asarray(v, np.float32)) for v in face.made[light_key(light)])
+
+
+def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, eyes: np.ndarray, report: dict,
+              even: bool) -> str | None:
+    """Why the face relit by ``light`` (3,) as ``layer`` would be harmed, ending in ``LEFT``, or None; its
+    figures put into ``report``. Over the face's own pixels (``layer.inside``) of the ellipse from ``eyes`` (2, 2)
+    photo pixels: under any light, edges the photo has not and the new light does not make (``harm.added_edges``)
+    with a change of colour at a fine scale (``harm.colour_blotches``), their sum over ``ADDED_EDGES`` and
+    ``COLOUR_BLOTCHES`` above 1; a face lit evenly and turned at
+    most ``EVEN_YAW`` (``even``), a change at a fine scale (``harm``'s H above ``EVEN_HARM``). H judges only such
+    faces: a strong change of light raises it legitimately (Yale B relit frontally from +-50 and +-70, 21.8 and 19.0
+    dB against the real frontal photo, are blotched over 28-54 % of the face)."""
+    before, after = layer_pair(face, layer)
+    eyes = eyes - [layer.box[2], layer.box[0]]
+    # where the photo held too little to lift, the fill's shading and texture are new by design
+    shading, painted = made_under(face, light)
+    shown = layer.inside & (painted < PAINTED_EDGES)
+    edges = added_edges(before, after, eyes, within=shown, new_light=shading)
+    blotches = colour_blotches(before, after, eyes, within=layer.inside)
+    report.update(added_edges=round(edges, 2), colour_blotches=round(blotches, 2))
+    if even:
+        h = harm(before, after, eyes, within=layer.inside).h
+        report["harm"] = round(h, 2)
+        if h > EVEN_HARM:
+            return left_flag(h)
+    if edges / ADDED_EDGES + blotches / COLOUR_BLOTCHES > 1.0:
+        return (f"relit it would add edges over {edges:.0f} % of the face and change its colour at a fine scale by "
+                f"{blotches:.0f} % (patches, outlines, blotches): {LEFT}")
+    return None
 
 
 def left_flag(h: float) -> str:
@@ -156,23 +203,18 @@ class PhotoRelightNode:
 
     @staticmethod
     def _honest(frame: Frame, face: FaceRelight, layers: list, report: dict, quality: dict) -> list:
-        """The face's layers, or its photo as it was when the relighting would harm it: a face lit evenly from side to
-        side (``quality["even"]``), turned at most ``EVEN_YAW``, whose relit face under the first light changes at a
-        fine scale by more than ``EVEN_HARM`` (``harm``'s H over the face's own pixels) comes back as it was,
-        ``doubtful`` with why; a face painted over more than ``PAINTED_DOUBT`` of it is ``doubtful`` too. The flags go
-        into ``quality`` (its score halved by each, as ``quality.assess``'s), the figures into ``report``. A face lit
-        from the side is not judged so: a strong change of light raises H and P legitimately (Yale B relit frontally
-        from +-50 and +-70, 21.8 and 19.0 dB against the real frontal photo, are blotched over 28-54 % of the face)."""
+        """The face's layers, or its photo as it was when the relighting would harm it (``harm_flag``): then the
+        face is ``doubtful`` with why, its relit layers kept for a clip's frames after (``app.steady``). A face
+        painted over more than ``PAINTED_DOUBT`` of it is ``doubtful`` too. The flags go into ``quality`` (its score
+        halved by each, as ``quality.assess``'s), the figures into ``report``."""
         flags = []
         eyes = face_eyes(frame)
-        if quality.get("even") and eyes is not None and abs(face_yaw(frame)) <= EVEN_YAW:
-            h = layer_harm(face, layers[0][1], eyes)
-            report["harm"] = round(h, 2)
-            if h > EVEN_HARM:
-                flags.append(left_flag(h))
-                # kept for a clip's face, whose frames before may say it is relit (``app.steady``)
-                frame.data["photo_layers_relit"] = layers
-                layers = [(light, unchanged(layer, face.layer_photo)) for light, layer in layers]
+        why = None if eyes is None else harm_flag(face, *layers[0], eyes, report,
+                                                   bool(quality.get("even")) and abs(face_yaw(frame)) <= EVEN_YAW)
+        if why is not None:
+            flags.append(why)
+            frame.data["photo_layers_relit"] = layers
+            layers = [(light, unchanged(layer, face.layer_photo)) for light, layer in layers]
         if report.get("painted", 0.0) > PAINTED_DOUBT:
             flags.append(f"{100 * report['painted']:.0f} % of the face painted: the photo shows too little of it")
         if flags:

@@ -32,6 +32,9 @@ def test_a_run_with_foreign_shadows_writes_their_map_count_and_line(tmp_path, pr
 def test_a_run_without_it_writes_none_of_them(tmp_path, procedural_model):
     photo, _ = brimmed_face(tmp_path)
     run = shadowflow.run([photo], tmp_path / "out", model=procedural_model, record=())
-    assert "foreign_shadows" not in run.records[0]["faces"][0]
+    face = run.records[0]["faces"][0]
+    assert "foreign_shadows" not in face
+    # what the honesty step measured of the relit face is written either way (``relight.nodes.harm_flag``)
+    assert {"added_edges", "colour_blotches"} <= set(face["harm"]) and 0.0 <= face["harm"]["added_edges"] < 100.0
     assert not (tmp_path / "out" / "face" / "foreign_shadow.png").exists()
     assert "shadows from elsewhere" not in (tmp_path / "out" / "report.html").read_text()

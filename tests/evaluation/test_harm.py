@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
-from shadowflow.nodes.relight.harm import colour_shift, face_ellipse, harm, light_move
+from shadowflow.nodes.relight.harm import added_edges, colour_blotches, colour_shift, face_ellipse, harm, light_move
 
 EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart
 
@@ -129,3 +129,61 @@ def test_a_white_light_keeps_the_skins_colour_and_a_tint_is_a_colour_shift():
     outside[:40] *= np.array([0.5, 1.0, 1.0], np.float32)  # above the face's ellipse: not the face
     assert colour_shift(photo, outside, EYES) == 0.0
     assert colour_shift(photo[..., :1], photo[..., :1] * 0.5, EYES) == 0.0  # a grey photo has no colour to shift
+
+
+def _side_lit(seed: int):
+    """(photo, lifted, ramp) a skin lit from the image's left with a hard-edged shadow (0.3 of the light) over its
+    right cheek, the same skin with that shadow lifted exactly (the photo's texture kept) and relit frontally (the
+    left-to-right fall of light taken away), and that fall (H, W)."""
+    photo = _skin(seed)
+    xx = np.mgrid[0:400, 0:400][1].astype(np.float32)
+    ramp = np.exp(0.006 * (200 - xx))
+    shadow = _disc((250, 240), 40)
+    shaded = photo * ramp[..., None]
+    shaded[shadow] *= 0.3
+    return shaded, photo, shadow
+
+
+def test_a_lifted_shadow_and_a_new_light_add_no_edge_and_no_colour():
+    """What a relighting does rightly takes edges away (a shadow's rim) and keeps the colour; the new light's own
+    shadow is an edge it adds rightly, when its shading is given."""
+    photo, lifted, _ = _side_lit(4)
+    assert added_edges(photo, lifted, EYES) < 0.5 and colour_blotches(photo, lifted, EYES) < 0.5
+    new_shadow = np.where(_disc((150, 240), 35), 0.3, 1.0).astype(np.float32)  # the new light's, on the other cheek
+    relit = lifted * new_shadow[..., None]
+    assert added_edges(photo, relit, EYES) > 3.0  # its rim is an edge the photo has not ...
+    assert added_edges(photo, relit, EYES, new_light=new_shadow) < 0.5  # ... which the new light makes
+
+
+@pytest.mark.parametrize("damage", ["pasted patch", "painted slab"])
+def test_a_pasted_patch_or_a_painted_slab_adds_edges(damage):
+    """A patch pasted with a hard rim, or the shadowed cheek painted flat over a wider region: edges the photo has
+    not, over more of the face than ``relight.nodes.ADDED_EDGES`` (7.2 %), alone enough to give the face back; the
+    lifted face beside them adds none."""
+    photo, lifted, _ = _side_lit(5)
+    damaged = lifted.copy()
+    if damage == "pasted patch":
+        for centre in ((140, 200), (260, 300), (190, 280), (130, 290), (270, 200)):
+            damaged[_disc(centre, 22)] *= 1.8
+    else:  # a paler slab with a scalloped rim, as a mask painted over a beard and a shadowed side
+        yy, xx = np.mgrid[0:400, 0:400]
+        angle = np.arctan2(yy - 240, xx - 250)
+        slab = np.hypot(xx - 250, yy - 240) < 60 + 18 * np.sin(9 * angle)
+        damaged[slab] = np.array([0.8, 0.55, 0.42], np.float32)
+    assert added_edges(photo, damaged, EYES) > 7.2
+    assert added_edges(photo, lifted, EYES) < 0.5
+
+
+def test_orange_and_green_blotches_are_a_change_of_colour_at_a_fine_scale():
+    """A white change of light (a lifted shadow, a ramp) changes no colour; blotches a third of an eye distance
+    wide, warmer or greener by 30-50 %, do (``relight.nodes.COLOUR_BLOTCHES`` 16 %); a grey photo has no colour to
+    change."""
+    photo, lifted, _ = _side_lit(6)
+    assert colour_blotches(photo, lifted, EYES) < 0.5
+    blotchy = lifted.copy()
+    for k, centre in enumerate(((150, 200), (250, 210), (200, 290), (140, 280), (260, 290), (200, 220), (200, 330))):
+        tint = np.array([1.5, 1.0, 0.7] if k % 2 else [0.75, 1.3, 0.85], np.float32)
+        blotchy[_disc(centre, 22)] *= tint
+    assert colour_blotches(photo, blotchy, EYES) > 16.0
+    grey = photo.mean(axis=-1)
+    assert colour_blotches(grey, blotchy.mean(axis=-1), EYES) == 0.0

@@ -144,3 +144,30 @@ def test_a_head_turned_past_the_measures_reach_is_not_judged_by_it(rendered):
         quality = {"score": 0.8, "flags": [], "even": True}
         layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, harmful)], {"painted": 0.0}, quality)
         assert (layers[0][1] is not harmful) == judged and bool(quality["flags"]) == judged, (yaw, quality)
+
+
+def test_under_any_light_a_relit_face_with_pasted_patches_comes_back_as_it_was(rendered):
+    """``harm_flag`` judges a face lit from the side too: the face relit rightly toward the other side (its new
+    terminator and nose shadow are the new light's edges) is kept, its figures reported; the same layer with flat
+    patches pasted over it (a hard rim each) is given back as the photo, bit for bit, ``doubtful`` with why, its
+    relit layers kept for a clip."""
+    face = rendered.face
+    frame = Frame(0, "rendered", data={"placement": SimpleNamespace(eyes=rendered.eyes)})
+    layer = face.layer(NEW_LIGHT)
+    quality, report = {"score": 0.8, "flags": []}, {"painted": 0.0}
+    layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, layer)], report, quality)
+    assert layers[0][1] is layer and quality["flags"] == []
+    assert report["added_edges"] < 2.0 and report["colour_blotches"] < 2.0
+    patched = layer.relit.copy()
+    yy, xx = np.mgrid[0:patched.shape[0], 0:patched.shape[1]]
+    cx, cy = (rendered.eyes.mean(axis=0) - [layer.box[2], layer.box[0]])
+    for dx in (-24, -8, 8, 24):
+        for dy in (-10, 15, 40):
+            patched[np.hypot(xx - cx - dx, yy - cy - dy) < 6] = [0.9, 0.5, 0.45]
+    harmful = FaceLayer(layer.box, layer.inside, patched, layer.gain, layer.alpha)
+    quality, report = {"score": 0.8, "flags": []}, {"painted": 0.0}
+    layers = PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, harmful)], report, quality)
+    assert report["added_edges"] > 7.2 and quality["score"] == pytest.approx(0.4)
+    assert quality["flags"][0].startswith("relit it would add edges") and quality["flags"][0].endswith("as it was")
+    np.testing.assert_array_equal(compose(rendered.photo, [layers[0][1]]), rendered.photo)
+    assert frame.data["photo_layers_relit"][0][1] is harmful
