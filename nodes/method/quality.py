@@ -43,6 +43,7 @@ TRACKED_FACE = 3
 MIN_EXPLAINED = 0.4  # a face's shading explains at least this much of its brightness
 # ... which an evenly lit face (its eyes found) is not asked to: its score takes at least this for it
 EVEN_EXPLAINED = 0.7
+UNEXPLAINED = "the fitted face explains "  # how the flag of a fit that explains too little begins
 NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much to count as a face
 # a found face whose fit explains less than this is none (concentric rings, which the face finder takes for a
 # face); under MIN_EXPLAINED, doubtful
@@ -143,7 +144,7 @@ def assess(eyes: str, explained: float, downweighted: float, clipped: float, ins
     if even and eyes != "none":  # (its signals keep what the fit explained)
         explained = max(explained, EVEN_EXPLAINED)
     elif explained < MIN_EXPLAINED:
-        flags.append(f"the fitted face explains {100 * max(explained, 0):.0f} % of the image's shading")
+        flags.append(f"{UNEXPLAINED}{100 * max(explained, 0):.0f} % of the image's shading")
     if downweighted > MAX_DOWNWEIGHTED:
         flags.append(f"{100 * downweighted:.0f} % of the face down-weighted")
     if clipped > MAX_CLIPPED:

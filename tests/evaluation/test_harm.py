@@ -176,7 +176,7 @@ def test_a_pasted_patch_or_a_painted_slab_adds_edges(damage):
 
 def test_orange_and_green_blotches_are_a_change_of_colour_at_a_fine_scale():
     """A white change of light (a lifted shadow, a ramp) changes no colour; blotches a third of an eye distance
-    wide, warmer or greener by 30-50 %, do (``relight.nodes.COLOUR_BLOTCHES`` 16 %); a grey photo has no colour to
+    wide, warmer or greener by 30-50 %, do (``relight.nodes.COLOUR_BLOTCHES`` 14 %); a grey photo has no colour to
     change."""
     photo, lifted, _ = _side_lit(6)
     assert colour_blotches(photo, lifted, EYES) < 0.5
@@ -184,6 +184,18 @@ def test_orange_and_green_blotches_are_a_change_of_colour_at_a_fine_scale():
     for k, centre in enumerate(((150, 200), (250, 210), (200, 290), (140, 280), (260, 290), (200, 220), (200, 330))):
         tint = np.array([1.5, 1.0, 0.7] if k % 2 else [0.75, 1.3, 0.85], np.float32)
         blotchy[_disc(centre, 22)] *= tint
-    assert colour_blotches(photo, blotchy, EYES) > 16.0
+    assert colour_blotches(photo, blotchy, EYES) > 14.0
     grey = photo.mean(axis=-1)
     assert colour_blotches(grey, blotchy.mean(axis=-1), EYES) == 0.0
+
+
+def test_a_black_shadow_lifted_to_the_skins_colour_has_no_colour_of_its_own_to_lose():
+    """A pixel at the noise floor has no colour to keep: a render's black nose shadow lifted to skin read 11 % of
+    the face before such pixels were left out. (The log's floor lifted with the light, ``added_edges``, is held by
+    ``tests/evaluation/test_colour.py``: Yale B's sRGB copies lit from 70 degrees came back as they were without
+    it.)"""
+    photo = _skin(7)
+    black = photo.copy()
+    black[_disc((230, 230), 40)] = 0.0
+    assert colour_blotches(black, photo, EYES) < 1.0
+    assert colour_blotches(black * 0.5, photo, EYES) < 1.0  # a change of level alone, the black still black

@@ -10,6 +10,7 @@ from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.model.default_model import default_model
 from shadowflow.nodes.model.faces.ict import shipped_basis
 from shadowflow.nodes.photo.placement import outline_on_grid
+from shadowflow.nodes.relight.nodes import LEFT
 
 LIGHT = light_from_angles(45.0, 0.0)
 
@@ -34,7 +35,9 @@ def test_a_head_turned_30_degrees_is_fitted_with_its_view_as_well_as_a_frontal_o
         runs = [_run(basis, w, (yaw, 0.0)) for w in ids]
         for render, result, score in runs:
             face = result.faces[0]
-            assert face["status"] == "ok"
+            # not refused nor doubtful for its turn; the relighting may give the face back as it was (turned 30 deg
+            # from a light from 45, the far eye's socket is relit with a pasted patch: relight.nodes.harm_flag)
+            assert face["status"] == "ok" or face["status"].endswith(LEFT), face["status"]
             assert abs(face["model_view"]["yaw"] - yaw) <= 10.0  # measured 25-35 at 30
             assert len(result.frame.meta["view_choice"]) >= 2
             # the fit trusts the face mesh's oval; the face's products reach its whole outline (the far cheek)

@@ -171,3 +171,36 @@ def test_under_any_light_a_relit_face_with_pasted_patches_comes_back_as_it_was(r
     assert quality["flags"][0].startswith("relit it would add edges") and quality["flags"][0].endswith("as it was")
     np.testing.assert_array_equal(compose(rendered.photo, [layers[0][1]]), rendered.photo)
     assert frame.data["photo_layers_relit"][0][1] is harmful
+
+
+def test_a_fit_that_explains_little_is_no_doubt_when_the_relit_face_shows_no_harm(rendered):
+    """``_unharmed_fit``: a face whose fit explains little is doubtful for it only while its relit face shows harm.
+    Relit by its own light (no change at all) the flag is taken off and the score raised to 0.7; relit with blotches
+    of +-30 % (H above 8 %) it stays; so does a head read as turned 40 degrees, which the measure does not judge."""
+    face = rendered.face
+    unexplained = "the fitted face explains 12 % of the image's shading"
+    own = face.layer(PHOTO_LIGHT)
+    blotchy = own.relit * (1.0 + 0.3 * np.random.default_rng(0).uniform(-1, 1, own.relit.shape[:2] + (1,)))
+    harmful = FaceLayer(own.box, own.inside, blotchy.astype(np.float32), own.gain, own.alpha)
+    # soft dim blobs (H, no edge, no colour) and tinted ones of the same level (colour, no H)
+    yy, xx = np.mgrid[0:own.relit.shape[0], 0:own.relit.shape[1]].astype(np.float32)
+    cx, cy = rendered.eyes.mean(axis=0) - [own.box[2], own.box[0]]
+    blobs = sum(np.exp(-((xx - cx - dx) ** 2 + (yy - cy - dy) ** 2) / (2 * 4.5**2))
+                for dx in (-20, 0, 20) for dy in (0, 25, 50))
+    dimmed = FaceLayer(own.box, own.inside, (own.relit * (1.0 - 0.5 * blobs)[..., None]).astype(np.float32),
+                       own.gain, own.alpha)
+    tint = 1.0 + 0.6 * blobs[..., None] * np.array([1.0, -0.376, -0.376], np.float32)  # the skin's level kept
+    tinted = FaceLayer(own.box, own.inside, (own.relit * tint).astype(np.float32), own.gain, own.alpha)
+    for layer, yaw, cleared in ((own, 0.0, True), (harmful, 0.0, False), (own, 40.0, False), (dimmed, 0.0, False),
+                                (tinted, 0.0, False)):
+        pose = SimpleNamespace(view=(yaw, 0.0))
+        frame = Frame(0, "rendered", data={"placement": SimpleNamespace(eyes=rendered.eyes, pose=pose)})
+        quality = {"score": 0.06, "flags": [unexplained]}
+        report = {"painted": 0.0}
+        PhotoRelightNode._honest(frame, face, [(PHOTO_LIGHT, layer)], report, quality)
+        if cleared:
+            assert quality == {"score": 0.7, "flags": []} and report["harm"] < 1.0
+        else:
+            assert quality == {"score": 0.06, "flags": [unexplained]}, (yaw, report)
+            assert layer is not dimmed or (report["harm"] > 8.0 and report["added_edges"] / 7.2 < 0.5), report
+            assert layer is not tinted or (report["harm"] < 8.0 and report["colour_blotches"] > 8.0), report
