@@ -19,8 +19,8 @@ the skin's chromaticity (``ln R/G``, ``ln B/G``) over the ellipse, in % (pink sk
 relighting reads 7 %, kept pink 4 %; a JPEG's colour noise alone a few %).
 
 Two measures judge any light, side light too. A relighting lifts a shadow and changes the shading: it
-takes edges away (a shadow's rim) and never adds one, and a white light never changes the skin's colour
-at a fine scale. ``added_edges`` is the share of the face where the relit photo has an edge the input
+takes edges away (a shadow's rim) and adds none but the new light's own, and a white light never changes
+the skin's colour at a fine scale. ``added_edges`` is the share of the face where the relit photo has an edge the input
 has not (a pasted patch's rim, a painted slab's outline); ``colour_blotches`` the RMS of the high-passed
 change of chromaticity (orange or green blotches, coloured speckle in a beard, a grey-blue patch).
 
@@ -45,11 +45,11 @@ EPS = 2e-3
 # outline (on the people set relit frontally, the faces seen damaged read up to 7.5 % of the face, the others at
 # most 2.1 %)
 EDGE_FLOOR = 0.01
+EDGE_BLUR = 0.02
+EDGE_STEP = 2.0
 # ``colour_blotches``: a pixel of the input darker than this (linear luminance, a few levels of an 8-bit sRGB file)
 # has no colour to keep: black, or the file's noise
 COLOUR_FLOOR = 0.002
-EDGE_BLUR = 0.02
-EDGE_STEP = 2.0
 
 
 @dataclass(frozen=True)
@@ -113,10 +113,10 @@ def added_edges(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within:
                 new_light: np.ndarray | None = None) -> float:
     """The share (%) of the face's ellipse from ``eyes`` (2, 2) photo pixels (within ``within`` (H, W) bool, if
     given) where ``after`` has an edge ``before`` has not: the slope of log luminance (``EDGE_FLOOR`` added, to
-    ``after`` times the smooth change of light; smoothed over ``EDGE_BLUR`` eye distances, per eye distance) of
-    ``after`` exceeds ``before``'s by ``EDGE_STEP``,
-    beyond the slope of ``new_light`` (H, W), the new light's shading, when given (its terminator and cast shadows
-    are edges it adds rightly). ``before``, ``after`` (H, W) or (H, W, 3) linear."""
+    ``after``'s times the smooth change of light; smoothed over ``EDGE_BLUR`` eye distances; per eye distance) of
+    ``after`` exceeds ``before``'s by ``EDGE_STEP``, beyond the slope of ``new_light`` (H, W), the new light's
+    shading, when given (its terminator and cast shadows are edges it adds rightly). ``before``, ``after`` (H, W) or
+    (H, W, 3) linear."""
     ellipse = face_ellipse(eyes, np.shape(before)[:2], 3.0 * HIGH_PASS)
     m = _face_mask(ellipse, within)
     if not m.any():
