@@ -138,6 +138,14 @@ def added_edges(before: np.ndarray, after: np.ndarray, eyes: np.ndarray, within:
     return 100.0 * float(np.mean(added[m] > EDGE_STEP))
 
 
+def chromaticity(image: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+    """(h, w, 2) float32 ``ln R/G`` and ``ln B/G`` (``EPS`` added) of ``image`` (H, W, 3) linear on ``box``
+    ``(y0, y1, x0, x1)``."""
+    y0, y1, x0, x1 = box
+    v = np.log(np.maximum(np.asarray(image, np.float32)[y0:y1, x0:x1], 0.0) + np.float32(EPS))
+    return np.stack([v[..., 0] - v[..., 1], v[..., 2] - v[..., 1]], axis=-1)
+
+
 def colour_blotches(before: np.ndarray, after: np.ndarray, eyes: np.ndarray,
                     within: np.ndarray | None = None) -> float:
     """The RMS (%) over the face's ellipse (as ``added_edges``) of the high-passed change of chromaticity (``ln
@@ -151,12 +159,10 @@ def colour_blotches(before: np.ndarray, after: np.ndarray, eyes: np.ndarray,
     m = _face_mask(ellipse, within) & (luminance(before)[y0:y1, x0:x1] > COLOUR_FLOOR)
     if not m.any():
         return 0.0
-    logs = [np.log(np.maximum(np.asarray(image, np.float32)[y0:y1, x0:x1], 0.0) + np.float32(EPS))
-            for image in (before, after)]
+    d = chromaticity(after, ellipse.box) - chromaticity(before, ellipse.box)
     total = 0.0
-    for c in (0, 2):
-        d = ((logs[1][..., c] - logs[1][..., 1]) - (logs[0][..., c] - logs[0][..., 1])).astype(np.float32)
-        high = (d - _masked_blur(d, m, HIGH_PASS * ellipse.iod))[m]
+    for c in range(2):
+        high = (d[..., c] - _masked_blur(d[..., c], m, HIGH_PASS * ellipse.iod))[m]
         total += float(np.mean(high.astype(np.float64) ** 2))
     return 100.0 * float(np.sqrt(total))
 
@@ -180,12 +186,6 @@ def colour_shift(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> flo
     if np.ndim(before) < 3 or np.shape(before)[-1] != 3:
         return 0.0
     ellipse = face_ellipse(eyes, np.shape(before)[:2], 0.0)
-    y0, y1, x0, x1 = ellipse.box
     m = ellipse.mask
-
-    def chroma(image: np.ndarray) -> np.ndarray:
-        v = np.log(np.maximum(np.asarray(image, np.float32)[y0:y1, x0:x1][m], 0.0) + np.float32(EPS))
-        return np.stack([v[:, 0] - v[:, 1], v[:, 2] - v[:, 1]], axis=-1)
-
-    d = chroma(after) - chroma(before)
+    d = (chromaticity(after, ellipse.box) - chromaticity(before, ellipse.box))[m]
     return 100.0 * float(np.sqrt(np.mean(np.sum(d.astype(np.float64) ** 2, axis=-1)))) if d.size else 0.0

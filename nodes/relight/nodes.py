@@ -97,8 +97,14 @@ def made_under(face: FaceRelight, light: np.ndarray) -> tuple[np.ndarray, np.nda
     return tuple(face.at.in_layer(np.asarray(v, np.float32)) for v in face.made[light_key(light)])
 
 
-def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, eyes: np.ndarray, report: dict,
-              even: bool) -> str | None:
+def damage(report: dict) -> float:
+    """``report``'s added edges and colour blotches (``harm_flag``'s figures) over their bounds, summed: above 1 a
+    face is given back."""
+    return report["added_edges"] / ADDED_EDGES + report["colour_blotches"] / COLOUR_BLOTCHES
+
+
+def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, pair: tuple[np.ndarray, np.ndarray],
+              eyes: np.ndarray, report: dict, even: bool) -> str | None:
     """Why the face relit by ``light`` (3,) as ``layer`` would be harmed, ending in ``LEFT``, or None; its
     figures put into ``report``. Over the face's own pixels (``layer.inside``) of the ellipse from ``eyes`` (2, 2)
     photo pixels: under any light, edges the photo has not and the new light does not make (``harm.added_edges``)
@@ -107,7 +113,7 @@ def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, eyes: np.n
     most ``EVEN_YAW`` (``even``), a change at a fine scale (``harm``'s H above ``EVEN_HARM``). H judges only such
     faces: a strong change of light raises it legitimately (Yale B relit frontally from +-50 and +-70, 21.8 and 19.0
     dB against the real frontal photo, are blotched over 28-54 % of the face)."""
-    before, after = layer_pair(face, layer)
+    before, after = pair
     eyes = eyes - [layer.box[2], layer.box[0]]
     # where the photo held too little to lift, the fill's shading and texture are new by design
     shading, painted = made_under(face, light)
@@ -120,13 +126,14 @@ def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, eyes: np.n
         report["harm"] = round(h, 2)
         if h > EVEN_HARM:
             return left_flag(h)
-    if edges / ADDED_EDGES + blotches / COLOUR_BLOTCHES > 1.0:
+    if damage(report) > 1.0:
         return (f"relit it would add edges over {edges:.0f} % of the face and change its colour at a fine scale by "
                 f"{blotches:.0f} % (patches, outlines, blotches): {LEFT}")
     return None
 
 
-def _unharmed_fit(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray, report: dict, quality: dict) -> None:
+def _unharmed_fit(layer: FaceLayer, pair: tuple[np.ndarray, np.ndarray], eyes: np.ndarray, report: dict,
+                  quality: dict) -> None:
     """``quality`` without the doubt of a fit that explains little (``quality.UNEXPLAINED``) when the face relit as
     ``layer`` shows no harm (``UNHARMED``): the flag taken off, its score undone and raised to at least
     ``EVEN_EXPLAINED`` (halved by each flag left); ``report`` gets its H."""
@@ -135,10 +142,8 @@ def _unharmed_fit(face: FaceRelight, layer: FaceLayer, eyes: np.ndarray, report:
     if len(kept) == len(flags):
         return
     if "harm" not in report:
-        before, after = layer_pair(face, layer)
-        report["harm"] = round(harm(before, after, eyes - [layer.box[2], layer.box[0]], within=layer.inside).h, 2)
-    damage = report["added_edges"] / ADDED_EDGES + report["colour_blotches"] / COLOUR_BLOTCHES
-    if report["harm"] > EVEN_HARM or damage > UNHARMED:
+        report["harm"] = round(harm(*pair, eyes - [layer.box[2], layer.box[0]], within=layer.inside).h, 2)
+    if report["harm"] > EVEN_HARM or damage(report) > UNHARMED:
         return
     score = float(quality.get("score", 0.0)) * 2.0 ** (len(flags) - len(kept))
     quality["flags"], quality["score"] = kept, round(max(score, EVEN_EXPLAINED * 0.5 ** len(kept)), 3)
@@ -238,9 +243,13 @@ class PhotoRelightNode:
         flags = []
         eyes = face_eyes(frame)
         frontal = abs(face_yaw(frame)) <= EVEN_YAW
-        why = None if eyes is None else harm_flag(face, *layers[0], eyes, report, bool(quality.get("even")) and frontal)
-        if why is None and eyes is not None and frontal:
-            _unharmed_fit(face, layers[0][1], eyes, report, quality)
+        why = None
+        if eyes is not None:
+            light, layer = layers[0]
+            pair = layer_pair(face, layer)  # (the photo and the relit face, once for both judgements)
+            why = harm_flag(face, light, layer, pair, eyes, report, bool(quality.get("even")) and frontal)
+            if why is None and frontal:
+                _unharmed_fit(layer, pair, eyes, report, quality)
         if why is not None:
             flags.append(why)
             frame.data["photo_layers_relit"] = layers
