@@ -20,6 +20,8 @@ DEPTH = "integrate/depth"
 MESH = "integrate/mesh"
 CAST_SHADOW = "shadow/cast"
 ATTACHED_SHADOW = "shadow/attached"
+# with ``foreign_shadows``: how far each pixel is in the shadows the face does not cast (a brim's, a hand's)
+FOREIGN_SHADOW = "shadow/foreign"
 ALBEDO = "albedo/albedo"
 RELIT = "relight/relit"
 NOVEL_VIEW = "relight/novel_view"

@@ -30,6 +30,7 @@ from ..method.nodes import (
 from ..method.relight import surface_mesh
 from ..method.robust_fit import FitIteration
 from ..relight.nodes import PhotoRelightNode
+from ..relight.products import foreign_on_grid
 
 # The method's channel names (``channels.py``), for the engine's replay (``flow/replay`` knows none of them).
 # the columns of ``replay``'s table: the final robust scale, the mean residual from the first iteration to the last
@@ -102,8 +103,8 @@ class FitRecorder:
 
 
 class RecordNode:
-    """Records a frame's products once (input, remap, init, final normals, depth, shadows,
-    albedo, relit, novel view, mesh); the last node before writing."""
+    """Records a frame's products once (input, remap, init, final normals, depth, shadows (with the shadows the
+    face does not cast, when looked for), albedo, relit, novel view, mesh); the last node before writing."""
 
     name = "record"
 
@@ -125,6 +126,9 @@ class RecordNode:
         emit(ch.DEPTH, Kind.DEPTH, d["depth"])
         emit(ch.CAST_SHADOW, Kind.IMAGE, d["shadow"].cast.astype(np.float32))
         emit(ch.ATTACHED_SHADOW, Kind.IMAGE, d["shadow"].attached.astype(np.float32))
+        foreign = foreign_on_grid(frame)
+        if foreign is not None:
+            emit(ch.FOREIGN_SHADOW, Kind.IMAGE, foreign)
         emit(ch.ALBEDO, Kind.IMAGE, d["albedo"])
         if "relit" in d:
             emit(ch.RELIT, Kind.IMAGE, d["relit"])

@@ -1,6 +1,7 @@
 """The photo relit with every face: each face's layers (``PhotoRelightNode``'s ``photo_layers``) composed into
 it, made when asked and not kept (a 4-megapixel photo relit is 48 MB); and a face's albedo measured on the photo
-brought back to the model grid (``albedo_on_grid``, for the novel view)."""
+brought back to the model grid (``albedo_on_grid``, for the novel view), as is the map of the shadows the face does not
+cast (``foreign_on_grid``, for the recordings)."""
 from __future__ import annotations
 
 import numpy as np
@@ -93,3 +94,15 @@ def albedo_on_grid(albedo: np.ndarray, box: tuple[int, int, int, int], alignment
     measured = to_model_grid(np.nan_to_num(albedo).astype(np.float32) * known[..., None], al, grid)
     out = measured.reshape(weight.shape + (albedo.shape[-1],)) / np.maximum(weight, 1e-6)[..., None]
     return np.where((weight > 0.5)[..., None], out, np.nan).astype(np.float32)
+
+
+def foreign_on_grid(frame: Frame) -> np.ndarray | None:
+    """(Hm, Wm) float32 in [0, 1]: how far each pixel of the model grid is in the shadows the face does not cast
+    (``photo_foreign``, on the photo's box) brought to the grid as ``albedo_on_grid`` brings the albedo, NaN off
+    the face; None when they were not looked for."""
+    d = frame.data
+    if "photo_foreign" not in d:
+        return None
+    on_face = np.isfinite(d["photo_albedo"][..., :1])  # the face's pixels of the box, as its albedo has them
+    values = np.where(on_face, np.asarray(d["photo_foreign"], np.float32)[..., None], np.float32(np.nan))
+    return albedo_on_grid(values, d["photo_box"], d["alignment"], d["model"].grid)[..., 0]
