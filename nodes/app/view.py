@@ -32,6 +32,7 @@ from ..relight import lift
 from ..relight.albedo import LIFT_AMPLIFICATION
 from ..relight.compose import RATIO_BEYOND, RATIO_OUTSIDE
 from ..relight.live import BEYOND, FACE, HELD_MARGIN, RIM, SKIN, LiveFace
+from ..relight.nodes import live_face
 from ..relight.shine import SHINE_LOBE
 from .outputs import VIEW_NAME, face_record
 
@@ -134,7 +135,7 @@ def write_page(frame: Frame, folder: Path) -> str:
     """``folder/VIEW_NAME``: the page of one photo's ``frame``, every face (the failed ones marked) as
     ``summary.json`` records it; returns its path."""
     stem = frame.meta.get("stem")
-    faces = [(face_record(frame, p, stem), p.data.get("live") if p.ok else None) for p in (frame.parts or [frame])]
+    faces = [(face_record(frame, p, stem), live_face(p) if p.ok else None) for p in (frame.parts or [frame])]
     path = folder / VIEW_NAME
     atomic_write_bytes(path, view_html(frame, faces))
     return str(path)

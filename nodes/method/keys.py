@@ -61,7 +61,8 @@ DATA: dict[str, tuple[str, str]] = {
                      "steadied over its frames)", "relight_photo, steady_relight"),
     "photo_layers_relit": ("``photo_layers`` as relit, of a face left as it was: a clip's track may relight it "
                            "again", "relight_photo, steady_relight"),
-    "live": ("``LiveFace``: what relights the face for any light in view.html (a preview of its box)",
+    "live": ("``LiveFace``, or what makes it when called: what relights the face for any light in view.html (a "
+             "preview of its box); read it with ``relight.nodes.live_face``",
              "relight_photo"),
     "relit_8bit": ("(H, W, C) uint8 RGB the photo relit by the first light, as ``relit.png`` holds it: kept by the "
                    "writer for the report's pictures (``report.CardNode``), composed once", "write"),

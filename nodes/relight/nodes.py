@@ -33,6 +33,7 @@ from .face import FaceRelight, light_key
 from .face_box import Features
 from .foreign import found
 from .harm import added_edges, colour_blotches, harm
+from .live import LiveFace
 from .products import albedo_on_grid
 
 # an evenly lit face whose relit face would change more than this at a fine scale (``harm``'s H, %) comes back as it
@@ -230,7 +231,7 @@ class PhotoRelightNode:
         if self.options.foreign_shadows:
             frame.meta["foreign_shadows"] = found(face.shown_light.evidence.foreign, face.at.face, face.iod)
             d["photo_foreign"] = face.shown_light.evidence.foreign
-        d["live"] = face.live_data()
+        d["live"] = face.live_data  # made when a page asks (``live_face``): a clip's frames have none of their own
         return frame
 
     @staticmethod
@@ -295,6 +296,16 @@ class PhotoRelightNode:
             mirror_lift=self.options.mirror_lift, mirror=None if m.mirrors_by_column else m.mirror,
             features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m),
             model_normals=foreign_cue(frame) if self.options.foreign_shadows else None)
+
+
+def live_face(frame: Frame) -> LiveFace | None:
+    """The face ``frame``'s ``LiveFace`` (what view.html relights it with), made the first time it is asked for: its
+    arrays took an eighth of a webcam frame's relighting, and a clip's frames write no page unless asked
+    (``--frames``); None for a face not relit."""
+    live = frame.data.get("live")
+    if callable(live):
+        live = frame.data["live"] = live()
+    return live
 
 
 def foreign_cue(frame: Frame) -> np.ndarray | None:

@@ -15,6 +15,7 @@ from conftest import brimmed_face
 from shadowflow.nodes.app.cli import main
 from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.relight.live import BEYOND, FACE, render_live
+from shadowflow.nodes.relight.nodes import live_face
 from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.products import relit_photos
 
@@ -78,7 +79,7 @@ def test_the_live_relighting_is_the_products_inside_the_face(photo_name, request
     model = request.getfixturevalue("procedural_model") if photo_name == "brimmed_png" else None
     photo = shadowflow.fit(request.getfixturevalue(photo_name), options=options, model=model).photo
     face = photo.parts[0]
-    live = face.data["live"]
+    live = live_face(face)
     inside = (live.alpha8 == 255) & ((live.flags & FACE) > 0)
     ring = live.fade8 > 0  # around the face, where its change of light runs on into the photo
     beyond = (live.flags & BEYOND) > 0  # the face's own skin past the model: its change of light in full
