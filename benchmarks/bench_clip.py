@@ -1,7 +1,7 @@
 """A clip's run against the floor any video tool pays: OpenCV decoding the same clip and encoding it twice (relit.mp4
 and one --relight clip), measured in the same sitting, rounds taking turns.
 
-    python benchmarks/bench_clip.py [--frames 48] [--size 256] [--repeats 3] [--clip PATH] [--json out.json]
+    python benchmarks/bench_clip.py [--frames 48] [--size 256] [--repeats 3] [--clip PATH] [--workers N] [--json out.json]
 
 Without ``--clip`` the clip is made here: one rendered ICT face, its light swinging, H.264. Each round times
 ``shadowflow run CLIP --relight=-60,10 --record none`` in a fresh process (its start-up, about 2 s of imports and
@@ -68,9 +68,9 @@ def opencv_floor(clip: Path, tmp: Path) -> tuple[float, int]:
     return time.perf_counter() - t0, n
 
 
-def shadowflow_run(clip: Path, out: Path) -> float:
+def shadowflow_run(clip: Path, out: Path, workers: int = 1) -> float:
     cmd = [sys.executable, "-m", "shadowflow.nodes.app.cli", "run", str(clip), "--out", str(out), "--relight=-60,10",
-           "--record", "none", "--quiet"]
+           "--record", "none", "--quiet", "--workers", str(workers)]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=False, capture_output=True)
     return time.perf_counter() - t0
@@ -82,6 +82,7 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--clip", type=Path, help="a clip of your own instead of the rendered one")
+    ap.add_argument("--workers", type=int, default=1, help="the run's --workers (the fit's and the relighting's threads)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -90,8 +91,8 @@ def main() -> None:
         one = make_clip(tmp / "one.mp4", 1, args.size)
         rows = []
         for r in range(args.repeats):
-            start = shadowflow_run(one, tmp / f"one{r}")
-            ours = shadowflow_run(clip, tmp / f"run{r}")
+            start = shadowflow_run(one, tmp / f"one{r}", args.workers)
+            ours = shadowflow_run(clip, tmp / f"run{r}", args.workers)
             floor, n = opencv_floor(clip, tmp)
             rows.append({"round": r, "frames": n, "shadowflow_s": round(ours, 3), "startup_s": round(start, 3),
                          "opencv_s": round(floor, 4)})
@@ -100,7 +101,8 @@ def main() -> None:
         ours = statistics.median(x["shadowflow_s"] for x in rows)
         start = statistics.median(x["startup_s"] for x in rows)
         floor = statistics.median(x["opencv_s"] for x in rows)
-        result = {"frames": n, "size": args.size, "clip": str(args.clip or "rendered"), "rounds": rows,
+        result = {"frames": n, "size": args.size, "clip": str(args.clip or "rendered"), "workers": args.workers,
+                  "rounds": rows,
                   "shadowflow_fps": round(n / ours, 2), "shadowflow_fps_after_startup": round(n / max(ours - start,
                                                                                                      1e-9), 2),
                   "opencv_fps": round(n / floor, 1), "opencv_over_shadowflow": round(ours / floor, 1)}

@@ -1,6 +1,7 @@
 """A streaming pipeline: nodes in worker threads joined by bounded queues.
 
-Frames enter from any iterable; each stage runs one node in ``workers`` threads; stages are
+Frames enter from any iterable; each stage runs one node in ``workers`` threads (or, ``ordered``, in one that takes
+them in input order); stages are
 joined by ``queue.Queue(maxsize=queue_size)``, so a slow stage blocks the ones before it
 (backpressure) and at most ``sum(workers) + (stages + 1) * queue_size`` frames are in flight
 however long the stream, or ``in_flight`` when that is fewer (frames that hold large arrays: a
@@ -90,14 +91,19 @@ def _call_with_timeout(node, frame: Frame, timeout: float) -> Frame:
 
 @dataclass(frozen=True)
 class Stage:
-    """A node and how many worker threads run it (at least one: none would never finish a frame)."""
+    """A node and how many worker threads run it (at least one: none would never finish a frame). ``ordered``: the
+    node takes the frames in input order, whatever order the stages before finished them in (one worker: a node
+    that carries state from one frame to the next)."""
 
     node: object
     workers: int = 1
+    ordered: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.workers, int) or self.workers < 1:
             raise ValueError(f"a stage needs at least one worker, not {self.workers!r}")
+        if self.ordered and self.workers != 1:
+            raise ValueError(f"an ordered stage runs on one worker, not {self.workers}")
 
 
 class Pipeline(Stoppable):
@@ -158,6 +164,9 @@ class Pipeline(Stoppable):
         """A worker of stage ``i``: each frame through its node, until the stage before has ended; the
         stage's last worker to end tells every worker of the next one."""
         stage, q_in, q_out = self.stages[i], queues[i], queues[i + 1]
+        # an ordered stage's one worker holds what comes early until the frames before it have come (every frame
+        # reaches every stage, failed or cancelled ones too, so none is waited for in vain)
+        order: InOrder[tuple[int, Frame]] | None = InOrder() if stage.ordered else None
         while True:
             item = q_in.get()
             if item is END:
@@ -168,15 +177,23 @@ class Pipeline(Stoppable):
                     for _ in range(self.stages[i + 1].workers if i + 1 < len(self.stages) else 1):
                         q_out.put(END)
                 return
-            seq, frame = item
-            if self._stop.is_set():
-                frame.cancel()  # stopped: unfinished frames leave without more work
-            try:
-                frame = run_node(stage.node, frame, self.frame_timeout)
-            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
-                frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
-                self._stop.set()
-            q_out.put((seq, frame))
+            if order is None:
+                q_out.put(self._step(stage, *item))
+                continue
+            order.put(item[0], item)
+            for seq, frame in order.ready():
+                q_out.put(self._step(stage, seq, frame))
+
+    def _step(self, stage: Stage, seq: int, frame: Frame) -> tuple[int, Frame]:
+        """``(seq, frame)`` after the stage's node."""
+        if self._stop.is_set():
+            frame.cancel()  # stopped: unfinished frames leave without more work
+        try:
+            frame = run_node(stage.node, frame, self.frame_timeout)
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt inside a worker
+            frame.fail(getattr(stage.node, "name", "node"), f"{frame.source}: interrupted ({exc!r})")
+            self._stop.set()
+        return seq, frame
 
     def _emit(self, out: queue.Queue, slots: threading.Semaphore | None) -> Iterator[Frame]:
         """The last stage's frames in input order (``on_done`` first; its slot given back after), until it

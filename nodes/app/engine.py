@@ -25,6 +25,14 @@ def frames_in_flight(fit_workers: int) -> int:
     return 1 + fit_workers
 
 
+def local_stages(nodes: list, workers: int) -> list[Stage]:
+    """The local engine's stages of ``nodes``: a node that carries state from frame to frame (``in_order``: a clip's
+    steadying) takes them in input order on one thread; a thread-safe one (``thread_safe``: the fit, the relighting)
+    runs in ``workers`` (``--workers``); any other in one."""
+    return [Stage(n, ordered=True) if getattr(n, "in_order", False)
+            else Stage(n, workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
+
+
 def engine(run: RunOptions, model: ShapeModel, options: MethodOptions, out: Path, protected: set[Path],
            recording: RunRecording, lock: FolderLock | None, client, on_done: Callable[[Frame], None]):
     """The engine of a run into ``out`` (locked by ``lock``; no output may land on a path in ``protected``):
@@ -33,7 +41,7 @@ def engine(run: RunOptions, model: ShapeModel, options: MethodOptions, out: Path
     if client is None:
         still_ours = lock.held if lock is not None else None
         nodes = run_nodes(model, options, out, protected, recording.recorder, still_ours)
-        stages = [Stage(n, run.fit_workers if getattr(n, "thread_safe", False) else 1) for n in nodes]
+        stages = local_stages(nodes, run.fit_workers)
         return Pipeline(stages, queue_size=run.queue_size, on_done=on_done, frame_timeout=run.frame_timeout,
                         in_flight=run.in_flight or frames_in_flight(run.fit_workers))
     from ...flow.distributed import DaskPipeline

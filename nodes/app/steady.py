@@ -102,6 +102,7 @@ class SteadyLightNode:
     which a view chosen again carries as given). Photos, and faces whose light was given, pass untouched."""
 
     name = "steady"
+    in_order = True  # its frames in input order, on one thread (``flow.pipeline.Stage.ordered``)
 
     def __init__(self) -> None:
         self.clip: str | None = None
@@ -170,6 +171,7 @@ class SteadyYawNode(_PerClip):
     reading had it (``yaw_read``: ``landmarks`` and ``carried``). Frames of a clip reach it in order."""
 
     name = "steady_yaw"
+    in_order = True  # its frames in input order, on one thread (``flow.pipeline.Stage.ordered``)
 
     def fresh(self) -> None:
         self.shares: dict[int, float] = {}
@@ -222,6 +224,7 @@ class SteadyRelightNode(_PerClip):
     after a gap starts afresh. Frames of a clip reach it in order: it runs on one thread. Photos pass untouched."""
 
     name = "steady_relight"
+    in_order = True  # its frames in input order, on one thread (``flow.pipeline.Stage.ordered``)
 
     def fresh(self) -> None:
         self.tracks: dict[int, _Relit] = {}

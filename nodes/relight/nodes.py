@@ -211,6 +211,7 @@ class PhotoRelightNode:
     nothing beyond the face's feather changes."""
 
     name = "relight_photo"
+    thread_safe = True  # a function of the frame (the nets it runs are lent one caller at a time): ``--workers``
 
     def __init__(self, options: MethodOptions):
         self.options = options

@@ -382,3 +382,17 @@ def test_a_clip_whose_first_frames_come_unevenly_is_written_whole(tmp_path):
     assert given[0] == given[1]  # (two frames at one time, as that phone's clip read back)
     got = [f.time for f in ClipReader(_copied(src, tmp_path / "copy.mp4"))]
     assert len(got) == len(given) == 24 and got == sorted(got) and got[-1] == pytest.approx(given[-1], abs=0.05)
+
+
+def test_a_clips_steadying_takes_its_frames_in_order_whatever_the_workers(tmp_path, procedural_model):
+    """With ``--workers 2`` the fit and the relighting run two frames at once and finish them in either order; the
+    steadying nodes, which carry a clip's light, view and honesty from frame to frame, still take them in order (one
+    thread each, ``flow.pipeline.Stage.ordered``)."""
+    from shadowflow.nodes.app.chain import run_nodes
+    from shadowflow.nodes.app.engine import local_stages
+    from shadowflow.nodes.method.options import MethodOptions
+
+    stages = {s.node.name: s for s in local_stages(run_nodes(procedural_model, MethodOptions(), tmp_path, set()), 2)}
+    assert all(stages[n].ordered and stages[n].workers == 1 for n in ("steady", "steady_yaw", "steady_relight"))
+    assert stages["robust_fit"].workers == stages["relight_photo"].workers == 2
+    assert not stages["robust_fit"].ordered and stages["load"].workers == 1

@@ -40,6 +40,19 @@ def test_results_in_input_order_with_failures_isolated(workers):
     assert all(f.data["trail"] == ["a", "b", "c"] for f in out if f.ok)
 
 
+@pytest.mark.parametrize("in_flight", [None, 3])
+def test_an_ordered_stage_takes_frames_in_input_order_after_a_stage_of_many_workers(in_flight):
+    """A node that carries state from frame to frame (a clip's steadying) is given them in order, however the stages
+    before it finished them, failed ones included (they pass it by)."""
+    first, carried, after = Sleepy("first", fail_ids={7}), Sleepy("carried"), Sleepy("after")
+    stages = [Stage(first, 3), Stage(carried, ordered=True), Stage(after, 2)]
+    out = list(Pipeline(stages, queue_size=2, in_flight=in_flight).run(frames(40)))
+    assert carried.seen == [i for i in range(40) if i != 7]
+    assert [f.id for f in out] == list(range(40))
+    with pytest.raises(ValueError, match="one worker"):
+        Stage(carried, 2, ordered=True)
+
+
 def test_backpressure_bounds_frames_in_flight():
     slow = Sleepy("slow", delay=0.003)
     p = Pipeline([Sleepy("fast", delay=0.0), slow, Sleepy("fast2", delay=0.0)], queue_size=2)

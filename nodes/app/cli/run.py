@@ -265,7 +265,7 @@ def add_parser(sub) -> None:
     r.add_argument("--record-every", type=int, default=1, metavar="N",
                    help="record fit iterations 1, 1+N, ... and the last (default: every one)")
     r.add_argument("--record-float16", action="store_true", help="store recorded float arrays as float16")
-    r.add_argument("--workers", type=int, default=1, help="threads for the robust-fit node")
+    r.add_argument("--workers", type=int, default=1, help="threads for the fit and the relighting (two frames at once on two cores)")
     r.add_argument("--dask", nargs="?", const="env", metavar=DASK_METAVAR, help=DASK_HELP)
     r.add_argument("--frame-timeout", type=float, default=DEFAULT_FRAME_TIMEOUT, metavar="SECONDS",
                    help=f"fail a frame when one step takes longer than this on it (default {DEFAULT_FRAME_TIMEOUT:g}; "
