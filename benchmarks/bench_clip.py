@@ -1,7 +1,8 @@
 """A clip's run against the floor any video tool pays: OpenCV decoding the same clip and encoding it twice (relit.mp4
 and one --relight clip), measured in the same sitting, rounds taking turns.
 
-    python benchmarks/bench_clip.py [--frames 48] [--size 256] [--repeats 3] [--clip PATH] [--workers N] [--json out.json]
+    python benchmarks/bench_clip.py [--frames 48] [--size 256] [--repeats 3] [--clip PATH] [--workers N]
+        [--json out.json]
 
 Without ``--clip`` the clip is made here: one rendered ICT face, its light swinging, H.264. Each round times
 ``shadowflow run CLIP --relight=-60,10 --record none`` in a fresh process (its start-up, about 2 s of imports and
@@ -82,7 +83,8 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--clip", type=Path, help="a clip of your own instead of the rendered one")
-    ap.add_argument("--workers", type=int, default=1, help="the run's --workers (the fit's and the relighting's threads)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="the run's --workers (the fit's and the relighting's threads)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
