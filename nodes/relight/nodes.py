@@ -27,7 +27,7 @@ from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment
 from ..photo.encoding import linear_to_srgb
 from ..photo.mediapipe import person_share
-from ..photo.placement import FacePlacement
+from ..photo.placement import MAX_YAW, FacePlacement
 from .compose import FaceLayer, compose
 from .face import FaceRelight, light_key
 from .face_box import Features
@@ -58,11 +58,11 @@ EVEN_YAW = 25.0
 ADDED_EDGES = 7.2
 COLOUR_BLOTCHES = 14.0
 PAINTED_EDGES = 0.5
-# a face whose fit explains little (``quality.UNEXPLAINED``) but whose relit face changes at a fine scale by at most
-# ``EVEN_HARM`` and reads at most this by ``ADDED_EDGES`` and ``COLOUR_BLOTCHES``'s sum is not doubtful for it: its
-# relighting did it no harm (of the people set's photos, 8 of the 9 faces doubtful for it, soft-lit, smiling or in
-# glasses, came back cleanly with H 0.6-7.1 %; the ninth is turned 34 degrees, past ``EVEN_YAW``); its score takes
-# at least ``quality.EVEN_EXPLAINED``, as an evenly lit face's
+# a face whose fit explains little (``quality.UNEXPLAINED``) but whose relit face reads at most this by
+# ``ADDED_EDGES`` and ``COLOUR_BLOTCHES``'s sum (and, turned at most ``EVEN_YAW``, changes at a fine scale by at most
+# ``EVEN_HARM``) is not doubtful for it: its relighting did it no harm (of the people set's photos, the 9 faces
+# doubtful for it, soft-lit, smiling or in glasses, one of them turned 34 degrees, came back cleanly with H 0.6-7.1 %
+# and a sum of at most 0.24); its score takes at least ``quality.EVEN_EXPLAINED``, as an evenly lit face's
 UNHARMED = 0.5
 
 
@@ -134,18 +134,20 @@ def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, pair: tupl
 
 
 def _unharmed_fit(layer: FaceLayer, pair: tuple[np.ndarray, np.ndarray], eyes: np.ndarray, report: dict,
-                  quality: dict) -> None:
+                  quality: dict, frontal: bool) -> None:
     """``quality`` without the doubt of a fit that explains little (``quality.UNEXPLAINED``) when the face relit as
-    ``layer`` shows no harm (``UNHARMED``): the flag taken off, its score undone and raised to at least
-    ``EVEN_EXPLAINED`` (halved by each flag left); ``report`` gets its H."""
+    ``layer`` shows no harm (``UNHARMED``; a ``frontal`` face's H at most ``EVEN_HARM`` too, which ``report`` gets: a
+    turned one's ellipse is no frontal face's, and H reads its change of light as harm): the flag taken off, its score
+    undone and raised to at least ``EVEN_EXPLAINED`` (halved by each flag left)."""
     flags = quality.get("flags", [])
     kept = [f for f in flags if not f.startswith(UNEXPLAINED)]
-    if len(kept) == len(flags):
+    if len(kept) == len(flags) or damage(report) > UNHARMED:
         return
-    if "harm" not in report:
-        report["harm"] = round(harm(*pair, eyes - [layer.box[2], layer.box[0]], within=layer.inside).h, 2)
-    if report["harm"] > EVEN_HARM or damage(report) > UNHARMED:
-        return
+    if frontal:
+        if "harm" not in report:
+            report["harm"] = round(harm(*pair, eyes - [layer.box[2], layer.box[0]], within=layer.inside).h, 2)
+        if report["harm"] > EVEN_HARM:
+            return
     score = float(quality.get("score", 0.0)) * 2.0 ** (len(flags) - len(kept))
     quality["flags"], quality["score"] = kept, round(max(score, EVEN_EXPLAINED * 0.5 ** len(kept)), 3)
 
@@ -250,8 +252,8 @@ class PhotoRelightNode:
             light, layer = layers[0]
             pair = layer_pair(face, layer)  # (the photo and the relit face, once for both judgements)
             why = harm_flag(face, light, layer, pair, eyes, report, bool(quality.get("even")) and frontal)
-            if why is None and frontal:
-                _unharmed_fit(layer, pair, eyes, report, quality)
+            if why is None and abs(face_yaw(frame)) <= MAX_YAW:
+                _unharmed_fit(layer, pair, eyes, report, quality, frontal)
         if why is not None:
             flags.append(why)
             frame.data["photo_layers_relit"] = layers
