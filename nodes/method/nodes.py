@@ -13,8 +13,8 @@ from ...flow.frame import Frame, FrameFailed
 from ..model.shape_model import ShapeModel
 from ..photo.align import IDENTITY, Alignment, inside_input, to_model_grid
 from ..photo.cover import covered_on_grid
-from ..photo.encoding import linear_to_srgb
 from ..photo.evenness import evenly_lit
+from ..photo.follow import FaceFollower
 from ..photo.given import given_eyes, known_light
 from ..photo.input_error import InputError
 from ..photo.loader import MIN_SIDE, Photo, photo_from_samples, read_photo
@@ -24,7 +24,7 @@ from ..photo.skin import skin
 from .albedo import FILL_CEILING, estimate_albedo
 from .light import light_on_face
 from .options import INTEGRATORS, MethodOptions
-from .products import photo_channels
+from .products import photo_channels, photo_rgb8
 from .quality import (EYEWEAR_MARGIN, NO_FACE, TRACKED_FACE, assess, core_face, explained_variance, grown_region,
                       unread_weights)
 from .relight import relight
@@ -139,28 +139,18 @@ class LoadNode:
         return photo.scale
 
 
-def photo_rgb8(frame: Frame) -> np.ndarray:
-    """(H, W, 3) uint8 RGB of the frame's photo as its file has it (a grey one in all three channels),
-    for the face finder, whose nets learnt from photos as cameras encode them."""
-    if "rgb8" in frame.data:
-        return frame.data["rgb8"]
-    img = photo_channels(frame)
-    # a linear photo (Yale B's PGMs) is shown to the nets as a camera would have encoded it: the same face
-    # given linear in grey and sRGB in colour is then found at the same place
-    rgb = (linear_to_srgb(img) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
-    return np.ascontiguousarray(np.broadcast_to(rgb, img.shape[:2] + (3,)))
-
-
 class FacesNode:
     """Finds and places the photo's faces (``photo.placement.place_faces``) and makes each a part of
     the frame (``Frame.parts``, largest first): a frame of its own on the model grid, with the
     photo's arrays, its placement, its light (given, or estimated on its own pixels) and the model
-    pixels it shows. A photo with no face fails here: "no face found"."""
+    pixels it shows. A photo with no face fails here: "no face found". A clip's faces are followed from its frame
+    before (``photo.follow.FaceFollower``), so its frames come in order."""
 
     name = "faces"
+    in_order = True
 
     def __init__(self, model: ShapeModel, options: MethodOptions):
-        self.model, self.options = model, options
+        self.model, self.options, self.follow = model, options, FaceFollower()
 
     def __call__(self, frame: Frame) -> Frame:
         d, m = frame.data, self.model
@@ -170,7 +160,8 @@ class FacesNode:
             placements = [FacePlacement(al, "given", al.points_to_input(m.eyes), model_box(m, al, image.shape))]
         else:
             placements = place_faces(m, photo_rgb8(frame), d.get("given_eyes"), frame.meta.get("eyes_source", ""),
-                                     self.options.find_faces, self.options.face_length)
+                                     self.options.find_faces, self.options.face_length,
+                                     lambda rgb: self.follow(rgb, frame.meta.get("clip")))
         if not placements:
             raise FrameFailed(f"{frame.source}: {NO_FACE}")
         frame.parts = []

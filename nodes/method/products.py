@@ -143,6 +143,18 @@ def photo_channels(frame: Frame) -> np.ndarray:
     return d["colour"] if "colour" in d else d["image"][..., None]
 
 
+def photo_rgb8(frame: Frame) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of the frame's photo as its file has it (a grey one in all three channels),
+    for the face finder, whose nets learnt from photos as cameras encode them."""
+    if "rgb8" in frame.data:
+        return frame.data["rgb8"]
+    img = photo_channels(frame)
+    # a linear photo (Yale B's PGMs) is shown to the nets as a camera would have encoded it: the same face
+    # given linear in grey and sRGB in colour is then found at the same place
+    rgb = (linear_to_srgb(img) * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)
+    return np.ascontiguousarray(np.broadcast_to(rgb, img.shape[:2] + (3,)))
+
+
 def photo_8bit(frame: Frame) -> np.ndarray:
     """(H, W, C) uint8 RGB (C = 1 for grey): the photo as its file shows it, in its own encoding (an sRGB
     photo's file values; a linear one's values, rounded)."""

@@ -11,6 +11,7 @@ check adds them to its flags.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -246,9 +247,10 @@ def place_found(model: ShapeModel, face: FoundFace, shape: tuple[int, int], face
 
 
 def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | None = None, eyes_how: str = "given eyes",
-                find: bool = True, face_length: str | float = "auto") -> list[FacePlacement]:
+                find: bool = True, face_length: str | float = "auto",
+                finder: Callable[[np.ndarray], list[FoundFace]] = find_faces) -> list[FacePlacement]:
     """Every face of a photo (``photo_rgb`` (H, W, 3) uint8 RGB), largest first (module docstring):
-    one from ``eyes`` when given; else those found (none: an empty list) when ``find``; else the
+    one from ``eyes`` when given; else those ``finder`` finds (none: an empty list) when ``find``; else the
     centred crop."""
     shape = photo_rgb.shape[:2]
     if eyes is not None:
@@ -257,7 +259,7 @@ def place_faces(model: ShapeModel, photo_rgb: np.ndarray, eyes: np.ndarray | Non
         al = centred_alignment(shape, model.grid)
         al = Alignment(al.matrix, "centred crop (asked)")
         return [FacePlacement(al, "centre asked", al.points_to_input(model.eyes), model_box(model, al, shape))]
-    return [place_found(model, f, shape, face_length, not_a_face(f, photo_rgb)) for f in find_faces(photo_rgb)]
+    return [place_found(model, f, shape, face_length, not_a_face(f, photo_rgb)) for f in finder(photo_rgb)]
 
 
 def outline_mask(placement: FacePlacement, grid: tuple[int, int], name: str = "oval") -> np.ndarray | None:
