@@ -222,6 +222,23 @@ def test_resume_after_a_face_folder_was_deleted_writes_it_again(tmp_path, cli):
         assert (out / "two" / "face-2" / "mesh.ply").is_file()
 
 
+def test_a_killed_writes_temporary_files_go_when_its_photo_is_written_again(tmp_path, cli):
+    """A worker killed while it wrote a photo's files (a Dask worker, ``kill -9``) leaves its atomic write's temporary
+    file; the photo is written again, by another worker or by ``--resume``, and that write takes the temporaries of
+    its folders away (a cluster's run whose worker was killed mid-write left ``.novel_view.png.*.tmp`` behind)."""
+    photo = _two_faces(tmp_path / "in")
+    out = tmp_path / "out"
+    args = ["run", str(photo), "--out", str(out), "--quiet", "--record", "none"]
+    assert cli(args).returncode == 0
+    stale = [out / "two" / ".relit.png.k1l2m3.tmp", out / "two" / "face-2" / ".novel_view.png.x9y8z7.tmp"]
+    for path in stale:
+        path.write_bytes(b"half a file")
+    (out / "two" / "face-2" / "mesh.ply").unlink()  # so --resume writes the photo again
+    assert cli(args + ["--resume"]).returncode == 0
+    assert (out / "two" / "face-2" / "mesh.ply").is_file()
+    assert [path.name for path in stale if path.exists()] == []
+
+
 def _wait_for(predicate, what: str, seconds: float = 120.0) -> None:
     import time
 
