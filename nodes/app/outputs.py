@@ -112,13 +112,14 @@ def run_output_folder(path: Path) -> bool:
     return not ours or any(n in ours for n in ("normals.npy", *CLIP_NAMES))
 
 
-def drop_temporaries(folders: list[Path]) -> None:
-    """Removes from ``folders`` (a photo's output folders, about to be written again whole) the temporary files of an
-    atomic write that was killed (``_TEMPORARY``: a Dask worker killed mid-write, ``kill -9``)."""
-    for folder in folders:
+def drop_temporaries(paths: list[Path]) -> None:
+    """Removes from those of ``paths`` that are folders (a photo's output folders, about to be written again whole)
+    the temporary files of an atomic write that was killed (``_TEMPORARY``: a Dask worker killed mid-write,
+    ``kill -9``)."""
+    for folder in paths:
         try:
             entries = list(os.scandir(folder))
-        except OSError:  # not made yet
+        except OSError:  # a file, or not made yet
             continue
         for entry in entries:
             if _TEMPORARY.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
@@ -418,7 +419,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        drop_temporaries([folder, *(t for t in targets if t.is_dir())])
+        drop_temporaries([folder, *targets])
         write_outputs(frame, folder, self.arrays, keep_relit=True)
         frame.meta["outputs"] = str(folder)
         return frame
