@@ -112,14 +112,14 @@ def run_output_folder(path: Path) -> bool:
     return not ours or any(n in ours for n in ("normals.npy", *CLIP_NAMES))
 
 
-def drop_temporaries(paths: list[Path]) -> None:
-    """Removes from those of ``paths`` that are folders (a photo's output folders, about to be written again whole)
-    the temporary files of an atomic write that was killed (``_TEMPORARY``: a Dask worker killed mid-write,
-    ``kill -9``)."""
-    for folder in paths:
+def drop_temporaries(targets: list[Path]) -> None:
+    """Removes from the folders ``targets`` are written into (a photo's output folder and its faces' folders, about
+    to be written again whole; one not made yet is passed over) the temporary files of an atomic write that was
+    killed (``_TEMPORARY``: a Dask worker killed mid-write, ``kill -9``)."""
+    for folder in dict.fromkeys(t.parent for t in targets):
         try:
             entries = list(os.scandir(folder))
-        except OSError:  # a file, or not made yet
+        except OSError:  # not made yet
             continue
         for entry in entries:
             if _TEMPORARY.fullmatch(entry.name) and entry.is_file(follow_symlinks=False):
@@ -419,7 +419,7 @@ class WriteNode:
         clash = [t for t in targets if real_path(t) in self.protected]
         if clash:
             raise ValueError(f"{frame.source}: writing {clash[0]} would overwrite an input")
-        drop_temporaries([folder, *targets])
+        drop_temporaries(targets)
         write_outputs(frame, folder, self.arrays, keep_relit=True)
         frame.meta["outputs"] = str(folder)
         return frame

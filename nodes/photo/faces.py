@@ -236,17 +236,17 @@ def upright_faces(rgb: np.ndarray, min_iod: float = MIN_IOD) -> list[FoundFace]:
         centre = (float(d.box[0] + d.box[2]) / 2.0, float(d.box[1] + d.box[3]) / 2.0)
         if any(cv2.pointPolygonTest(f.oval.astype(np.float32), centre, False) >= 0 for f in faces):
             continue
-        _add(faces, featured(_confirmed(rgb, roi_from_detection(d), d.score)))
+        _add(faces, featured(confirmed_face(rgb, roi_from_detection(d), d.score)))
     if not faces:  # a tight crop, or a face the detector missed in the dark: the photo as its crop (score 0)
         h, w = rgb.shape[:2]
         for side in TIGHT_CROPS:
-            _add(faces, featured(_confirmed(rgb, Roi(np.array([(w - 1) / 2.0, (h - 1) / 2.0]), side * max(h, w), 0.0),
-                                            0.0)))
+            middle = Roi(np.array([(w - 1) / 2.0, (h - 1) / 2.0]), side * max(h, w), 0.0)
+            _add(faces, featured(confirmed_face(rgb, middle, 0.0)))
             if faces:
                 break
     faces = [f for f in faces if abs(f.roll) <= MAX_ROLL]  # others: the turn of the photo that shows them upright
     faces.sort(key=lambda f: -f.iod)
-    return [f for k, f in enumerate(faces) if not any(_inside(f, g) for g in faces[:k])]
+    return [f for k, f in enumerate(faces) if not any(part_of(f, g) for g in faces[:k])]
 
 
 def feature_darkness(linear: np.ndarray, face: FoundFace) -> float:
@@ -289,7 +289,7 @@ class _Features:
         return face if feature_darkness(self.linear, face) >= MIN_FEATURE_DARKNESS else None
 
 
-def _inside(face: FoundFace, larger: FoundFace) -> bool:
+def part_of(face: FoundFace, larger: FoundFace) -> bool:
     """Whether ``face`` is a part of ``larger`` that the mesh took for a face of its own: both its eyes within
     ``larger``'s outline (an eye and a brow, a nostril), or, when the detector was unsure of it (under
     ``SURE_DETECTION``), its mouth there: a face meshed over a found face's forehead, its brows taken for a mouth and
@@ -304,7 +304,7 @@ def _inside(face: FoundFace, larger: FoundFace) -> bool:
     return face.score < SURE_DETECTION and within(*np.vstack(face.outlines()["lips"]).mean(axis=0))
 
 
-def _confirmed(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
+def confirmed_face(rgb: np.ndarray, roi: Roi, score: float) -> FoundFace | None:
     """The face mesh in ``roi``, then in the crop its mesh implies, until that crop stays put, its points
     the mean of the mesh's looks at that crop and at its mirror image (``face_mesh``'s ``mirrored``);
     None when the first look or the first crop its mesh implies does not reach ``MIN_PRESENCE`` (parts

@@ -3,7 +3,7 @@ says where to look for it, and the detector's 30-odd looks at a frame (a seventh
 it asks for) are spent only on a clip's first frame, every ``DETECT_EVERY``th after, and when a face is lost."""
 from __future__ import annotations
 
-from .faces import MAX_ROLL, FoundFace, _confirmed, _inside, find_faces
+from .faces import MAX_ROLL, FoundFace, confirmed_face, find_faces, part_of
 from .mediapipe import roi_from_mesh
 
 # a clip's faces are found afresh at least every this many frames (a face that comes into the frame is met within them)
@@ -12,17 +12,17 @@ DETECT_EVERY = 10
 
 def followed_faces(rgb, previous: list[FoundFace]) -> list[FoundFace] | None:
     """The faces of a clip's frame ``rgb`` (H, W, 3) uint8 where the frame before showed ``previous`` (largest first):
-    each meshed again from the crop its last mesh implies and followed until that crop stays put (``faces._confirmed``,
-    as a found face's own crop is), keeping its detector's score; None when any of them is lost there (not confirmed,
-    turned past ``MAX_ROLL``, or become a part of another)."""
+    each meshed again from the crop its last mesh implies and followed until that crop stays put
+    (``faces.confirmed_face``, as a found face's own crop is), keeping its detector's score; None when any of them is
+    lost there (not confirmed, turned past ``MAX_ROLL``, or become a part of another: ``faces.part_of``)."""
     faces = []
     for before in previous:
-        face = _confirmed(rgb, roi_from_mesh(before.mesh), before.score)
+        face = confirmed_face(rgb, roi_from_mesh(before.mesh), before.score)
         if face is None or abs(face.roll) > MAX_ROLL:
             return None
         faces.append(face)
     faces.sort(key=lambda f: -f.iod)
-    if any(_inside(f, g) for k, f in enumerate(faces) for g in faces[:k]):
+    if any(part_of(f, g) for k, f in enumerate(faces) for g in faces[:k]):
         return None
     return faces
 

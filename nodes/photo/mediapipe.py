@@ -382,7 +382,7 @@ def mesh_on_crop(crop: np.ndarray, mirrored: bool = False) -> tuple[np.ndarray, 
     logit)``, points x, y in crop pixels (column, row) and z as the model gives it. ``mirrored``: the
     mesh of the crop's mirror image, each point mirrored back onto the crop and given its partner's
     place in the list (``mesh_mirror``). The model is not symmetric: its two looks at a face disagree by
-    1-2 % of the eye distance, a left-right bias and noise that their mean halves (``faces._confirmed``;
+    1-2 % of the eye distance, a left-right bias and noise that their mean halves (``faces.confirmed_face``;
     ``docs/accuracy.md``, "Both ways"); the mean of a crop's two looks is exactly the mirror of its
     mirror image's."""
     seen = np.ascontiguousarray(crop[:, ::-1]) if mirrored else crop

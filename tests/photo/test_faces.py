@@ -370,8 +370,8 @@ def test_a_face_meshed_over_a_found_faces_forehead_is_part_of_it(astronaut):
     over = F.FoundFace(mesh, 1.0, 0.38)
     assert not all(cv2.pointPolygonTest(face.oval.astype(np.float32), tuple(map(float, e)), False) >= 0
                    for e in over.eyes)  # its eyes lie past the found face's outline (the old rule kept it)
-    assert F._inside(over, face)
-    assert not F._inside(F.FoundFace(mesh, 1.0, 0.9), face)  # detected surely: kept
+    assert F.part_of(over, face)
+    assert not F.part_of(F.FoundFace(mesh, 1.0, 0.9), face)  # detected surely: kept
     beside = face.mesh.copy()
     beside[:, 0] += 3.0 * (face.oval[:, 0].max() - face.oval[:, 0].min())
-    assert not F._inside(F.FoundFace(beside, 1.0, 0.38), face)
+    assert not F.part_of(F.FoundFace(beside, 1.0, 0.38), face)
