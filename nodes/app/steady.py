@@ -9,7 +9,7 @@ import numpy as np
 from ...flow.frame import Frame
 from ..method.products import photo_channels
 from ..relight.nodes import LEFT, face_eyes, leave, left_as_it_was, relight_again, shown_share
-from ..relight.temporal import steady_layer
+from ..relight.temporal import light_shown_changed, photo_on_grid, steady_layer
 
 # The constants of the steadying, in one place (measured on tests/app/test_clips.py's clips, docs/usage.md "Clips"):
 # ALPHA: the weight of a frame's own estimate in the running light (an exponential moving average of the unit
@@ -21,7 +21,8 @@ ALPHA = 0.3
 JUMP_DEG = 15.0
 # CONFIRM: that many departing frames in a row are a real change (a light switched on, a cut): the running light
 # is then their mean, so a change is followed within CONFIRM frames and a lone outlier never moves it (a departing
-# frame is fitted under its own estimate meanwhile);
+# frame is fitted under its own estimate meanwhile); a change the photo itself shows (``temporal.SHOWN``: half the
+# face brighter or darker by 10 % against the rest) is taken at once;
 CONFIRM = 3
 # TRACK_MATCH: a face is the same as one of the frame before when its box's centre moved less than this many of
 # its box's sides; TRACK_MEMORY: a face unseen this many frames is forgotten (its light starts afresh).
@@ -56,10 +57,12 @@ class LightSmoother:
         self.light: np.ndarray | None = None
         self.departed: list[np.ndarray] = []  # the estimates in a row that left the running light
 
-    def update(self, raw) -> np.ndarray:
+    def update(self, raw, shown: bool = False) -> np.ndarray:
+        """``shown``: the photo itself shows the light changed (``temporal.light_shown_changed``): the frame's
+        estimate is taken at once, as a confirmed change is."""
         raw = _unit(np.asarray(raw, np.float64))
-        if self.light is None:
-            self.light = raw
+        if self.light is None or shown:
+            self.light, self.departed = raw, []
         elif angle_deg(raw, self.light) > self.jump_deg:
             # a departure: the frame is fitted under its own estimate (under the running light a switched light
             # fails the fit: "no face found"), and the running light is left as it is until it is confirmed
@@ -77,6 +80,16 @@ class _Track:
     def __init__(self, box: list, index: int, number: int):
         self.box, self.seen, self.smoother, self.number, self.born = box, index, LightSmoother(), number, index
         self.read_at: tuple[int, np.ndarray] | None = None  # the frame and light its view was last read with the fit
+        self.photo: tuple[np.ndarray, np.ndarray] | None = None  # its last frame's photo on its grid
+
+    def shown_change(self, face: Frame, index: int) -> bool:
+        """Whether this frame's photo shows the face's light changed since the track's last frame (the one just
+        before: ``temporal.light_shown_changed``); the frame's photo kept for the next."""
+        eyes, before = face_eyes(face), self.photo
+        self.photo = None if eyes is None else photo_on_grid(face.data["image"], eyes)
+        if before is None or self.photo is None or self.seen != index - 1:
+            return False
+        return light_shown_changed(before, self.photo)
 
     def view_refresh(self, index: int, light: np.ndarray) -> bool | str:
         """Whether this frame of the face reads its view with the fit (``VIEW_EVERY``): True, or "light" when its
@@ -129,8 +142,9 @@ class SteadyLightNode:
                 self.numbered += 1
             else:
                 free.remove(track)
+            shown = track.shown_change(face, index)
             track.box, track.seen = box, index
-            light = track.smoother.update(face.data["light"])
+            light = track.smoother.update(face.data["light"], shown)
             face.meta.update(track=track.number, track_age=index - track.born,
                              view_refresh=track.view_refresh(index, light))
             self._steady(face, light)

@@ -6,8 +6,12 @@ should move only as the person and the light move; fitted frame by frame it jitt
 shadow evidence each differ a little). So the coarse part is kept on a grid fixed to the face (``FaceGrid``: the
 eyes' midpoint, their line and their distance; ``GRID`` samples a side over ``SPAN``), averaged over the frames
 (``carry``: an exponential moving average, the frame's own share ``ALPHA``), and each frame's layer is multiplied by
-the running coarse change over its own (``steadied``). The fine part (texture, the photo's own shadow edges) stays
-the frame's. Arrays are on the photo's pixel grid; eyes are (2, 2) photo pixels, image-left eye first.
+the running coarse change over its own (``steadied``). A change the photo itself shows is not averaged: where the
+photo's own coarse luminance on the grid moved since the frame before, beyond the frame's change of level (a light
+moved or switched, a shadow came), and the frame's own change departs from the running one, the frame's own change
+takes over (``SHOWN``, ``DEPARTED``); averaged, the change made for the light before was laid over the photo under
+the new one. The fine part (texture, the photo's own shadow edges) stays the frame's. Arrays are on the photo's
+pixel grid; eyes are (2, 2) photo pixels, image-left eye first.
 """
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..photo.evenness import eye_axes
+from ..photo.evenness import ELLIPSE_AXES, ELLIPSE_DROP, eye_axes
 from .compose import FaceLayer, compose
 from .fields import blur, smoothstep
 from .harm import EPS
@@ -27,6 +31,22 @@ ALPHA = 0.3  # a frame's own share of the running coarse change (as the clip's l
 GRID = 96  # samples a side of the face's grid
 SPAN = ((-1.9, 1.9), (-1.5, 2.3))  # the face's grid: x (along the eyes) and y (down), eye distances from their midpoint
 LIMIT = 0.7  # the correction of a pixel's log change, at most (a factor of 2): a carried field far off is no help
+# where the photo's coarse log luminance moved by SHOWN since the frame before (past its median move over the face's
+# grid: an exposure's change is the photo's level, which the change of light follows as it is) and the frame's own
+# change departs from the running one by DEPARTED (the change made for the photo before no longer fits it), the
+# frame's own share of the running change rises from ALPHA to 1. Measured over the face (an ellipse 1 x 1.35 eye
+# distances below the eyes): a light swept across a Yale B face in steps of 10-25 degrees moved half the face by
+# 0.23-0.68; a talking, moving face in a studio (liveportrait_d11) half its face by at most 0.03, a tenth of it by
+# 0.05-0.13; a webcam face in hard light (mohsin_face) half its face by 0.05 on a median frame, 0.15 at most. On
+# their first 40 frames and the sweep (``eval sweep``; docs/usage.md, "A moving light"), without DEPARTED the webcam's
+# flicker rose from 0.21 to 0.34 levels; with it, to 0.24, and the sweep's relit frames came within 0.15 dB of its
+# stills (median; 4 dB below them with neither)
+SHOWN = (0.03, 0.1)
+DEPARTED = (0.05, 0.15)
+# ... and a change of light the photo shows over the face (half of it moved past the median move by this much) is
+# taken by the face's light at once (``app.steady.LightSmoother``): above the hard-lit webcam face's largest (0.15),
+# below the sweep's smallest steps (0.23)
+LIGHT_SHOWN = 0.2
 
 
 @dataclass(frozen=True)
@@ -51,13 +71,15 @@ class FaceGrid:
         return m
 
 
-def coarse_change(layer: FaceLayer, photo: np.ndarray, iod_px: float) -> np.ndarray:
-    """(h, w) float32 the coarse log change of luminance ``layer`` makes to ``photo`` (h, w, C) linear, its box of
-    the photo: ``ln(Y_relit + EPS) - ln(Y_photo + EPS)``, blurred over ``COARSE`` eye distances (``iod_px``)."""
+def coarse_change(layer: FaceLayer, photo: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The coarse log change of luminance ``layer`` makes to ``photo`` (h, w, C) linear, its box of the photo:
+    ``ln(Y_relit + EPS) - ln(Y_photo + EPS)`` blurred over ``COARSE`` eye distances (``iod_px``), and the photo's own
+    coarse log luminance ``ln(Y_photo + EPS)`` blurred so: two (h, w) float32."""
     h, w = photo.shape[:2]
     relit = compose(photo, [dataclasses.replace(layer, box=(0, h, 0, w))])
-    r = np.log(_luminance(relit) + np.float32(EPS)) - np.log(_luminance(photo) + np.float32(EPS))
-    return blur(r.astype(np.float32), COARSE * iod_px)
+    before = np.log(_luminance(photo) + np.float32(EPS))
+    r = np.log(_luminance(relit) + np.float32(EPS)) - before
+    return blur(r.astype(np.float32), COARSE * iod_px), blur(before.astype(np.float32), COARSE * iod_px)
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
@@ -91,21 +113,72 @@ def from_grid(values: np.ndarray, known: np.ndarray, grid: FaceGrid, box: tuple[
 
 @dataclass
 class Carried:
-    """A face's running coarse change on its grid: ``values`` (GRID, GRID) float32 and where it is ``known``."""
+    """A face's running coarse change on its grid: ``values`` (GRID, GRID) float32 and where it is ``known``; and the
+    last frame's photo's coarse log luminance there (``photo``, known where ``known`` is)."""
 
     values: np.ndarray
     known: np.ndarray
+    photo: np.ndarray | None = None
 
 
-def carry(before: Carried | None, own: np.ndarray, own_known: np.ndarray, alpha: float = ALPHA) -> Carried:
+def photo_on_grid(grey: np.ndarray, eyes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A photo's coarse log luminance (``ln(Y + EPS)`` blurred over ``COARSE`` eye distances) on its face's grid:
+    ``grey`` (H, W) linear, ``eyes`` (2, 2) photo pixels -> ((GRID, GRID) float32, where it is known: bool)."""
+    _, iod, _, _ = eye_axes(eyes)
+    lum = blur(np.log(np.asarray(grey, np.float32) + np.float32(EPS)), COARSE * iod)
+    return to_grid(lum, FaceGrid.from_eyes(eyes), (0, grey.shape[0], 0, grey.shape[1]))
+
+
+def light_shown_changed(before: tuple[np.ndarray, np.ndarray], now: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether the photo itself shows that the light on a face changed between two frames: their coarse log
+    luminance on its grid (``photo_on_grid``, (values, known) each) moved by more than ``LIGHT_SHOWN`` over half of
+    the face (the move past the median move: an exposure is not a change of light)."""
+    both = before[1] & now[1] & _FACE
+    if both.sum() < 0.5 * _FACE.sum():
+        return False
+    moved = (now[0] - before[0])[both]
+    return bool(np.median(np.abs(moved - np.median(moved))) > LIGHT_SHOWN)
+
+
+def _face_on_grid() -> np.ndarray:
+    """(GRID, GRID) bool the face on its grid: the ellipse from its eyes (``evenness.face_ellipse``'s)."""
+    xs, ys = np.linspace(*SPAN[0], GRID), np.linspace(*SPAN[1], GRID)
+    (a, b), drop = ELLIPSE_AXES, ELLIPSE_DROP
+    return (xs[None, :] / a) ** 2 + ((ys[:, None] - drop) / b) ** 2 < 1.0
+
+
+_FACE = _face_on_grid()
+
+
+def shown_change(before: Carried | None, photo: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(GRID, GRID) float32 in [0, 1]: how surely the photo itself shows a change of light since the frame before,
+    from its coarse log luminance on the face's grid then (``before.photo``) and now (``photo``, where ``known``):
+    its move past the median move (an exposure's), by ``SHOWN``; 0 where either frame does not know it."""
+    if before is None or before.photo is None:
+        return np.zeros(photo.shape, np.float32)
+    both = before.known & known
+    if not both.any():
+        return np.zeros(photo.shape, np.float32)
+    moved = photo - before.photo
+    moved = np.abs(moved - np.float32(np.median(moved[both])))
+    return np.where(both, smoothstep(moved, *SHOWN), np.float32(0.0)).astype(np.float32)
+
+
+def carry(before: Carried | None, own: np.ndarray, own_known: np.ndarray, alpha: float = ALPHA,
+          shown: np.ndarray | None = None, photo: np.ndarray | None = None) -> Carried:
     """The running coarse change after a frame whose own is ``own`` (GRID, GRID), known where ``own_known``: the
-    average of ``before``'s and the frame's, the frame's share ``alpha``, where both know it; the frame's own where
-    only it does."""
+    average of ``before``'s and the frame's, the frame's share ``alpha`` (raised toward 1 where ``shown`` (GRID, GRID)
+    in [0, 1] says the photo shows a change, ``shown_change``, and the frame's change departs from the running one by
+    ``DEPARTED``), where both know it; the frame's own where only it does. ``photo``: the frame's coarse log
+    luminance on the grid, kept for the next frame."""
     if before is None:
-        return Carried(own.astype(np.float32), own_known.copy())
+        return Carried(own.astype(np.float32), own_known.copy(), photo)
     both = before.known & own_known
-    values = np.where(both, (1.0 - alpha) * before.values + alpha * own, own).astype(np.float32)
-    return Carried(values, own_known.copy())
+    share = alpha
+    if shown is not None:  # (where the frame's own change also departs from the running one)
+        share = alpha + (1.0 - alpha) * shown * smoothstep(np.abs(own - before.values), *DEPARTED)
+    values = np.where(both, (1.0 - share) * before.values + share * own, own).astype(np.float32)
+    return Carried(values, own_known.copy(), photo)
 
 
 def steadied(layer: FaceLayer, correction: np.ndarray) -> FaceLayer:
@@ -126,9 +199,10 @@ def steady_layer(layer: FaceLayer, photo: np.ndarray, eyes: np.ndarray, before: 
     the layer's box of the photo; ``eyes`` (2, 2) photo pixels."""
     _, iod, _, _ = eye_axes(eyes)
     grid = FaceGrid.from_eyes(eyes)
-    own = coarse_change(layer, photo, iod)
+    own, lum = coarse_change(layer, photo, iod)
     own_grid, own_known = to_grid(own, grid, layer.box)
-    running = carry(before, own_grid, own_known, alpha)
+    lum_grid, _ = to_grid(lum, grid, layer.box)
+    running = carry(before, own_grid, own_known, alpha, shown_change(before, lum_grid, own_known), lum_grid)
     if before is None:
         return layer, running
     target, weight = from_grid(running.values, running.known, grid, layer.box)

@@ -209,6 +209,35 @@ def test_light_smoother_holds_an_outlier_and_follows_a_change():
     assert angle_deg(s.light, b) < 1e-3  # CONFIRM frames in a row: a real change, followed
 
 
+def test_a_change_of_light_the_photo_shows_is_taken_at_once():
+    """A light moved by 12 degrees (under ``JUMP_DEG``: an estimate so near is averaged in) is followed at once when
+    the photo shows that the light moved (``temporal.light_shown_changed``): a rendered face lit from +30 then -30
+    degrees; not when the same face comes again, a little noisier or a fifth darker all over (an exposure)."""
+    from shadowflow.nodes.model.canonical import canonical_eyes
+    from shadowflow.nodes.relight.temporal import light_shown_changed, photo_on_grid
+
+    a, b = light_from_angles(30, 0), light_from_angles(18, 0)
+    averaged, shown = LightSmoother(), LightSmoother()
+    for _ in range(5):
+        averaged.update(a)
+        shown.update(a)
+    assert angle_deg(averaged.update(b), b) > 6.0
+    assert angle_deg(shown.update(b, shown=True), b) < 1e-3
+
+    depth, mask, albedo = draw_face(np.random.default_rng(3), (SIZE, SIZE), "ict")
+    eyes = canonical_eyes((SIZE, SIZE))
+    rng = np.random.default_rng(4)
+
+    def grid(light, gain=1.0, noise=0.0):
+        image = gain * render_scene(depth, albedo, light, mask).image + rng.normal(0, noise, (SIZE, SIZE))
+        return photo_on_grid(np.clip(image, 0.0, 1.0).astype(np.float32), eyes)
+
+    left = grid(light_from_angles(30, 0))
+    assert light_shown_changed(left, grid(light_from_angles(-30, 0)))
+    assert not light_shown_changed(left, grid(light_from_angles(30, 0), noise=0.01))
+    assert not light_shown_changed(left, grid(light_from_angles(30, 0), gain=0.8))
+
+
 def test_what_is_a_clip(tmp_path):
     assert is_clip(tmp_path / "a.MP4") and is_clip(tmp_path / "a.webm") and not is_clip(tmp_path / "a.png")
     from PIL import Image

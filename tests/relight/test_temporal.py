@@ -1,10 +1,10 @@
 """A face's change of light carried over a clip's frames (``relight.temporal``), on synthetic layers with known
 levels: a jittering level comes out steadier, a real change is followed, the face's grid moves with the eyes, the
-frame's fine texture stays its own, and the photo past the layer's reach stays the photo."""
+frame's fine texture stays its own, and the photo past the layer's reach stays the photo; a change the photo itself
+shows (a light moved) is the frame's own at once, its overall level (an exposure) is not such a change."""
 from __future__ import annotations
 
 import numpy as np
-
 from shadowflow.nodes.relight import temporal as T
 from shadowflow.nodes.relight.compose import FaceLayer, compose
 
@@ -19,9 +19,10 @@ def photo(seed: int = 0) -> np.ndarray:
     return (0.25 + 0.05 * rng.random((H, W, 1))).repeat(3, axis=2).astype(np.float32)
 
 
-def layer(image: np.ndarray, k: float, dx: float = 0.0, fine: np.ndarray | None = None) -> FaceLayer:
-    """A face (a disc below the eyes, moved ``dx`` pixels) brightened ``k`` times, its gain fading to 1 around it
-    (0 change beyond 80 pixels from its centre); ``fine``: (H, W) a fine factor on the relit face."""
+def layer(image: np.ndarray, k, dx: float = 0.0, fine: np.ndarray | None = None) -> FaceLayer:
+    """A face (a disc below the eyes, moved ``dx`` pixels) brightened ``k`` times (a number, or (H, W, 1) per pixel),
+    its gain fading to 1 around it (0 change beyond 80 pixels from its centre); ``fine``: (H, W) a fine factor on the
+    relit face."""
     r = np.hypot(XX - 100 - dx, YY - 110)
     inside = r < 50
     fade = np.clip((80 - r) / 30, 0, 1)[..., None]
@@ -30,9 +31,9 @@ def layer(image: np.ndarray, k: float, dx: float = 0.0, fine: np.ndarray | None 
     return FaceLayer((0, H, 0, W), inside, relit.astype(np.float32), gain)
 
 
-def centre_level(lay: FaceLayer, image: np.ndarray, dx: float = 0.0) -> float:
-    """The mean factor of the relit face over the photo near its centre."""
-    r = np.hypot(XX - 100 - dx, YY - 110) < 20
+def centre_level(lay: FaceLayer, image: np.ndarray, dx: float = 0.0, x: float = 100.0, reach: float = 20.0) -> float:
+    """The mean factor of the relit face over the photo near its centre (or near ``x``, within ``reach`` pixels)."""
+    r = np.hypot(XX - x - dx, YY - 110) < reach
     return float(np.mean(lay.relit[r] / image[r]))
 
 
@@ -104,3 +105,39 @@ def test_the_photo_past_the_layers_reach_is_untouched():
     assert np.array_equal(after[beyond], image[beyond])
     assert np.array_equal(before[beyond], after[beyond])
     assert not np.allclose(after[~beyond], before[~beyond])  # (within it, the change was steadied)
+
+
+def test_a_change_the_photo_shows_is_the_frames_own_at_once():
+    """A light moved: the face's image-left half is half as bright as before, and the relighting lifts it twice as
+    much (its change 4 there, 2 on the right). The first frame under the new light is relit as its own change says;
+    averaged with the change made for the photo before, its left half would come back a fifth too dark."""
+    lit = photo()
+    dark = lit.copy()
+    dark[:, :100] *= 0.5
+    carried = None
+    for _ in range(6):
+        _, carried = T.steady_layer(layer(lit, 2.0), lit, EYES, carried)
+    k = np.where(XX < 100, 4.0, 2.0)[..., None]
+    steadied, carried = T.steady_layer(layer(dark, k), dark, EYES, carried)
+    assert abs(centre_level(steadied, dark, x=75.0, reach=8.0) - 4.0) < 0.2
+    assert abs(centre_level(steadied, dark, x=125.0, reach=8.0) - 2.0) < 0.1
+    # the relit face is as it was under the light before: the half lifted as far as the photo darkened
+    left = np.hypot(XX - 75, YY - 110) < 8
+    assert abs(float(np.mean(steadied.relit[left])) / float(np.mean(2.0 * lit[left])) - 1.0) < 0.05
+
+
+def test_an_exposure_is_not_a_change_of_light():
+    """The photo's overall level steps by 10 % from frame to frame (a camera's exposure) while the fit's change
+    jitters: the jitter is still averaged (the photo shows no change of light), and the relit face follows the
+    photo's level as the photo does."""
+    image = photo()
+    carried, out, levels = None, [], []
+    for i in range(20):
+        frame_image = image * np.float32(0.9 if i % 2 else 1.0)
+        k = 2.0 * (1.1 if i % 2 else 1 / 1.1)
+        steadied, carried = T.steady_layer(layer(frame_image, k), frame_image, EYES, carried)
+        out.append(centre_level(steadied, frame_image))
+        levels.append(k)
+    step_in = np.abs(np.diff(np.log(levels[10:]))).mean()
+    step_out = np.abs(np.diff(np.log(out[10:]))).mean()
+    assert step_out < 0.3 * step_in
