@@ -165,6 +165,47 @@ def _clip_line(row: dict) -> str:
             f"{f(row.get('h_median'), '.1f'):>6s}  {one_line(str(row['status']))[:60]}")
 
 
+def cmd_eval_sweep(args: argparse.Namespace) -> int:
+    """Each Yale B subject of ``--data`` (``--subjects``) lit from -70 to +70 degrees and back as a clip, run as
+    ``shadowflow run`` runs a clip and its photos one by one (into ``--out``, kept; else a temporary folder), and
+    scored against the real frontal photo (``evaluation.sweep``)."""
+    from ...evaluation import sweep
+
+    if not args.data:
+        raise ValueError("eval sweep needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
+    wanted = {s.strip() for s in args.subjects.split(",") if s.strip()} if args.subjects else None
+    folders = sorted(p for p in Path(args.data).iterdir() if p.is_dir() and p.name.startswith("yaleB")
+                     and (wanted is None or p.name in wanted))
+    if not folders:
+        raise ValueError(f"{args.data}: no yaleB* subject folders{' named by --subjects' if wanted else ''}")
+    t0, order, model = time.perf_counter(), sweep.sweep_order(), model_arg(args.model)
+    with contextlib.ExitStack() as stack:
+        out = Path(args.out or stack.enter_context(tempfile.TemporaryDirectory(prefix="shadowflow-sweep-")))
+        rows = [_swept(folder, order, out, model) for folder in folders]
+        print(sweep.format_table(rows))
+    _write_report(args.json, {"data": str(args.data), "order": order, "rows": rows,
+                              "seconds": time.perf_counter() - t0})
+    return 0
+
+
+def _swept(folder: Path, order: list[int], out: Path, model) -> dict:
+    """One Yale B subject's sweep (``evaluation.sweep``) made, run into ``out/<subject>/`` and scored."""
+    from ...evaluation import sweep
+    from ...evaluation.yaleb import build_ground_truth
+    from ..api import run
+
+    subject = build_ground_truth(folder)
+    work = out / subject.name
+    (work / "clip").mkdir(parents=True, exist_ok=True)
+    clip = sweep.write_sweep_clip(subject, order, work / "clip" / f"sweep_{subject.name}.mkv")
+    stills = {a: sweep.photo_path(subject, a) for a in sorted(set(order))}
+    result = run([clip, *stills.values()], work / "run", model=model, options=MethodOptions(frames=True), record=(),
+                 quiet=True)
+    summary = {r.get("stem"): r for r in result.records}
+    return sweep.score_sweep(subject, order, work / "run" / clip.stem,
+                             {a: work / "run" / p.stem for a, p in stills.items()}, summary)
+
+
 def cmd_eval_shadows(args: argparse.Namespace) -> int:
     if not args.data:
         raise ValueError("eval shadows needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
@@ -193,6 +234,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return cmd_eval_people(args)
     if args.benchmark == "clips":
         return cmd_eval_clips(args)
+    if args.benchmark == "sweep":
+        return cmd_eval_sweep(args)
 
     size = grid_size(args.size)
     at_least(args.n_test, 1, "--n-test")
@@ -235,23 +278,26 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def add_parser(sub) -> None:
     """``shadowflow eval``'s arguments."""
     e = sub.add_parser("eval", help="accuracy on rendered held-out faces, or on Yale B photos (eval yaleb)")
-    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people", "clips", "shadows"],
+    e.add_argument("benchmark", nargs="?", choices=["synthetic", "yaleb", "people", "clips", "shadows", "sweep"],
                    default="synthetic",
                    help="synthetic (default): rendered faces of --source; yaleb: real photos in --data; people: "
                         "photos and clips of people in --data, scored without a reference (harm H, P); clips: "
                         "the clips in --data relit and measured for steadiness (flicker, excess change, H); "
                         "shadows: a brim's, leaves' and a hand's shadows laid over Yale B photos in --data, relit "
-                        "frontally with --foreign-shadows (the share of each shadow removed)")
-    e.add_argument("--subjects", metavar="yaleB01,...", help="eval shadows: only these subjects (default: all)")
+                        "frontally with --foreign-shadows (the share of each shadow removed); sweep: each Yale B "
+                        "subject in --data lit from -70 to +70 degrees and back as a clip, relit frontally as a clip "
+                        "and as stills, against the real frontal photo")
+    e.add_argument("--subjects", metavar="yaleB01,...", help="eval shadows, sweep: only these subjects (default: all)")
     e.add_argument("--seed", type=int, default=0, help="eval shadows: the seed the shadows are drawn with (default 0)")
     e.add_argument("--not-looked-for", action="store_true",
                    help="eval shadows: relight without --foreign-shadows (what the rest of the relighting makes of "
                         "them)")
-    e.add_argument("--data", help="eval yaleb, eval shadows: folder holding the yaleBxx subject folders; eval "
-                   "people: a folder "
+    e.add_argument("--data", help="eval yaleb, eval shadows, eval sweep: folder holding the yaleBxx subject "
+                   "folders; eval people: a folder "
                    "of photos, or one holding photos/ and clips/; eval clips: a clip or a folder of clips")
     e.add_argument("--out", help="eval clips: run the clips into this folder and keep it (an earlier run there is "
-                   "resumed, its clips measured again); default: a temporary folder")
+                   "resumed, its clips measured again); eval sweep: the sweep clips and their runs, kept; default: a "
+                   "temporary folder")
     e.add_argument("--clip-frames", type=int, default=3, metavar="N",
                    help="eval people: frames taken from each clip (default 3; 0: none)")
     e.add_argument("--foreign-shadows", action="store_true",
