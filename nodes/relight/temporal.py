@@ -125,8 +125,18 @@ def photo_on_grid(grey: np.ndarray, eyes: np.ndarray) -> tuple[np.ndarray, np.nd
     """A photo's coarse log luminance (``ln(Y + EPS)`` blurred over ``COARSE`` eye distances) on its face's grid:
     ``grey`` (H, W) linear, ``eyes`` (2, 2) photo pixels -> ((GRID, GRID) float32, where it is known: bool)."""
     _, iod, _, _ = eye_axes(eyes)
-    lum = blur(np.log(np.asarray(grey, np.float32) + np.float32(EPS)), COARSE * iod)
-    return to_grid(lum, FaceGrid.from_eyes(eyes), (0, grey.shape[0], 0, grey.shape[1]))
+    grid = FaceGrid.from_eyes(eyes)
+    # only the grid's part of the photo, and the blur's reach around it
+    corners = grid.to_photo @ np.array([[0, GRID - 1, 0, GRID - 1], [0, 0, GRID - 1, GRID - 1], [1, 1, 1, 1]])
+    reach = 3.0 * COARSE * iod
+    h, w = grey.shape
+    x0, x1 = int(np.clip(corners[0].min() - reach, 0, w)), int(np.clip(np.ceil(corners[0].max() + reach) + 1, 0, w))
+    y0, y1 = int(np.clip(corners[1].min() - reach, 0, h)), int(np.clip(np.ceil(corners[1].max() + reach) + 1, 0, h))
+    if x1 <= x0 or y1 <= y0:  # the face's grid lies off the photo
+        return np.zeros((GRID, GRID), np.float32), np.zeros((GRID, GRID), bool)
+    crop = np.asarray(grey[y0:y1, x0:x1], np.float32)
+    lum = blur(np.log(crop + np.float32(EPS)), COARSE * iod)
+    return to_grid(lum, grid, (y0, y1, x0, x1))
 
 
 def light_shown_changed(before: tuple[np.ndarray, np.ndarray], now: tuple[np.ndarray, np.ndarray]) -> bool:
