@@ -21,8 +21,9 @@ ALPHA = 0.3
 JUMP_DEG = 15.0
 # CONFIRM: that many departing frames in a row are a real change (a light switched on, a cut): the running light
 # is then their mean, so a change is followed within CONFIRM frames and a lone outlier never moves it (a departing
-# frame is fitted under its own estimate meanwhile); a change the photo itself shows (``temporal.SHOWN``: half the
-# face brighter or darker by 10 % against the rest) is taken at once;
+# frame is fitted under its own estimate meanwhile); a change of light the photo itself shows
+# (``temporal.LIGHT_SHOWN``: three quarters of the face brighter or darker by an eighth against the rest) is taken
+# at once;
 CONFIRM = 3
 # TRACK_MATCH: a face is the same as one of the frame before when its box's centre moved less than this many of
 # its box's sides; TRACK_MEMORY: a face unseen this many frames is forgotten (its light starts afresh).
@@ -142,7 +143,7 @@ class SteadyLightNode:
                 self.numbered += 1
             else:
                 free.remove(track)
-            shown = track.shown_change(face, index)
+            shown = face.meta["light_changed"] = track.shown_change(face, index)
             track.box, track.seen = box, index
             light = track.smoother.update(face.data["light"], shown)
             face.meta.update(track=track.number, track_age=index - track.born,
@@ -264,7 +265,8 @@ class SteadyRelightNode(_PerClip):
                 for i, (light, layer) in enumerate(face.data["photo_layers"]):
                     y0, y1, x0, x1 = layer.box
                     layer, track.carried[i] = steady_layer(layer, np.atleast_3d(photo[y0:y1, x0:x1]), eyes,
-                                                           track.carried.get(i))
+                                                           track.carried.get(i),
+                                                           light_changed=face.meta.get("light_changed", False))
                     layers.append((light, layer))
                 face.data["photo_layers"] = layers
             track.seen = index

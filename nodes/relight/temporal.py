@@ -6,11 +6,11 @@ should move only as the person and the light move; fitted frame by frame it jitt
 shadow evidence each differ a little). So the coarse part is kept on a grid fixed to the face (``FaceGrid``: the
 eyes' midpoint, their line and their distance; ``GRID`` samples a side over ``SPAN``), averaged over the frames
 (``carry``: an exponential moving average, the frame's own share ``ALPHA``), and each frame's layer is multiplied by
-the running coarse change over its own (``steadied``). A change the photo itself shows is not averaged: where the
-photo's own coarse luminance on the grid moved since the frame before, beyond the frame's change of level (a light
-moved or switched, a shadow came), and the frame's own change departs from the running one, the frame's own change
-takes over (``SHOWN``, ``DEPARTED``); averaged, the change made for the light before was laid over the photo under
-the new one. The fine part (texture, the photo's own shadow edges) stays the frame's. Arrays are on the photo's
+the running coarse change over its own (``steadied``). A change of light the photo itself shows is not averaged:
+when the photo's own coarse luminance on the grid moved since the frame before over most of the face, beyond the
+frame's change of level (a light moved or switched), the frame's own change takes over where it moved
+(``LIGHT_SHOWN``, ``SHOWN``); averaged, the change made for the light before was laid over the photo under the new
+one. The fine part (texture, the photo's own shadow edges) stays the frame's. Arrays are on the photo's
 pixel grid; eyes are (2, 2) photo pixels, image-left eye first.
 """
 from __future__ import annotations
@@ -31,22 +31,17 @@ ALPHA = 0.3  # a frame's own share of the running coarse change (as the clip's l
 GRID = 96  # samples a side of the face's grid
 SPAN = ((-1.9, 1.9), (-1.5, 2.3))  # the face's grid: x (along the eyes) and y (down), eye distances from their midpoint
 LIMIT = 0.7  # the correction of a pixel's log change, at most (a factor of 2): a carried field far off is no help
-# where the photo's coarse log luminance moved by SHOWN since the frame before (past its median move over the face's
-# grid: an exposure's change is the photo's level, which the change of light follows as it is) and the frame's own
-# change departs from the running one by DEPARTED (the change made for the photo before no longer fits it), the
-# frame's own share of the running change rises from ALPHA to 1. Measured over the face (an ellipse 1 x 1.35 eye
-# distances below the eyes): a light swept across a Yale B face in steps of 10-25 degrees moved half the face by
-# 0.23-0.68; a talking, moving face in a studio (liveportrait_d11) half its face by at most 0.03, a tenth of it by
-# 0.05-0.13; a webcam face in hard light (mohsin_face) half its face by 0.05 on a median frame, 0.15 at most. On
-# their first 40 frames and the sweep (``eval sweep``; docs/usage.md, "A moving light"), without DEPARTED the webcam's
-# flicker rose from 0.21 to 0.34 levels; with it, to 0.24, and the sweep's relit frames came within 0.15 dB of its
-# stills (median; 4 dB below them with neither)
+# A change of light the photo itself shows: three quarters of the face (the ellipse from its eyes) moved, in coarse
+# log luminance on its grid since the frame before, by more than LIGHT_SHOWN past the median move (an exposure's
+# change is the photo's level, which the change of light follows as it is). Measured, the lower quartile of that move
+# over the face: a light swept across a Yale B face in steps of 10-25 degrees, 0.15-0.7 at each step; a webcam face
+# in hard light with hands passing across it and its mouth opening wide (mohsin_face), 0.1 at most; talking faces in
+# a studio, on a phone, 0.03 at most. On such a frame, where the photo moved by SHOWN the frame's own change of light
+# takes over from the running one (its share rises from ALPHA to 1), and the face's light takes the frame's estimate
+# (``app.steady.LightSmoother``). Taken on every frame where the photo moved (not only when three quarters did), the
+# hands and the mouth let the webcam's relit face follow each frame's own relighting: its flicker 0.50 -> 1.17 levels
+LIGHT_SHOWN = 0.125
 SHOWN = (0.03, 0.1)
-DEPARTED = (0.05, 0.15)
-# ... and a change of light the photo shows over the face (half of it moved past the median move by this much) is
-# taken by the face's light at once (``app.steady.LightSmoother``): above the hard-lit webcam face's largest (0.15),
-# below the sweep's smallest steps (0.23)
-LIGHT_SHOWN = 0.2
 
 
 @dataclass(frozen=True)
@@ -141,13 +136,13 @@ def photo_on_grid(grey: np.ndarray, eyes: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def light_shown_changed(before: tuple[np.ndarray, np.ndarray], now: tuple[np.ndarray, np.ndarray]) -> bool:
     """Whether the photo itself shows that the light on a face changed between two frames: their coarse log
-    luminance on its grid (``photo_on_grid``, (values, known) each) moved by more than ``LIGHT_SHOWN`` over half of
-    the face (the move past the median move: an exposure is not a change of light)."""
+    luminance on its grid (``photo_on_grid``, (values, known) each) moved by more than ``LIGHT_SHOWN`` over three
+    quarters of the face (the move past the median move: an exposure is not a change of light)."""
     both = before[1] & now[1] & _FACE
-    if both.sum() < 0.5 * _FACE.sum():
+    if both.sum() < 0.25 * _FACE.sum():  # (a face mostly off the photo: not told)
         return False
     moved = (now[0] - before[0])[both]
-    return bool(np.median(np.abs(moved - np.median(moved))) > LIGHT_SHOWN)
+    return bool(np.percentile(np.abs(moved - np.median(moved)), 25) > LIGHT_SHOWN)
 
 
 def _face_on_grid() -> np.ndarray:
@@ -160,15 +155,15 @@ def _face_on_grid() -> np.ndarray:
 _FACE = _face_on_grid()
 
 
-def shown_change(before: Carried | None, photo: np.ndarray, known: np.ndarray) -> np.ndarray:
-    """(GRID, GRID) float32 in [0, 1]: how surely the photo itself shows a change of light since the frame before,
-    from its coarse log luminance on the face's grid then (``before.photo``) and now (``photo``, where ``known``):
-    its move past the median move (an exposure's), by ``SHOWN``; 0 where either frame does not know it."""
+def shown_change(before: Carried | None, photo: np.ndarray, known: np.ndarray) -> np.ndarray | None:
+    """(GRID, GRID) float32 in [0, 1]: where the photo's coarse log luminance on the face's grid moved since the frame
+    before (``before.photo``; now ``photo``, where ``known``) past its median move, by ``SHOWN``; None when the frame
+    before left none."""
     if before is None or before.photo is None:
-        return np.zeros(photo.shape, np.float32)
+        return None
     both = before.known & known
     if not both.any():
-        return np.zeros(photo.shape, np.float32)
+        return None
     moved = photo - before.photo
     moved = np.abs(moved - np.float32(np.median(moved[both])))
     return np.where(both, smoothstep(moved, *SHOWN), np.float32(0.0)).astype(np.float32)
@@ -178,15 +173,12 @@ def carry(before: Carried | None, own: np.ndarray, own_known: np.ndarray, alpha:
           shown: np.ndarray | None = None, photo: np.ndarray | None = None) -> Carried:
     """The running coarse change after a frame whose own is ``own`` (GRID, GRID), known where ``own_known``: the
     average of ``before``'s and the frame's, the frame's share ``alpha`` (raised toward 1 where ``shown`` (GRID, GRID)
-    in [0, 1] says the photo shows a change, ``shown_change``, and the frame's change departs from the running one by
-    ``DEPARTED``), where both know it; the frame's own where only it does. ``photo``: the frame's coarse log
-    luminance on the grid, kept for the next frame."""
+    in [0, 1] says the photo shows a change of light, ``shown_change``), where both know it; the frame's own where
+    only it does. ``photo``: the frame's coarse log luminance on the grid, kept for the next frame."""
     if before is None:
         return Carried(own.astype(np.float32), own_known.copy(), photo)
     both = before.known & own_known
-    share = alpha
-    if shown is not None:  # (where the frame's own change also departs from the running one)
-        share = alpha + (1.0 - alpha) * shown * smoothstep(np.abs(own - before.values), *DEPARTED)
+    share = alpha if shown is None else alpha + (1.0 - alpha) * shown
     values = np.where(both, (1.0 - share) * before.values + share * own, own).astype(np.float32)
     return Carried(values, own_known.copy(), photo)
 
@@ -203,16 +195,18 @@ def steadied(layer: FaceLayer, correction: np.ndarray) -> FaceLayer:
 
 
 def steady_layer(layer: FaceLayer, photo: np.ndarray, eyes: np.ndarray, before: Carried | None,
-                 alpha: float = ALPHA) -> tuple[FaceLayer, Carried]:
+                 alpha: float = ALPHA, light_changed: bool = False) -> tuple[FaceLayer, Carried]:
     """One frame's ``layer`` of a face steadied by the face's running coarse change ``before`` (None: the first
     frame, kept as it is): ``(layer, carried)``, the carried change for the next frame. ``photo`` (h, w, C) linear,
-    the layer's box of the photo; ``eyes`` (2, 2) photo pixels."""
+    the layer's box of the photo; ``eyes`` (2, 2) photo pixels; ``light_changed``: the photo shows the light changed
+    since the frame before (``light_shown_changed``): where it moved, the frame's own change takes over."""
     _, iod, _, _ = eye_axes(eyes)
     grid = FaceGrid.from_eyes(eyes)
     own, lum = coarse_change(layer, photo, iod)
     own_grid, own_known = to_grid(own, grid, layer.box)
     lum_grid, _ = to_grid(lum, grid, layer.box)
-    running = carry(before, own_grid, own_known, alpha, shown_change(before, lum_grid, own_known), lum_grid)
+    shown = shown_change(before, lum_grid, own_known) if light_changed else None
+    running = carry(before, own_grid, own_known, alpha, shown, lum_grid)
     if before is None:
         return layer, running
     target, weight = from_grid(running.values, running.known, grid, layer.box)

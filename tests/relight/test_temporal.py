@@ -118,7 +118,9 @@ def test_a_change_the_photo_shows_is_the_frames_own_at_once():
     for _ in range(6):
         _, carried = T.steady_layer(layer(lit, 2.0), lit, EYES, carried)
     k = np.where(XX < 100, 4.0, 2.0)[..., None]
-    steadied, carried = T.steady_layer(layer(dark, k), dark, EYES, carried)
+    changed = T.light_shown_changed(T.photo_on_grid(lit[..., 0], EYES), T.photo_on_grid(dark[..., 0], EYES))
+    assert changed
+    steadied, carried = T.steady_layer(layer(dark, k), dark, EYES, carried, light_changed=changed)
     assert abs(centre_level(steadied, dark, x=75.0, reach=8.0) - 4.0) < 0.2
     assert abs(centre_level(steadied, dark, x=125.0, reach=8.0) - 2.0) < 0.1
     # the relit face is as it was under the light before: the half lifted as far as the photo darkened
@@ -131,11 +133,14 @@ def test_an_exposure_is_not_a_change_of_light():
     jitters: the jitter is still averaged (the photo shows no change of light), and the relit face follows the
     photo's level as the photo does."""
     image = photo()
-    carried, out, levels = None, [], []
+    carried, out, levels, before = None, [], [], None
     for i in range(20):
         frame_image = image * np.float32(0.9 if i % 2 else 1.0)
         k = 2.0 * (1.1 if i % 2 else 1 / 1.1)
-        steadied, carried = T.steady_layer(layer(frame_image, k), frame_image, EYES, carried)
+        now = T.photo_on_grid(frame_image[..., 0], EYES)
+        changed = before is not None and T.light_shown_changed(before, now)
+        steadied, carried = T.steady_layer(layer(frame_image, k), frame_image, EYES, carried, light_changed=changed)
+        before = now
         out.append(centre_level(steadied, frame_image))
         levels.append(k)
     step_in = np.abs(np.diff(np.log(levels[10:]))).mean()
