@@ -8,10 +8,10 @@ eyes' midpoint, their line and their distance; ``GRID`` samples a side over ``SP
 (``carry``: an exponential moving average, the frame's own share ``ALPHA``), and each frame's layer is multiplied by
 the running coarse change over its own (``steadied``). A change of light the photo itself shows is not averaged:
 when the photo's own coarse luminance on the grid moved since the frame before over most of the face, beyond the
-frame's change of level (a light moved or switched), the frame's own change takes over where it moved
-(``LIGHT_SHOWN``, ``SHOWN``); averaged, the change made for the light before was laid over the photo under the new
-one. The fine part (texture, the photo's own shadow edges) stays the frame's. Arrays are on the photo's
-pixel grid; eyes are (2, 2) photo pixels, image-left eye first.
+frame's change of level (a light moved or switched: ``light_shown_changed``), the running change starts again from
+the frame's own; averaged, the change made for the light before was laid over the photo under the new one. The
+fine part (texture, the photo's own shadow edges) stays the frame's. Arrays are on the photo's pixel grid; eyes are
+(2, 2) photo pixels, image-left eye first.
 """
 from __future__ import annotations
 
@@ -34,14 +34,15 @@ LIMIT = 0.7  # the correction of a pixel's log change, at most (a factor of 2): 
 # A change of light the photo itself shows: three quarters of the face (the ellipse from its eyes) moved, in coarse
 # log luminance on its grid since the frame before, by more than LIGHT_SHOWN past the median move (an exposure's
 # change is the photo's level, which the change of light follows as it is). Measured, the lower quartile of that move
-# over the face: a light swept across a Yale B face in steps of 10-25 degrees, 0.15-0.7 at each step; a webcam face
-# in hard light with hands passing across it and its mouth opening wide (mohsin_face), 0.1 at most; talking faces in
-# a studio, on a phone, 0.03 at most. On such a frame, where the photo moved by SHOWN the frame's own change of light
-# takes over from the running one (its share rises from ALPHA to 1), and the face's light takes the frame's estimate
-# (``app.steady.LightSmoother``). Taken on every frame where the photo moved (not only when three quarters did), the
-# hands and the mouth let the webcam's relit face follow each frame's own relighting: its flicker 0.50 -> 1.17 levels
+# over the face: a light swept across a Yale B face in steps of 10-25 degrees, 0.15-0.7 at most steps (0.1 for 15
+# degrees near the front); a webcam face in hard light with hands passing across it and its mouth opening wide
+# (mohsin_face), 0.1 at most; talking faces in a studio, on a phone, 0.03 at most. On such a frame the running change
+# starts again from the frame's own, and the face's light takes the frame's estimate (``app.steady.LightSmoother``).
+# Taken wherever the photo moved on any frame (not only when most of the face did), the hands and the mouth let the
+# webcam's relit face follow each frame's own relighting: its flicker 0.50 -> 1.17 levels; taken only where the
+# photo moved on such a frame, the change carried from the light before stayed where it did not (a nose's ridge lit
+# under both lights), a bright stripe down it
 LIGHT_SHOWN = 0.125
-SHOWN = (0.03, 0.1)
 
 
 @dataclass(frozen=True)
@@ -66,15 +67,13 @@ class FaceGrid:
         return m
 
 
-def coarse_change(layer: FaceLayer, photo: np.ndarray, iod_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """The coarse log change of luminance ``layer`` makes to ``photo`` (h, w, C) linear, its box of the photo:
-    ``ln(Y_relit + EPS) - ln(Y_photo + EPS)`` blurred over ``COARSE`` eye distances (``iod_px``), and the photo's own
-    coarse log luminance ``ln(Y_photo + EPS)`` blurred so: two (h, w) float32."""
+def coarse_change(layer: FaceLayer, photo: np.ndarray, iod_px: float) -> np.ndarray:
+    """(h, w) float32 the coarse log change of luminance ``layer`` makes to ``photo`` (h, w, C) linear, its box of
+    the photo: ``ln(Y_relit + EPS) - ln(Y_photo + EPS)``, blurred over ``COARSE`` eye distances (``iod_px``)."""
     h, w = photo.shape[:2]
     relit = compose(photo, [dataclasses.replace(layer, box=(0, h, 0, w))])
-    before = np.log(_luminance(photo) + np.float32(EPS))
-    r = np.log(_luminance(relit) + np.float32(EPS)) - before
-    return blur(r.astype(np.float32), COARSE * iod_px), blur(before.astype(np.float32), COARSE * iod_px)
+    r = np.log(_luminance(relit) + np.float32(EPS)) - np.log(_luminance(photo) + np.float32(EPS))
+    return blur(r.astype(np.float32), COARSE * iod_px)
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
@@ -108,12 +107,10 @@ def from_grid(values: np.ndarray, known: np.ndarray, grid: FaceGrid, box: tuple[
 
 @dataclass
 class Carried:
-    """A face's running coarse change on its grid: ``values`` (GRID, GRID) float32 and where it is ``known``; and the
-    last frame's photo's coarse log luminance there (``photo``, known where ``known`` is)."""
+    """A face's running coarse change on its grid: ``values`` (GRID, GRID) float32 and where it is ``known``."""
 
     values: np.ndarray
     known: np.ndarray
-    photo: np.ndarray | None = None
 
 
 def photo_on_grid(grey: np.ndarray, eyes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -155,32 +152,15 @@ def _face_on_grid() -> np.ndarray:
 _FACE = _face_on_grid()
 
 
-def shown_change(before: Carried | None, photo: np.ndarray, known: np.ndarray) -> np.ndarray | None:
-    """(GRID, GRID) float32 in [0, 1]: where the photo's coarse log luminance on the face's grid moved since the frame
-    before (``before.photo``; now ``photo``, where ``known``) past its median move, by ``SHOWN``; None when the frame
-    before left none."""
-    if before is None or before.photo is None:
-        return None
-    both = before.known & known
-    if not both.any():
-        return None
-    moved = photo - before.photo
-    moved = np.abs(moved - np.float32(np.median(moved[both])))
-    return np.where(both, smoothstep(moved, *SHOWN), np.float32(0.0)).astype(np.float32)
-
-
-def carry(before: Carried | None, own: np.ndarray, own_known: np.ndarray, alpha: float = ALPHA,
-          shown: np.ndarray | None = None, photo: np.ndarray | None = None) -> Carried:
+def carry(before: Carried | None, own: np.ndarray, own_known: np.ndarray, alpha: float = ALPHA) -> Carried:
     """The running coarse change after a frame whose own is ``own`` (GRID, GRID), known where ``own_known``: the
-    average of ``before``'s and the frame's, the frame's share ``alpha`` (raised toward 1 where ``shown`` (GRID, GRID)
-    in [0, 1] says the photo shows a change of light, ``shown_change``), where both know it; the frame's own where
-    only it does. ``photo``: the frame's coarse log luminance on the grid, kept for the next frame."""
+    average of ``before``'s and the frame's, the frame's share ``alpha``, where both know it; the frame's own where
+    only it does."""
     if before is None:
-        return Carried(own.astype(np.float32), own_known.copy(), photo)
+        return Carried(own.astype(np.float32), own_known.copy())
     both = before.known & own_known
-    share = alpha if shown is None else alpha + (1.0 - alpha) * shown
-    values = np.where(both, (1.0 - share) * before.values + share * own, own).astype(np.float32)
-    return Carried(values, own_known.copy(), photo)
+    values = np.where(both, (1.0 - alpha) * before.values + alpha * own, own).astype(np.float32)
+    return Carried(values, own_known.copy())
 
 
 def steadied(layer: FaceLayer, correction: np.ndarray) -> FaceLayer:
@@ -199,14 +179,15 @@ def steady_layer(layer: FaceLayer, photo: np.ndarray, eyes: np.ndarray, before: 
     """One frame's ``layer`` of a face steadied by the face's running coarse change ``before`` (None: the first
     frame, kept as it is): ``(layer, carried)``, the carried change for the next frame. ``photo`` (h, w, C) linear,
     the layer's box of the photo; ``eyes`` (2, 2) photo pixels; ``light_changed``: the photo shows the light changed
-    since the frame before (``light_shown_changed``): where it moved, the frame's own change takes over."""
+    since the frame before (``light_shown_changed``): the frame is kept as it is, and the running change starts again
+    from its own."""
     _, iod, _, _ = eye_axes(eyes)
     grid = FaceGrid.from_eyes(eyes)
-    own, lum = coarse_change(layer, photo, iod)
+    own = coarse_change(layer, photo, iod)
     own_grid, own_known = to_grid(own, grid, layer.box)
-    lum_grid, _ = to_grid(lum, grid, layer.box)
-    shown = shown_change(before, lum_grid, own_known) if light_changed else None
-    running = carry(before, own_grid, own_known, alpha, shown, lum_grid)
+    if light_changed:
+        before = None
+    running = carry(before, own_grid, own_known, alpha)
     if before is None:
         return layer, running
     target, weight = from_grid(running.values, running.known, grid, layer.box)
