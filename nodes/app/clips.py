@@ -94,8 +94,9 @@ def _rgb(image: np.ndarray) -> np.ndarray:
 def frame_line(frame: Frame) -> dict:
     """A clip frame's line of ``frames.jsonl``: index, time (s), status, and its faces as ``summary.json`` lists a
     photo's (``face_record``: box, eyes, pose, status, light), each with the light estimated on that frame alone
-    (``light_raw``) when the clip's running light replaced it, and how its yaw was read (``yaw_read``: by the fit on
-    this frame, or carried from the last frame that read it)."""
+    (``light_raw``) when the clip's running light replaced it, how its yaw was read (``yaw_read``: by the fit on
+    this frame, or carried from the last frame that read it), and ``light_changed`` true on a frame whose photo
+    showed its light changed (``relight.temporal.light_shown_changed``: relit as alone, its light taken at once)."""
     clip = frame.meta["clip"]
     faces = []
     for part in frame.parts:
@@ -103,6 +104,8 @@ def frame_line(frame: Frame) -> dict:
         for key in ("light_raw", "yaw_read"):
             if key in part.meta:
                 rec[key] = part.meta[key]
+        if part.meta.get("light_changed"):
+            rec["light_changed"] = True
         faces.append(rec)
     first = next((p for p in frame.parts if p.ok), None)
     status = face_status(first) if frame.ok and first is not None else frame.status

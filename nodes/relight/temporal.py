@@ -34,14 +34,14 @@ LIMIT = 0.7  # the correction of a pixel's log change, at most (a factor of 2): 
 # A change of light the photo itself shows: three quarters of the face (the ellipse from its eyes) moved, in coarse
 # log luminance on its grid since the frame before, by more than LIGHT_SHOWN past the median move (an exposure's
 # change is the photo's level, which the change of light follows as it is). Measured, the lower quartile of that move
-# over the face: a light swept across a Yale B face in steps of 10-25 degrees, 0.15-0.7 at most steps (0.1 for 15
-# degrees near the front); a webcam face in hard light with hands passing across it and its mouth opening wide
-# (mohsin_face), 0.1 at most; talking faces in a studio, on a phone, 0.03 at most. On such a frame the running change
-# starts again from the frame's own, and the face's light takes the frame's estimate (``app.steady.LightSmoother``).
-# Taken wherever the photo moved on any frame (not only when most of the face did), the hands and the mouth let the
-# webcam's relit face follow each frame's own relighting: its flicker 0.50 -> 1.17 levels; taken only where the
-# photo moved on such a frame, the change carried from the light before stayed where it did not (a nose's ridge lit
-# under both lights), a bright stripe down it
+# over the face: a light swept across a Yale B face, 0.12-0.34 at its steps of 20-25 degrees, 0.05-0.14 at those of
+# 10-15 degrees near the front (mostly not told); a webcam face in hard light with hands passing across it and its
+# mouth opening wide (mohsin_face), 0.1 at most; talking faces in a studio, on a phone, 0.03 at most. On such a frame
+# the running change starts again from the frame's own, and the face's light takes the frame's estimate
+# (``app.steady.LightSmoother``). Taken wherever the photo moved on any frame (not only when most of the face did),
+# the hands and the mouth let the webcam's relit face follow each frame's own relighting: its flicker 0.50 -> 1.17
+# levels; taken only where the photo moved on such a frame, the change carried from the light before stayed where it
+# did not (a nose's ridge lit under both lights), a bright stripe down it
 LIGHT_SHOWN = 0.125
 
 

@@ -35,3 +35,10 @@ def test_yaleb_a_swept_clip_is_relit_as_well_as_its_photos_one_by_one(tmp_path, 
     assert row["clip_db_median"] > row["input_db_median"] + 3.0, row  # (relit, not the photo given back)
     assert row["clip_worse"] <= len(row["frames"]) // 2, row
     assert row["clip_light_err_median"] < row["still_light_err_median"] + 1.5, row
+    # frames.jsonl says which frames showed their light changed: steps of the light (8 of its 16, those of 25 degrees
+    # and more), never a light held
+    lines = [json.loads(line) for line in
+             (tmp_path / "out" / "yaleB01" / "run" / "sweep_yaleB01" / "frames.jsonl").read_text().splitlines()]
+    changed = [line["index"] for line in lines if line["faces"] and line["faces"][0].get("light_changed")]
+    order = sweep_order()
+    assert len(changed) >= 6 and all(order[i] != order[i - 1] for i in changed), changed
