@@ -31,7 +31,7 @@ from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .occluders import KINDS, lay_shadow, occluder
 from .people import figure
-from .yaleb import build_ground_truth
+from .yaleb import build_ground_truth, subject_folders
 from .yaleb_benchmark import gained_psnr
 
 LIGHTS = ((0, 0), (25, 0), (-25, 0))
@@ -104,14 +104,7 @@ def evaluate(data: str | Path, model: ShapeModel, subjects: list[str] | None = N
              options: MethodOptions = MethodOptions(light="yaleb"), looked_for: bool = True, note=print) -> list[dict]:
     """Rows for every ``yaleB*`` subject folder in ``data`` (or those named in ``subjects``), as
     ``evaluate_subject``'s."""
-    folders = sorted(p for p in Path(data).iterdir() if p.is_dir() and p.name.startswith("yaleB"))
-    if subjects:
-        missing = sorted(set(subjects) - {p.name for p in folders})
-        if missing:
-            raise ValueError(f"{data}: no subject folder {', '.join(missing)}")
-        folders = [p for p in folders if p.name in subjects]
-    if not folders:
-        raise ValueError(f"{data}: no yaleB* subject folders")
+    folders = subject_folders(data, subjects)
     rows = []
     for folder in folders:
         rows.extend(evaluate_subject(folder, model, options, seed, looked_for=looked_for))

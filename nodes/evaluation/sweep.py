@@ -45,12 +45,16 @@ def photo_path(subject: YaleSubject, azimuth: int) -> Path:
     return subject.image_path(azimuth, 0)
 
 
-def write_sweep_clip(subject: YaleSubject, order: list[int], path: Path, rate: int = RATE) -> Path:
-    """The subject's photos in ``order`` (azimuths) written to ``path`` (.mkv) as a lossless grey clip."""
+def sweep_photos(subject: YaleSubject, order: list[int]) -> dict[int, np.ndarray]:
+    """Each azimuth of ``order``'s photo of the subject: (H, W) float32 in [0, 1], linear (its file's values)."""
+    return {a: load_image(photo_path(subject, a)) for a in sorted(set(order))}
+
+
+def write_sweep_clip(photos: dict[int, np.ndarray], order: list[int], path: Path, rate: int = RATE) -> Path:
+    """The ``photos`` (``sweep_photos``) in ``order`` (azimuths) written to ``path`` (.mkv) as a lossless grey clip."""
     import av
 
-    frames = {a: np.round(np.clip(load_image(photo_path(subject, a)), 0.0, 1.0) * 255.0).astype(np.uint8)
-              for a in set(order)}
+    frames = {a: np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8) for a, image in photos.items()}
     h, w = next(iter(frames.values())).shape
     with av.open(str(path), mode="w") as out:
         stream = out.add_stream("ffv1", rate=rate)
@@ -72,14 +76,13 @@ def _face_light(record: dict | None) -> list | None:
     return faces[0]["light"] if faces else None
 
 
-def score_sweep(subject: YaleSubject, order: list[int], clip_folder: Path, still_folders: dict[int, Path],
-                summary: dict[str, dict]) -> dict:
-    """The figures of one subject's sweep (module docstring): ``clip_folder`` the run's folder of the clip (its
-    ``frames.jsonl`` and ``frames/``), ``still_folders`` each azimuth's still's folder, ``summary`` the run's records
-    by stem (the stills' lights)."""
+def score_sweep(subject: YaleSubject, photos: dict[int, np.ndarray], order: list[int], clip_folder: Path,
+                still_folders: dict[int, Path], summary: dict[str, dict]) -> dict:
+    """The figures of one subject's sweep (module docstring): ``photos`` its photos (``sweep_photos``),
+    ``clip_folder`` the run's folder of the clip (its ``frames.jsonl`` and ``frames/``), ``still_folders`` each
+    azimuth's still's folder, ``summary`` the run's records by stem (the stills' lights)."""
     region = subject.stereo.valid
     front = stereo_shift(subject, subject.frontal, light_from_angles(0, 0))
-    photos = {a: load_image(photo_path(subject, a)) for a in set(order)}
     shifts = {a: camera_shift(subject, photos[a], light_from_angles(a, 0), front) for a in photos}
 
     def db(image: np.ndarray, a: int) -> float:

@@ -93,6 +93,20 @@ def _registered(images: np.ndarray, lights: np.ndarray, names: list[str], stereo
     return registered
 
 
+def subject_folders(data: str | Path, subjects: list[str] | None = None) -> list[Path]:
+    """The ``yaleB*`` subject folders in ``data``, sorted (only those named in ``subjects``, if given);
+    ``ValueError`` naming what is missing when a named one is, or when there are none."""
+    folders = sorted(p for p in Path(data).iterdir() if p.is_dir() and p.name.startswith("yaleB"))
+    if subjects:
+        missing = sorted(set(subjects) - {p.name for p in folders})
+        if missing:
+            raise ValueError(f"{data}: no subject folder {', '.join(missing)}")
+        folders = [p for p in folders if p.name in subjects]
+    if not folders:
+        raise ValueError(f"{data}: no yaleB* subject folders")
+    return folders
+
+
 def build_ground_truth(folder: str | Path, register_rounds: int = 2, max_shift: float = 5.0) -> YaleSubject:
     """Photometric-stereo normals and albedo for one subject folder (see module docstring);
     exposures are moved by at most ``max_shift`` pixels to register them."""

@@ -41,7 +41,7 @@ from ..photo.loader import read_photo
 from ..relight.nodes import photo_nodes
 from ..relight.products import relit_photos
 from .photometric_stereo import register_translation, render
-from .yaleb import YaleSubject, build_ground_truth
+from .yaleb import YaleSubject, build_ground_truth, subject_folders
 
 INPUT_LIGHTS = [(25, 0), (-25, 0), (50, 0), (-50, 0), (70, 0), (-70, 0), (35, 15), (-35, 15)]
 # lights no constant was set on (``eval yaleb --lights held-out``): azimuth 0-60 degrees, elevation -40 to +45;
@@ -317,9 +317,7 @@ def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions =
     {...}}``. mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client);
     skip_unfound: a photo whose face is not found is left out and noted (``HELD_OUT_LIGHTS`` hold one), else
     it stops the run."""
-    folders = sorted(p for p in Path(data).iterdir() if p.is_dir() and p.name.startswith("yaleB"))
-    if not folders:
-        raise ValueError(f"{data}: no yaleB* subject folders")
+    folders = subject_folders(data)
     subjects = []
     for f in folders:
         subjects.append(build_ground_truth(f))

@@ -165,19 +165,21 @@ def _clip_line(row: dict) -> str:
             f"{f(row.get('h_median'), '.1f'):>6s}  {one_line(str(row['status']))[:60]}")
 
 
+def _subjects(args: argparse.Namespace) -> list[str] | None:
+    """``--subjects yaleB01,...`` as a list of names, or None (all)."""
+    return [s.strip() for s in args.subjects.split(",") if s.strip()] if args.subjects else None
+
+
 def cmd_eval_sweep(args: argparse.Namespace) -> int:
     """Each Yale B subject of ``--data`` (``--subjects``) lit from -70 to +70 degrees and back as a clip, run as
     ``shadowflow run`` runs a clip and its photos one by one (into ``--out``, kept; else a temporary folder), and
     scored against the real frontal photo (``evaluation.sweep``)."""
     from ...evaluation import sweep
+    from ...evaluation.yaleb import subject_folders
 
     if not args.data:
         raise ValueError("eval sweep needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
-    wanted = {s.strip() for s in args.subjects.split(",") if s.strip()} if args.subjects else None
-    folders = sorted(p for p in Path(args.data).iterdir() if p.is_dir() and p.name.startswith("yaleB")
-                     and (wanted is None or p.name in wanted))
-    if not folders:
-        raise ValueError(f"{args.data}: no yaleB* subject folders{' named by --subjects' if wanted else ''}")
+    folders = subject_folders(args.data, _subjects(args))
     t0, order, model = time.perf_counter(), sweep.sweep_order(), model_arg(args.model)
     with contextlib.ExitStack() as stack:
         out = Path(args.out or stack.enter_context(tempfile.TemporaryDirectory(prefix="shadowflow-sweep-")))
@@ -197,12 +199,13 @@ def _swept(folder: Path, order: list[int], out: Path, model) -> dict:
     subject = build_ground_truth(folder)
     work = out / subject.name
     (work / "clip").mkdir(parents=True, exist_ok=True)
-    clip = sweep.write_sweep_clip(subject, order, work / "clip" / f"sweep_{subject.name}.mkv")
-    stills = {a: sweep.photo_path(subject, a) for a in sorted(set(order))}
+    photos = sweep.sweep_photos(subject, order)
+    clip = sweep.write_sweep_clip(photos, order, work / "clip" / f"sweep_{subject.name}.mkv")
+    stills = {a: sweep.photo_path(subject, a) for a in photos}
     result = run([clip, *stills.values()], work / "run", model=model, options=MethodOptions(frames=True), record=(),
                  quiet=True)
     summary = {r.get("stem"): r for r in result.records}
-    return sweep.score_sweep(subject, order, work / "run" / clip.stem,
+    return sweep.score_sweep(subject, photos, order, work / "run" / clip.stem,
                              {a: work / "run" / p.stem for a, p in stills.items()}, summary)
 
 
@@ -210,7 +213,7 @@ def cmd_eval_shadows(args: argparse.Namespace) -> int:
     if not args.data:
         raise ValueError("eval shadows needs --data DIR (the folder holding yaleB01, yaleB02, ...)")
     model = model_arg(args.model)
-    subjects = [s.strip() for s in args.subjects.split(",") if s.strip()] if args.subjects else None
+    subjects = _subjects(args)
     t0 = time.perf_counter()
     print(one_line(f"shadows the face does not cast ({', '.join(foreign_shadows.KINDS)}) laid over Yale B photos, "
                    f"seed {args.seed}; relit frontally {'without' if args.not_looked_for else 'with'} "
