@@ -312,12 +312,13 @@ def evaluate_subject(subject: YaleSubject, model: ShapeModel, options: MethodOpt
 
 def evaluate_yaleb(data: str | Path, model: ShapeModel, options: MethodOptions = MethodOptions(light="yaleb"),
                    lights=INPUT_LIGHTS, estimate_light: bool = True, note=print, mapper=local_map,
-                   skip_unfound: bool = False) -> dict:
-    """All subject folders under ``data`` (``yaleB*``); returns ``{"rows": [...], "skipped": [...], "subjects":
-    {...}}``. mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client);
+                   skip_unfound: bool = False, names: list[str] | None = None) -> dict:
+    """The subject folders under ``data`` (``yaleB*``; only those in ``names``, if given: the others' mean
+    needle-map, ``err_others_mean``, is then of those chosen); returns ``{"rows": [...], "skipped": [...],
+    "subjects": {...}}``. mapper: how the subjects are run (``local_map``, or ``ordered_map`` on a Dask client);
     skip_unfound: a photo whose face is not found is left out and noted (``HELD_OUT_LIGHTS`` hold one), else
     it stops the run."""
-    folders = subject_folders(data)
+    folders = subject_folders(data, names)
     subjects = []
     for f in folders:
         subjects.append(build_ground_truth(f))

@@ -346,3 +346,20 @@ def test_yaleb_a_photo_that_fails_is_left_out_and_named_when_asked_else_it_stops
     assert rows[1]["light"] == "+1,+1" and "P00A+001E+01" in rows[1]["skipped"]  # no such exposure
     with pytest.raises(RuntimeError, match="P00A\\+001E\\+01"):
         evaluate_subject(*args, lights=[(1, 1)], estimate_light=False, bounds=False)
+
+
+def test_eval_yaleb_runs_only_the_subjects_named():
+    """``shadowflow eval yaleb --subjects`` measures those subjects and no other (it once ran all five whatever was
+    named), and a subject that is not there is named in the error."""
+    from shadowflow.nodes.evaluation.yaleb_benchmark import evaluate_yaleb
+    from shadowflow.nodes.model.default_model import default_model
+
+    if not (YALEB / "yaleB02").is_dir():
+        pytest.skip(f"evaluation data absent: {YALEB} (needs ../shared beside the repo)")
+    report = evaluate_yaleb(YALEB, default_model(), lights=((25, 0),), estimate_light=False, note=lambda _: None,
+                            names=["yaleB02"])
+    assert [(r["subject"], r["light"]) for r in report["rows"]] == [("yaleB02", "+25,+0")]
+    assert list(report["subjects"]) == ["yaleB02"] and len(report["frontal"]) == 1
+    assert np.isnan(report["rows"][0]["err_others_mean"])  # no other subject chosen to average
+    with pytest.raises(ValueError, match="yaleB99"):
+        evaluate_yaleb(YALEB, default_model(), names=["yaleB99"], note=lambda _: None)

@@ -98,7 +98,7 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     with _mapper(args.dask) as mapper:
         # the lights the method was tuned on must all be found; others include photos the finder misses
         report = evaluate_yaleb(args.data, model, options, lights=lights, mapper=mapper,
-                                skip_unfound=args.lights != "default")
+                                skip_unfound=args.lights != "default", names=_subjects(args))
     summary = summarise(report["rows"])
     print(format_report(report, summary))
     report.update(summary=summary, model=args.model or "built-in ict", albedo_rounds=options.fit.albedo_rounds,
@@ -290,7 +290,8 @@ def add_parser(sub) -> None:
                         "frontally with --foreign-shadows (the share of each shadow removed); sweep: each Yale B "
                         "subject in --data lit from -70 to +70 degrees and back as a clip, relit frontally as a clip "
                         "and as stills, against the real frontal photo")
-    e.add_argument("--subjects", metavar="yaleB01,...", help="eval shadows, sweep: only these subjects (default: all)")
+    e.add_argument("--subjects", metavar="yaleB01,...",
+                   help="eval yaleb, shadows, sweep: only these subjects (default: all)")
     e.add_argument("--seed", type=int, default=0, help="eval shadows: the seed the shadows are drawn with (default 0)")
     e.add_argument("--not-looked-for", action="store_true",
                    help="eval shadows: relight without --foreign-shadows (what the rest of the relighting makes of "
