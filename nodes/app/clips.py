@@ -95,8 +95,10 @@ def frame_line(frame: Frame) -> dict:
     """A clip frame's line of ``frames.jsonl``: index, time (s), status, and its faces as ``summary.json`` lists a
     photo's (``face_record``: box, eyes, pose, status, light), each with the light estimated on that frame alone
     (``light_raw``) when the clip's running light replaced it, how its yaw was read (``yaw_read``: by the fit on
-    this frame, or carried from the last frame that read it), and ``light_changed`` true on a frame whose photo
-    showed its light changed (``relight.temporal.light_shown_changed``: relit as alone, its light taken at once)."""
+    this frame, or carried from the last frame that read it), ``light_changed`` true on a frame whose light changed
+    (its photo showed it, ``relight.temporal.light_shown_changed``, or its estimates confirmed it: its light taken
+    at once and its relit face its own, the steadying started again from it), and ``light_alone`` true on a frame
+    fitted and relit under its own estimate, which left the running light (a departure, not yet confirmed)."""
     clip = frame.meta["clip"]
     faces = []
     for part in frame.parts:
@@ -104,8 +106,9 @@ def frame_line(frame: Frame) -> dict:
         for key in ("light_raw", "yaw_read"):
             if key in part.meta:
                 rec[key] = part.meta[key]
-        if part.meta.get("light_changed"):
-            rec["light_changed"] = True
+        for key in ("light_changed", "light_alone"):
+            if part.meta.get(key):
+                rec[key] = True
         faces.append(rec)
     first = next((p for p in frame.parts if p.ok), None)
     status = face_status(first) if frame.ok and first is not None else frame.status

@@ -51,28 +51,33 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 class LightSmoother:
     """One face's light over a clip's frames: ``update(raw)`` takes the frame's estimate (a vector toward the light)
-    and returns the running light (unit), as the constants above say."""
+    and returns the running light (unit), as the constants above say. ``state`` says what the last frame's light
+    was: "carried" (the running light), "alone" (a departure: the frame's own estimate, the running light left as it
+    was) or "changed" (the running light started again: a change the photo shows, or one confirmed)."""
 
     def __init__(self, alpha: float = ALPHA, jump_deg: float = JUMP_DEG, confirm: int = CONFIRM):
         self.alpha, self.jump_deg, self.confirm = alpha, jump_deg, confirm
         self.light: np.ndarray | None = None
         self.departed: list[np.ndarray] = []  # the estimates in a row that left the running light
+        self.state = "changed"
 
     def update(self, raw, shown: bool = False) -> np.ndarray:
         """``shown``: the photo itself shows the light changed (``temporal.light_shown_changed``): the frame's
         estimate is taken at once, as a confirmed change is."""
         raw = _unit(np.asarray(raw, np.float64))
         if self.light is None or shown:
-            self.light, self.departed = raw, []
+            self.light, self.departed, self.state = raw, [], "changed"
         elif angle_deg(raw, self.light) > self.jump_deg:
             # a departure: the frame is fitted under its own estimate (under the running light a switched light
             # fails the fit: "no face found"), and the running light is left as it is until it is confirmed
             self.departed.append(raw)
             if len(self.departed) < self.confirm:
+                self.state = "alone"
                 return raw.copy()
             self.light, self.departed = _unit(np.mean(self.departed[-self.confirm:], axis=0)), []
+            self.state = "changed"
         else:
-            self.departed = []
+            self.departed, self.state = [], "carried"
             self.light = _unit((1.0 - self.alpha) * self.light + self.alpha * raw)
         return self.light.copy()
 
@@ -143,9 +148,13 @@ class SteadyLightNode:
                 self.numbered += 1
             else:
                 free.remove(track)
-            shown = face.meta["light_changed"] = track.shown_change(face, index)
+            shown = track.shown_change(face, index)
             track.box, track.seen = box, index
             light = track.smoother.update(face.data["light"], shown)
+            # the relit face's running change follows its light (``SteadyRelightNode``): started again where the
+            # light was (on a track's first frame there is none to start again), left aside on a departure's frame
+            face.meta["light_changed"] = track.smoother.state == "changed" and index != track.born
+            face.meta["light_alone"] = track.smoother.state == "alone"
             face.meta.update(track=track.number, track_age=index - track.born,
                              view_refresh=track.view_refresh(index, light))
             self._steady(face, light)
@@ -266,7 +275,8 @@ class SteadyRelightNode(_PerClip):
                     y0, y1, x0, x1 = layer.box
                     layer, track.carried[i] = steady_layer(layer, np.atleast_3d(photo[y0:y1, x0:x1]), eyes,
                                                            track.carried.get(i),
-                                                           light_changed=face.meta.get("light_changed", False))
+                                                           light_changed=face.meta.get("light_changed", False),
+                                                           alone=face.meta.get("light_alone", False))
                     layers.append((light, layer))
                 face.data["photo_layers"] = layers
             track.seen = index

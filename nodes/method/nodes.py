@@ -186,7 +186,7 @@ class FacesNode:
         made = self._face(photo, int(face.meta.get("face", 1)) - 1, placement, face.source)
         # a clip's face's: its light's own estimate, which face it is over its frames (``app.steady``)
         made.meta.update({k: v for k, v in face.meta.items() if k in ("light_raw", "track", "track_age",
-                                                                       "view_refresh", "light_changed")})
+                                                                       "view_refresh", "light_changed", "light_alone")})
         return made
 
     def _face(self, frame: Frame, k: int, placement: FacePlacement, source: str | None = None) -> Frame:

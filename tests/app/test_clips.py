@@ -198,15 +198,27 @@ def test_smoothing_steadies_a_noisy_light_and_follows_a_switch(tmp_path):
 
 
 def test_light_smoother_holds_an_outlier_and_follows_a_change():
+    """A departing estimate is the frame's own ("alone": its relit face is its own too, the running one carried
+    past it), a lone one is not followed, CONFIRM in a row are ("changed": the relit face's running change starts
+    again), and an estimate near the running light is averaged in ("carried")."""
     s = LightSmoother()
     a, b = light_from_angles(30, 0), light_from_angles(-30, 0)
-    for _ in range(5):
+    s.update(a)
+    assert s.state == "changed"  # the first: nothing before it
+    for _ in range(4):
         s.update(a)
-    assert angle_deg(s.update(b), b) < 1e-3  # a departing frame is fitted under its own estimate
+    assert s.state == "carried"
+    assert angle_deg(s.update(b), b) < 1e-3 and s.state == "alone"  # a departing frame: fitted under its own
     assert angle_deg(s.update(a), a) < 1e-3 and angle_deg(s.light, a) < 1e-3  # a lone outlier: not followed
+    assert s.state == "carried"
+    states = []
     for _ in range(CONFIRM):
         s.update(b)
+        states.append(s.state)
     assert angle_deg(s.light, b) < 1e-3  # CONFIRM frames in a row: a real change, followed
+    assert states == ["alone"] * (CONFIRM - 1) + ["changed"]
+    s.update(light_from_angles(-20, 0), shown=True)
+    assert s.state == "changed"
 
 
 def test_a_change_of_light_the_photo_shows_is_taken_at_once():

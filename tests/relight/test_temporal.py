@@ -128,6 +128,22 @@ def test_a_change_the_photo_shows_is_the_frames_own_at_once():
     assert abs(float(np.mean(steadied.relit[left])) / float(np.mean(2.0 * lit[left])) - 1.0) < 0.05
 
 
+def test_a_frame_relit_under_its_own_light_is_its_own_and_the_carry_passes_it_by():
+    """A frame fitted under its own estimate, which left the clip's running light (``alone``: a departure not yet
+    confirmed), keeps its own change (3, where the running change is 2), and the frames after it are steadied by the
+    running change from before it, untouched by its own: the next frame at 2 comes back at 2 (carried through it, it
+    would come back 0.3 of the way to 3)."""
+    image = photo()
+    carried = None
+    for _ in range(6):
+        _, carried = T.steady_layer(layer(image, 2.0), image, EYES, carried)
+    alone, kept = T.steady_layer(layer(image, 3.0), image, EYES, carried, alone=True)
+    assert kept is carried
+    assert abs(centre_level(alone, image) - 3.0) < 0.02
+    after, _ = T.steady_layer(layer(image, 2.0), image, EYES, kept)
+    assert abs(centre_level(after, image) - 2.0) < 0.02
+
+
 def test_an_exposure_is_not_a_change_of_light():
     """The photo's overall level steps by 10 % from frame to frame (a camera's exposure) while the fit's change
     jitters: the jitter is still averaged (the photo shows no change of light), and the relit face follows the
