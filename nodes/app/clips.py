@@ -95,10 +95,10 @@ def frame_line(frame: Frame) -> dict:
     """A clip frame's line of ``frames.jsonl``: index, time (s), status, and its faces as ``summary.json`` lists a
     photo's (``face_record``: box, eyes, pose, status, light), each with the light estimated on that frame alone
     (``light_raw``) when the clip's running light replaced it, how its yaw was read (``yaw_read``: by the fit on
-    this frame, or carried from the last frame that read it), ``light_changed`` true on a frame whose light changed
-    (its photo showed it, ``relight.temporal.light_shown_changed``, or its estimates confirmed it: its light taken
-    at once and its relit face its own, the steadying started again from it), and ``light_alone`` true on a frame
-    fitted and relit under its own estimate, which left the running light (a departure, not yet confirmed)."""
+    this frame, or carried from the last frame that read it), ``light_changed`` true on a frame whose photo
+    showed its light changed (``relight.temporal.light_shown_changed``: relit as alone, its light taken at once), and
+    ``light_alone`` true on a frame relit alone under its own estimate, which left the running light as the frame
+    before's did (``app.steady.LightSmoother``)."""
     clip = frame.meta["clip"]
     faces = []
     for part in frame.parts:

@@ -25,6 +25,11 @@ JUMP_DEG = 15.0
 # (``temporal.LIGHT_SHOWN``: three quarters of the face brighter or darker by an eighth against the rest) is taken
 # at once;
 CONFIRM = 3
+# AGREE_DEG: a departure within this of the departure before it is the light that moved, not the estimate's noise:
+# the frame's relit face is its own, not the running one made under the light before (a light held two frames read
+# 0.0-0.2 degrees apart; a webcam clip's departures under a still light, 5-13 degrees apart, relit alone flickered 2.6
+# times as much; consecutive frames' estimates under a still light: 1-2 degrees apart on median)
+AGREE_DEG = 3.0
 # TRACK_MATCH: a face is the same as one of the frame before when its box's centre moved less than this many of
 # its box's sides; TRACK_MEMORY: a face unseen this many frames is forgotten (its light starts afresh).
 TRACK_MATCH = 0.5
@@ -52,8 +57,10 @@ def _unit(v: np.ndarray) -> np.ndarray:
 class LightSmoother:
     """One face's light over a clip's frames: ``update(raw)`` takes the frame's estimate (a vector toward the light)
     and returns the running light (unit), as the constants above say. ``state`` says what the last frame's light
-    was: "carried" (the running light), "alone" (a departure: the frame's own estimate, the running light left as it
-    was) or "changed" (the running light started again: a change the photo shows, or one confirmed)."""
+    was: "carried" (the running light), "departed" (a departure: the frame's own estimate, the running light left as
+    it was), "alone" (the same, within ``AGREE_DEG`` of the departure before it), "confirmed" (the running light took
+    the departures' mean) or "changed" (the running light started again: a change the photo shows, or the first
+    frame)."""
 
     def __init__(self, alpha: float = ALPHA, jump_deg: float = JUMP_DEG, confirm: int = CONFIRM):
         self.alpha, self.jump_deg, self.confirm = alpha, jump_deg, confirm
@@ -71,11 +78,12 @@ class LightSmoother:
             # a departure: the frame is fitted under its own estimate (under the running light a switched light
             # fails the fit: "no face found"), and the running light is left as it is until it is confirmed
             self.departed.append(raw)
+            agree = len(self.departed) > 1 and angle_deg(self.departed[-1], self.departed[-2]) < AGREE_DEG
             if len(self.departed) < self.confirm:
-                self.state = "alone"
+                self.state = "alone" if agree else "departed"
                 return raw.copy()
             self.light, self.departed = _unit(np.mean(self.departed[-self.confirm:], axis=0)), []
-            self.state = "changed"
+            self.state = "confirmed"
         else:
             self.departed, self.state = [], "carried"
             self.light = _unit((1.0 - self.alpha) * self.light + self.alpha * raw)
@@ -151,9 +159,9 @@ class SteadyLightNode:
             shown = track.shown_change(face, index)
             track.box, track.seen = box, index
             light = track.smoother.update(face.data["light"], shown)
-            # the relit face's running change follows its light (``SteadyRelightNode``): started again where the
-            # light was (on a track's first frame there is none to start again), left aside on a departure's frame
-            face.meta["light_changed"] = track.smoother.state == "changed" and index != track.born
+            # the relit face's running change (``SteadyRelightNode``) starts again where the photo shows the light
+            # changed, and passes by a frame relit under a light of its own that agrees with the frame before's
+            face.meta["light_changed"] = shown
             face.meta["light_alone"] = track.smoother.state == "alone"
             face.meta.update(track=track.number, track_age=index - track.born,
                              view_refresh=track.view_refresh(index, light))

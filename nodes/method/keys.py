@@ -85,11 +85,11 @@ META: dict[str, tuple[str, str]] = {
     "light_raw": ("[x, y, z] a clip's face's light estimated on its frame alone, before steadying", "steady"),
     "track": ("which face of a clip this is over its frames (a number, from 0 in each clip)", "steady"),
     "track_age": ("how many frames of its clip a face has been tracked before this one", "steady"),
-    "light_changed": ("whether a clip's face's light changed since the frame before: its photo shows it "
-                      "(``relight.temporal.light_shown_changed``), or its estimates confirmed it (``app.steady``)",
-                      "steady"),
-    "light_alone": ("whether a clip's face was fitted under its frame's own light, which left the running light "
-                    "(a departure, not yet confirmed: ``app.steady.LightSmoother``)", "steady"),
+    "light_changed": ("whether a clip's face's photo shows its light changed since the frame before "
+                      "(``relight.temporal.light_shown_changed``)", "steady"),
+    "light_alone": ("whether a clip's face is relit under its frame's own light, which left the running light as the "
+                    "frame before's did (a departure that agrees with the one before: ``app.steady.LightSmoother``)",
+                    "steady"),
     "view_refresh": ("whether a clip's face near frontal reads its view (and yaw) with the fit on this frame: True, "
                      "\"light\" (its light moved since the last reading), or False (the yaw read before is carried)",
                      "steady"),

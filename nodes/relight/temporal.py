@@ -178,10 +178,10 @@ def steady_layer(layer: FaceLayer, photo: np.ndarray, eyes: np.ndarray, before: 
                  alpha: float = ALPHA, light_changed: bool = False, alone: bool = False) -> tuple[FaceLayer, Carried]:
     """One frame's ``layer`` of a face steadied by the face's running coarse change ``before`` (None: the first
     frame, kept as it is): ``(layer, carried)``, the carried change for the next frame. ``photo`` (h, w, C) linear,
-    the layer's box of the photo; ``eyes`` (2, 2) photo pixels; ``light_changed``: the face's light changed since the
-    frame before (the photo shows it, ``light_shown_changed``, or its estimates confirmed it): the frame is kept as
-    it is, and the running change starts again from its own; ``alone``: the frame was relit under a light of its own
-    (a departure from the running light, not confirmed): kept as it is, the running change carried past it."""
+    the layer's box of the photo; ``eyes`` (2, 2) photo pixels; ``light_changed``: the photo shows the light changed
+    since the frame before (``light_shown_changed``): the frame is kept as it is, and the running change starts again
+    from its own; ``alone``: the frame was relit under a light of its own (``app.steady.LightSmoother``'s "alone"):
+    kept as it is, the running change carried past it."""
     if alone and before is not None:
         return layer, before
     _, iod, _, _ = eye_axes(eyes)

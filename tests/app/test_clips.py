@@ -198,9 +198,10 @@ def test_smoothing_steadies_a_noisy_light_and_follows_a_switch(tmp_path):
 
 
 def test_light_smoother_holds_an_outlier_and_follows_a_change():
-    """A departing estimate is the frame's own ("alone": its relit face is its own too, the running one carried
-    past it), a lone one is not followed, CONFIRM in a row are ("changed": the relit face's running change starts
-    again), and an estimate near the running light is averaged in ("carried")."""
+    """A departing estimate is the frame's own ("departed"; one that agrees with the departure before it "alone": its
+    relit face is its own too, the running one carried past it), a lone one is not followed, CONFIRM in a row are
+    ("confirmed"), a change the photo shows is taken at once ("changed"), and an estimate near the running light is
+    averaged in ("carried")."""
     s = LightSmoother()
     a, b = light_from_angles(30, 0), light_from_angles(-30, 0)
     s.update(a)
@@ -208,7 +209,7 @@ def test_light_smoother_holds_an_outlier_and_follows_a_change():
     for _ in range(4):
         s.update(a)
     assert s.state == "carried"
-    assert angle_deg(s.update(b), b) < 1e-3 and s.state == "alone"  # a departing frame: fitted under its own
+    assert angle_deg(s.update(b), b) < 1e-3 and s.state == "departed"  # a departing frame: fitted under its own
     assert angle_deg(s.update(a), a) < 1e-3 and angle_deg(s.light, a) < 1e-3  # a lone outlier: not followed
     assert s.state == "carried"
     states = []
@@ -216,9 +217,17 @@ def test_light_smoother_holds_an_outlier_and_follows_a_change():
         s.update(b)
         states.append(s.state)
     assert angle_deg(s.light, b) < 1e-3  # CONFIRM frames in a row: a real change, followed
-    assert states == ["alone"] * (CONFIRM - 1) + ["changed"]
+    assert states == ["departed"] + ["alone"] * (CONFIRM - 2) + ["confirmed"]
     s.update(light_from_angles(-20, 0), shown=True)
     assert s.state == "changed"
+    # departures that do not agree with each other (a webcam face's estimates, 5-13 degrees apart): each the frame's
+    # own light, none relit alone, the running light their mean
+    states = []
+    for azimuth in (20, 28, 12):
+        s.update(light_from_angles(azimuth, 0))
+        states.append(s.state)
+    assert states == ["departed", "departed", "confirmed"]
+    assert angle_deg(s.light, light_from_angles(20, 0)) < 1.0
 
 
 def test_a_change_of_light_the_photo_shows_is_taken_at_once():
