@@ -67,6 +67,36 @@ class ClipFrame:
     error: str | None = None
 
 
+# a container's average frame rate more than this many times its codec's guessed rate is read off broken timestamps
+# (every frame's at 0 read as 1000 frames a second): the guessed rate is the clip's
+RATE_MISMATCH = 4.0
+
+
+def clip_rate(average: Fraction | None, guessed: Fraction | None) -> Fraction:
+    """A clip's frame rate from its stream's ``average`` rate (measured off its timestamps) and ``guessed`` rate (the
+    codec's): the average, unless it is missing or ``RATE_MISMATCH`` times off the guessed one; else 25."""
+    if average and guessed and not 1.0 / RATE_MISMATCH <= float(average) / float(guessed) <= RATE_MISMATCH:
+        return Fraction(guessed)
+    return Fraction(average or guessed or 25)
+
+
+class _FrameTimes:
+    """Each frame's ``(pts, time)`` as the clip gives them, or, where it gives none or one not after the last (a clip
+    whose every frame says 0, as some tools write them), one frame period after the last: frames written at one time
+    cannot be muxed (the relit clip failed with "Invalid argument"), and ``frames.jsonl`` would say they are."""
+
+    def __init__(self, time_base: Fraction, rate: Fraction):
+        self.tb = Fraction(time_base)
+        self.step = max(1, round(1 / (Fraction(rate) * self.tb)))  # a frame period, in the time base's ticks
+        self.last: int | None = None
+
+    def next(self, pts: int | None) -> tuple[int, float]:
+        if pts is None or (self.last is not None and pts <= self.last):
+            pts = 0 if self.last is None else self.last + self.step
+        self.last = pts
+        return pts, float(pts * self.tb)
+
+
 class ClipReader:
     """The clip at ``path`` opened (``av.FFmpegError`` / ``OSError`` when it cannot be, or has no video); iterate
     it for ``ClipFrame``s, one at a time (never the whole clip); ``close()`` after."""
@@ -82,7 +112,7 @@ class ClipReader:
             self.stream = self.container.streams.video[0]
             self.stream.thread_type = "AUTO"
             ctx = self.stream.codec_context
-            rate = self.stream.average_rate or self.stream.guessed_rate or Fraction(25)
+            rate = clip_rate(self.stream.average_rate, self.stream.guessed_rate)
             self.info = ClipInfo(int(ctx.width), int(ctx.height), Fraction(rate), int(self.stream.frames or 0),
                                  Fraction(self.stream.time_base or Fraction(1, 90000)),
                                  bool(self.container.streams.audio))
@@ -96,20 +126,20 @@ class ClipReader:
         import av
 
         index, tb = 0, self.stream.time_base or Fraction(1, 90000)
-        period = 1.0 / float(self.info.rate)
+        times = _FrameTimes(tb, self.info.rate)
         for packet in self.container.demux(self.stream):
             try:
                 decoded = packet.decode()
             except av.FFmpegError as exc:  # a damaged packet: its frame is one line, the clip goes on
                 if packet.size:
-                    time = float(packet.pts * tb) if packet.pts is not None else index * period
+                    pts, time = times.next(packet.pts)
                     why = getattr(exc, "strerror", None) or str(exc)
-                    yield ClipFrame(index, time, packet.pts, None, " ".join(why.split()))
+                    yield ClipFrame(index, time, pts, None, " ".join(why.split()))
                     index += 1
                 continue
             for frame in decoded:
-                time = float(frame.pts * tb) if frame.pts is not None else index * period
-                yield ClipFrame(index, time, frame.pts, frame.to_ndarray(format="rgb24"))
+                pts, time = times.next(frame.pts)
+                yield ClipFrame(index, time, pts, frame.to_ndarray(format="rgb24"))
                 index += 1
 
     def close(self) -> None:
@@ -133,6 +163,7 @@ class ClipEncoder:
         even = info.width % 2 == 0 and info.height % 2 == 0
         self.video.pix_fmt = "yuv420p" if even else "yuv444p"
         self.video.time_base = info.time_base
+        self.video.codec_context.time_base = info.time_base
         # no B-frames: with them a clip of uneven frame times (a phone's: its first two frames 11 ms apart, then 40)
         # got packets whose decode times ran backwards, which MP4 refuses ("Invalid argument"); files 17 % larger
         self.video.options = {"crf": "18", "preset": "veryfast", "bf": "0"}

@@ -203,7 +203,7 @@ class ClipSink:
         self.out, self.extra_lights = out, tuple(extra_lights)
         self.ledger, self.recording, self.progress = ledger, recording, progress
         self.open: dict[str, _ClipOut] = {}
-        self.failed: set[str] = set()  # clips that could not be written: their other frames pass
+        self.failed: dict[str, str] = {}  # clips that could not be written, and why: their other frames pass
 
     def done(self, frame: Frame) -> None:
         clip, ledger = frame.meta["clip"], self.ledger
@@ -220,8 +220,10 @@ class ClipSink:
             ledger.out_of_storage(cannot_write(exc.filename or self.out / stem, exc))
         except Exception as exc:  # noqa: BLE001 - an encoder's refusal: the clip fails alone
             self.abort_clip(stem)
-            self.failed.add(stem)
-            self.progress.write(f"error: {clip['source']}: cannot write its relit clip ({' '.join(str(exc).split())})")
+            self.failed[stem] = f"{clip['source']}: cannot write its relit clip ({' '.join(str(exc).split())})"
+            self.progress.write(f"error: {self.failed[stem]}")
+            if clip.get("end"):
+                self._passed(frame, stem)
         finally:
             frame.drop_data()
 
@@ -250,16 +252,26 @@ class ClipSink:
         self._keep(frame, clip_out.record(frame))
 
     def _passed(self, frame: Frame, stem: str) -> None:
-        if frame.meta["clip"].get("end"):
-            self.failed.discard(stem)
+        """A frame of a clip that could not be written, passed by; at its end, the clip's record kept as failed (said
+        once already: its files were removed), so summary.json, the report and the terminal's count name it."""
+        clip = frame.meta["clip"]
+        if clip.get("end"):
+            info = ClipInfo.from_meta(clip["info"])
+            self._keep(frame, json_safe({
+                "source": frame.source, "stem": frame.meta["stem"], "status": self.failed.pop(stem),
+                "clip": {"frames": info.frames, "width": info.width, "height": info.height,
+                         "fps": round(float(info.rate), 6), "audio": info.audio, "frame_status": {},
+                         "faces_per_frame": {}},
+                "seconds": 0.0, "faces": []}), said=True)
 
-    def _keep(self, frame: Frame, rec: dict) -> None:
+    def _keep(self, frame: Frame, rec: dict, said: bool = False) -> None:
+        """``rec`` kept in the run's books; its status lines said unless they were (``said``)."""
         ledger = self.ledger
         if not ledger.stored(frame.meta["stem"], rec):
             return
         ledger.journal_entry(frame, rec)
         ledger.save_summary()
-        for line in status_lines(rec):
+        for line in [] if said else status_lines(rec):
             self.progress.write(line)
         counts = rec["clip"]["frame_status"]
         others = sum(n for why, n in counts.items() if why != "ok" and not why.startswith("doubtful"))

@@ -428,10 +428,63 @@ def test_a_clip_whose_first_frames_come_unevenly_is_written_whole(tmp_path):
             frame.pts, frame.time_base = pts, Fraction(1, 25000)
             out.mux(video.encode(frame))
         out.mux(video.encode(None))
+    with av.open(str(src)) as raw:
+        stamps = [f.time for f in raw.decode(video=0)]
+    assert stamps[0] == stamps[1]  # (two frames at one time, as that phone's clip read back)
     given = [f.time for f in ClipReader(src)]
-    assert given[0] == given[1]  # (two frames at one time, as that phone's clip read back)
+    assert given == sorted(set(given))  # (read one after the other: the second a frame period after the first)
     got = [f.time for f in ClipReader(_copied(src, tmp_path / "copy.mp4"))]
     assert len(got) == len(given) == 24 and got == sorted(got) and got[-1] == pytest.approx(given[-1], abs=0.05)
+
+
+def test_a_clip_whose_frames_all_say_time_zero_is_read_at_its_rate_and_written_whole(tmp_path):
+    """A clip whose every frame says time 0 (as a tool that sets no frame times writes it; its average rate read off
+    them as 8 times the codec's, a 40-frame cut's as 1000 a second): its frames are read one period apart at the
+    codec's rate, and its relit clip is written whole (it failed with "Invalid argument": frames at one time cannot
+    be muxed)."""
+    src = tmp_path / "untimed.mp4"
+    with av.open(str(src), "w") as out:
+        video = out.add_stream("libx264", rate=RATE)
+        video.width = video.height = 64
+        video.pix_fmt = "yuv420p"
+        for i in range(8):
+            image = np.full((64, 64, 3), 30 * i, np.uint8)
+            image[:, : 4 + 6 * i] = 255  # a moving edge: frames the encoder does not skip
+            frame = av.VideoFrame.from_ndarray(image, format="rgb24")
+            frame.pts = 0
+            out.mux(video.encode(frame))
+        out.mux(video.encode(None))
+    with av.open(str(src)) as given:
+        assert {f.pts for f in given.decode(video=0)} == {0}  # (as such a tool writes it)
+    reader = ClipReader(src)
+    assert reader.info.rate == RATE
+    reader.close()
+    got = [f.time for f in ClipReader(_copied(src, tmp_path / "copy.mp4"))]
+    assert got == pytest.approx([i / RATE for i in range(8)], abs=1e-3)
+
+
+def test_a_clip_that_cannot_be_written_is_a_failed_clip_in_every_count(tmp_path, monkeypatch, capsys):
+    """A clip whose encoder refuses its frames fails alone, said once, and is kept as a failed clip: in summary.json
+    (why), in the terminal's count and the exit code; its half-written files are gone (it was left out of every
+    count: "0 photos (0 ok, 0 doubtful, 0 failed)")."""
+    from shadowflow.nodes.app import clip_io
+    from shadowflow.nodes.app.cli import main
+
+    def refuse(self, rgb, pts, time):
+        raise ValueError("the encoder refuses this frame")
+
+    monkeypatch.setattr(clip_io.ClipEncoder, "write", refuse)
+    src = _plain_clip(tmp_path / "plain.mp4", (64, 48), None)
+    out = tmp_path / "out"
+    code = main(["run", str(src), "--out", str(out), "--record", "none"])
+    said = capsys.readouterr()
+    assert code != 0
+    (rec,) = json.loads((out / "summary.json").read_text())
+    assert rec["stem"] == "plain" and rec["clip"]["frames"] == 4
+    assert rec["status"] == f"{src}: cannot write its relit clip (the encoder refuses this frame)"
+    assert "1 clip (0 ok, 1 failed)" in said.out + said.err
+    assert (said.out + said.err).count("cannot write its relit clip") == 1
+    assert not any((out / "plain").glob("*.mp4")) and not any((out / "plain").glob(".*.tmp"))
 
 
 def test_a_clips_steadying_takes_its_frames_in_order_whatever_the_workers(tmp_path, procedural_model):
