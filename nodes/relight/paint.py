@@ -21,7 +21,7 @@ FILL_DETAIL = 1.0
 FILL_DETAIL_AXIS = (0.1, 0.4)  # (the old axis distances 0.05-0.2, doubled)
 # ... on skin, only the band of it between these scales, in model pixels (finer is the other side's own pores)
 FILL_DETAIL_BAND = (0.6, 1.5)
-# an eye is painted (with the lit eye's detail) when the median of its region's ``lift.precision`` is past this
+# an eye is painted (with the lit eye's detail) when the median of its opening's ``lift.precision`` is past this
 DEEP_EYE = 0.15
 
 
@@ -53,16 +53,28 @@ class Paint:
         self.albedo = self._albedo()
 
     def _deep_eyes(self, iod_px: float) -> np.ndarray:
-        """(h, w) bool: the eyes (grown by ``EYE_MARGIN``) whose region holds no signal for the most part (its median
-        ``precision`` past ``DEEP_EYE``), where a face mesh drew them and the lit eye's detail is known."""
-        out = np.zeros(self.at.shape, bool)
+        """(h, w) bool: the eyes (grown by ``EYE_MARGIN``) deep in a shadow (``deep_eyes``), where a face mesh drew
+        them and the lit eye's detail is known."""
         if self.eyes is None:
-            return out
-        for eye in self.at.features.eyes:
-            region = self.at.outlined([eye], EYE_MARGIN * iod_px) & self.at.face
-            if region.any() and float(np.median(self.shown.relative[region])) > DEEP_EYE:
-                out |= region
-        return out
+            return np.zeros(self.at.shape, bool)
+        at = self.at
+        regions = [at.outlined([eye], EYE_MARGIN * iod_px) & at.face for eye in at.features.eyes]
+        openings = [at.outlined([eye], 0.0) & at.face for eye in at.features.eyes]
+        return deep_eyes(self.shown.relative, regions, openings)
+
+
+def deep_eyes(relative: np.ndarray, regions: list[np.ndarray], openings: list[np.ndarray]) -> np.ndarray:
+    """(h, w) bool: the union of the eyes' ``regions`` ((h, w) bool each: an eye grown over its lids and lashes) whose
+    own opening (``openings``, (h, w) bool each, as the face mesh drew it) holds no signal for the most part: its
+    median ``relative`` (``lift.precision``, (h, w)) past ``DEEP_EYE`` (the region's, for an opening under 20 pixels).
+    Judged on the band grown around it, an eye the photo shows (a socket's shade, hair over a brow beside it) was
+    taken for deep and came back pasted over with the lit eye's detail."""
+    out = np.zeros(np.shape(relative), bool)
+    for region, opening in zip(regions, openings):
+        judged = opening if opening.sum() >= 20 else region
+        if region.any() and float(np.median(relative[judged])) > DEEP_EYE:
+            out |= region
+    return out
 
     def _matched(self, expected: np.ndarray) -> np.ndarray:
         """(h, w, C) the ``expected`` albedo brought to the level and colour the photo's own skin shows around it where

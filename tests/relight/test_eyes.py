@@ -31,3 +31,24 @@ def test_an_untrusted_eye_takes_the_lit_eyes_pattern_mirrored_across_the_face():
     np.testing.assert_allclose(out[50, 95], 0.5, atol=1e-6)  # the skin beyond the eye
     np.testing.assert_array_equal(out[:, :60], fill[:, :60])
     np.testing.assert_array_equal(EyeDetail(photo, shading, EYES, contrast=0.0).apply(fill, trust), fill)
+
+
+def test_an_eye_is_deep_by_its_own_opening_not_the_shade_around_it():
+    """Two eyes in a band of shade at the noise floor (``precision`` 0.4, past ``DEEP_EYE``): the one whose opening
+    holds signal (0.06, its iris and white seen) is not painted, however dark the band around it (its grown region's
+    median is the band's); the one whose opening is as deep as the band is, all of its region."""
+    from shadowflow.nodes.relight.paint import DEEP_EYE, deep_eyes
+
+    yy, xx = np.mgrid[:60, :120]
+    relative = np.full((60, 120), 0.4, np.float32)
+    seen_opening = np.hypot((xx - 30) / 10.0, (yy - 30) / 4.0) < 1.0
+    deep_opening = np.hypot((xx - 90) / 10.0, (yy - 30) / 4.0) < 1.0
+    relative[seen_opening] = 0.06
+    regions = [np.hypot((xx - c) / 18.0, (yy - 30) / 12.0) < 1.0 for c in (30, 90)]
+    assert np.median(relative[regions[0]]) > DEEP_EYE  # (judged by its region, the seen eye was deep)
+    deep = deep_eyes(relative, regions, [seen_opening, deep_opening])
+    assert not deep[regions[0]].any() and deep[regions[1]].all() and deep.sum() == regions[1].sum()
+    # an opening too small to judge: its region says
+    tiny = np.zeros_like(seen_opening)
+    tiny[30, 30] = True
+    assert deep_eyes(relative, regions[:1], [tiny])[regions[0]].all()
