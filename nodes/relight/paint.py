@@ -62,20 +62,6 @@ class Paint:
         openings = [at.outlined([eye], 0.0) & at.face for eye in at.features.eyes]
         return deep_eyes(self.shown.relative, regions, openings)
 
-
-def deep_eyes(relative: np.ndarray, regions: list[np.ndarray], openings: list[np.ndarray]) -> np.ndarray:
-    """(h, w) bool: the union of the eyes' ``regions`` ((h, w) bool each: an eye grown over its lids and lashes) whose
-    own opening (``openings``, (h, w) bool each, as the face mesh drew it) holds no signal for the most part: its
-    median ``relative`` (``lift.precision``, (h, w)) past ``DEEP_EYE`` (the region's, for an opening under 20 pixels).
-    Judged on the band grown around it, an eye the photo shows (a socket's shade, hair over a brow beside it) was
-    taken for deep and came back pasted over with the lit eye's detail."""
-    out = np.zeros(np.shape(relative), bool)
-    for region, opening in zip(regions, openings):
-        judged = opening if opening.sum() >= 20 else region
-        if region.any() and float(np.median(relative[judged])) > DEEP_EYE:
-            out |= region
-    return out
-
     def _matched(self, expected: np.ndarray) -> np.ndarray:
         """(h, w, C) the ``expected`` albedo brought to the level and colour the photo's own skin shows around it where
         it holds signal (``usable``), the photo over the light it shows, averaged over ``MATCH_SIGMA``: a fill meets
@@ -130,3 +116,17 @@ def deep_eyes(relative: np.ndarray, regions: list[np.ndarray], openings: list[np
         measured = self.at.photo / self.shown.photo_lighting
         u = self.shown.usable[..., None]
         return np.where(self.at.face[..., None], u * measured + (1.0 - u) * self.fill, np.nan).astype(np.float32)
+
+
+def deep_eyes(relative: np.ndarray, regions: list[np.ndarray], openings: list[np.ndarray]) -> np.ndarray:
+    """(h, w) bool: the union of the eyes' ``regions`` ((h, w) bool each: an eye grown over its lids and lashes) whose
+    own opening (``openings``, (h, w) bool each, as the face mesh drew it) holds no signal for the most part: its
+    median ``relative`` (``lift.precision``, (h, w)) past ``DEEP_EYE`` (the region's, for an opening under 20 pixels).
+    Judged on the band grown around it, an eye the photo shows (a socket's shade, hair over a brow beside it) was
+    taken for deep and came back pasted over with the lit eye's detail."""
+    out = np.zeros(np.shape(relative), bool)
+    for region, opening in zip(regions, openings):
+        judged = opening if opening.sum() >= 20 else region
+        if region.any() and float(np.median(relative[judged])) > DEEP_EYE:
+            out |= region
+    return out
