@@ -120,6 +120,7 @@ class _ClipOut:
     what its record counts."""
 
     def __init__(self, folder: Path, info: ClipInfo, source: str, extra_lights):
+        self.made = not folder.exists()  # (a folder made for the clip is taken away with it when it fails)
         folder.mkdir(parents=True, exist_ok=True)
         self.folder, self.info, self.source = folder, info, source
         names = ("relit.mp4", *(clip_relit_name(light) for light in extra_lights))
@@ -173,6 +174,11 @@ class _ClipOut:
         if hasattr(self, "lines"):
             self.lines.close()
             self.lines_tmp.unlink(missing_ok=True)
+        if self.made:
+            try:
+                self.folder.rmdir()
+            except OSError:
+                pass  # not empty (a frame's own files, --frames): they stay
 
     def record(self, end: Frame) -> dict:
         """The clip's ``summary.json`` record: ok when any frame had a face that came through."""
