@@ -212,8 +212,13 @@ class ClipSink:
         self.failed: dict[str, str] = {}  # clips that could not be written, and why: their other frames pass
 
     def done(self, frame: Frame) -> None:
-        clip, ledger = frame.meta["clip"], self.ledger
-        stem = clip["stem"]
+        clip = frame.meta["clip"]
+        try:
+            self._done(frame, clip["stem"], clip)
+        finally:
+            frame.drop_data()
+
+    def _done(self, frame: Frame, stem: str, clip: dict, again: bool = False) -> None:
         try:
             if stem in self.failed:
                 self._passed(frame, stem)
@@ -223,15 +228,13 @@ class ClipSink:
                 self._frame(frame, stem, clip)
         except OSError as exc:
             self.abort_clip(stem)
-            ledger.out_of_storage(cannot_write(exc.filename or self.out / stem, exc))
+            self.ledger.out_of_storage(cannot_write(exc.filename or self.out / stem, exc))
         except Exception as exc:  # noqa: BLE001 - an encoder's refusal: the clip fails alone
             self.abort_clip(stem)
             self.failed[stem] = f"{clip['source']}: cannot write its relit clip ({' '.join(str(exc).split())})"
             self.progress.write(f"error: {self.failed[stem]}")
-            if clip.get("end"):
-                self._passed(frame, stem)
-        finally:
-            frame.drop_data()
+            if clip.get("end") and not again:  # its last frame: its record kept now, as a frame after it would
+                self._done(frame, stem, clip, again=True)
 
     def _frame(self, frame: Frame, stem: str, clip: dict) -> None:
         line = frame_line(frame)
@@ -254,7 +257,11 @@ class ClipSink:
         clip_out = self.open.pop(stem, None)
         if clip_out is None:  # a clip without a frame
             clip_out = _ClipOut(self.out / stem, ClipInfo.from_meta(clip["info"]), clip["source"], self.extra_lights)
-        clip_out.finish()
+        try:
+            clip_out.finish()
+        except BaseException:  # (no longer open: its temporary files removed here, or they stayed)
+            clip_out.abort()
+            raise
         self._keep(frame, clip_out.record(frame))
 
     def _passed(self, frame: Frame, stem: str) -> None:

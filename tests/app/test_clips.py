@@ -463,17 +463,19 @@ def test_a_clip_whose_frames_all_say_time_zero_is_read_at_its_rate_and_written_w
     assert got == pytest.approx([i / RATE for i in range(8)], abs=1e-3)
 
 
-def test_a_clip_that_cannot_be_written_is_a_failed_clip_in_every_count(tmp_path, monkeypatch, capsys):
-    """A clip whose encoder refuses its frames fails alone, said once, and is kept as a failed clip: in summary.json
-    (why), in the terminal's count and the exit code; its half-written files and their folder are gone (it was left
-    out of every count: "0 photos (0 ok, 0 doubtful, 0 failed)", and an empty folder was left)."""
+@pytest.mark.parametrize("refused", ["write", "finish"])
+def test_a_clip_that_cannot_be_written_is_a_failed_clip_in_every_count(tmp_path, monkeypatch, capsys, refused):
+    """A clip whose encoder refuses its frames (or its end) fails alone, said once, and is kept as a failed clip: in
+    summary.json (why), in the terminal's count and the exit code; its half-written files and their folder are gone
+    (it was left out of every count: "0 photos (0 ok, 0 doubtful, 0 failed)", and an empty folder was left; refused
+    at its end, its temporary files stayed too)."""
     from shadowflow.nodes.app import clip_io
     from shadowflow.nodes.app.cli import main
 
-    def refuse(self, rgb, pts, time):
+    def refuse(self, *args):
         raise ValueError("the encoder refuses this frame")
 
-    monkeypatch.setattr(clip_io.ClipEncoder, "write", refuse)
+    monkeypatch.setattr(clip_io.ClipEncoder, refused, refuse)
     src = _plain_clip(tmp_path / "plain.mp4", (64, 48), None)
     out = tmp_path / "out"
     code = main(["run", str(src), "--out", str(out), "--record", "none"])
