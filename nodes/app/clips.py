@@ -183,14 +183,21 @@ class _ClipOut:
     def record(self, end: Frame) -> dict:
         """The clip's ``summary.json`` record: ok when any frame had a face that came through."""
         ok = sum(n for s, n in self.status.items() if s == "ok" or s.startswith("doubtful"))
-        i = self.info
-        return json_safe({
-            "source": end.source, "stem": end.meta["stem"],
-            "status": "ok" if ok else f"{end.source}: no face in any of its {self.frames} frames",
-            "clip": {"frames": self.frames, "width": i.width, "height": i.height, "fps": round(float(i.rate), 6),
-                     "audio": i.audio, "frame_status": dict(self.status),
-                     "faces_per_frame": {str(k): n for k, n in sorted(self.faces.items())}},
-            "seconds": round(self.seconds, 4), "faces": []})
+        return clip_record(end, self.info, "ok" if ok else f"{end.source}: no face in any of its {self.frames} frames",
+                           self.frames, self.status, self.faces, self.seconds)
+
+
+def clip_record(end: Frame, info: ClipInfo, status: str, frames: int, frame_status: Counter | None = None,
+                faces: Counter | None = None, seconds: float = 0.0) -> dict:
+    """A clip's ``summary.json`` record, made at its ``end`` frame: its ``status``, its size, rate and audio
+    (``info``), how many ``frames`` it had, how many had each status and each number of ``faces``, and the seconds
+    they took."""
+    return json_safe({
+        "source": end.source, "stem": end.meta["stem"], "status": status,
+        "clip": {"frames": frames, "width": info.width, "height": info.height, "fps": round(float(info.rate), 6),
+                 "audio": info.audio, "frame_status": dict(frame_status or {}),
+                 "faces_per_frame": {str(k): n for k, n in sorted((faces or {}).items())}},
+        "seconds": round(seconds, 4), "faces": []})
 
 
 def _reason(status: str, source: str) -> str:
@@ -270,12 +277,7 @@ class ClipSink:
         clip = frame.meta["clip"]
         if clip.get("end"):
             info = ClipInfo.from_meta(clip["info"])
-            self._keep(frame, json_safe({
-                "source": frame.source, "stem": frame.meta["stem"], "status": self.failed.pop(stem),
-                "clip": {"frames": info.frames, "width": info.width, "height": info.height,
-                         "fps": round(float(info.rate), 6), "audio": info.audio, "frame_status": {},
-                         "faces_per_frame": {}},
-                "seconds": 0.0, "faces": []}), said=True)
+            self._keep(frame, clip_record(frame, info, self.failed.pop(stem), info.frames), said=True)
 
     def _keep(self, frame: Frame, rec: dict, said: bool = False) -> None:
         """``rec`` kept in the run's books; its status lines said unless they were (``said``)."""
