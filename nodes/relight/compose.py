@@ -104,8 +104,56 @@ def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach:
     return np.minimum(r, np.maximum(np.float32(hi), level / np.maximum(photo, np.float32(1e-6)))).astype(np.float32)
 
 
+@dataclass(frozen=True)
+class Surround:
+    """What carries a face's change of light into the photo around it whatever the light (``surround``), so each
+    light's ``outside_gain`` pays only for its own relit face: the photo ``img`` (H, W, C); the rim's weights ``w``
+    (H, W, 1), their blur ``support`` (H, W) over ``sigma`` pixels and the photo's ``photo_rim`` (H, W, C), floored;
+    the face's own skin past the model's face (``at`` its pixels, ``reach`` (n, 1) and ``img_at`` (n, C) there, or
+    None); ``whole`` (H, W) bool where the ratio itself applies and ``fade`` (H, W, 1) how far it reaches beyond."""
+
+    img: np.ndarray
+    w: np.ndarray
+    sigma: float
+    support: np.ndarray
+    photo_rim: np.ndarray
+    at: tuple[np.ndarray, np.ndarray] | None
+    reach: np.ndarray | None
+    img_at: np.ndarray | None
+    whole: np.ndarray
+    fade: np.ndarray
+
+
+def surround(photo: np.ndarray, face: np.ndarray, feather_px: float, beyond: np.ndarray | None = None,
+             person: np.ndarray | None = None) -> Surround:
+    """``outside_gain``'s part that no light changes, for ``photo`` (H, W, C), ``face`` (H, W) bool and its
+    arguments."""
+    img = np.atleast_3d(np.asarray(photo, np.float32))
+    sigma = max(feather_px / 2.0, 1.0)
+    rim = face_rim(face, RIM_SHARE * feather_px).astype(np.float32)
+    w = rim[..., None]
+    support = blur(rim, sigma)
+    photo_rim = np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
+    box = beyond_reach_box(beyond, feather_px)
+    at = reach = img_at = None
+    if box is not None:  # the face's own skin and the reach beyond it, pixel by pixel (a thin ring)
+        crop, y0, x0 = box
+        ry, rx = np.nonzero(crop > 0)
+        at = (ry + y0, rx + x0)
+        reach, img_at = crop[ry, rx][:, None], img[at]
+    whole = face if box is None else face | beyond  # where the ratio itself applies
+    # the fade runs from the face's own outline: run from the model's face, it had ended where that outline lies a
+    # feather beyond it (a portrait's cheek), and the skin relit into shadow met the photo's lit edge of the cheek
+    distance = cv2.distanceTransform((~whole).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
+    if person is not None:  # a wall lit up or darkened around a relit face is a halo
+        fade *= np.asarray(person, np.float32)[..., None]
+    return Surround(img, w, sigma, support, photo_rim, at, reach, img_at, whole, fade)
+
+
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float,
-                 beyond: np.ndarray | None = None, person: np.ndarray | None = None) -> np.ndarray:
+                 beyond: np.ndarray | None = None, person: np.ndarray | None = None,
+                 around: Surround | None = None) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
     face's relighting ratio (relit / photo, averaged over the face's rim, ``RIM_SHARE`` of the feather
     wide, within ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
@@ -115,34 +163,20 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     model), which takes the ratio itself, up to ``RATIO_BEYOND`` (``beyond_reach``), the fade running from its
     edge; person (H, W) float in [0, 1]
     or None: how sure a segmentation is that each pixel is the person, not the background: the change of light
-    around the face reaches only as far (hair and neck follow the face, the wall behind it keeps its light)."""
-    img = np.atleast_3d(np.asarray(photo, np.float32))
+    around the face reaches only as far (hair and neck follow the face, the wall behind it keeps its light).
+    around: ``surround`` of these arguments when the caller keeps it for several lights (then they are not read)."""
+    a = surround(photo, face, feather_px, beyond, person) if around is None else around
     relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
-    sigma = max(feather_px / 2.0, 1.0)
-    rim = face_rim(face, RIM_SHARE * feather_px).astype(np.float32)
-    w = rim[..., None]
-    support = blur(rim, sigma)
-    num = blur(relit * w, sigma)
-    ratio = num / np.maximum(blur(img * w, sigma), np.maximum(1e-3 * support, 1e-12)[..., None])
-    box = beyond_reach_box(beyond, feather_px)
-    if box is not None:  # the face's own skin and the reach beyond it, pixel by pixel (a thin ring)
-        reach, y0, x0 = box
-        ry, rx = np.nonzero(reach > 0)
-        at = (ry + y0, rx + x0)
-        beyond_at = beyond_ratio(ratio[at], img[at], num[at] / np.maximum(support[at], 1e-12)[:, None],
-                                 reach[ry, rx][:, None])
+    num = blur(relit * a.w, a.sigma)
+    ratio = num / a.photo_rim
+    if a.at is not None:
+        beyond_at = beyond_ratio(ratio[a.at], a.img_at, num[a.at] / np.maximum(a.support[a.at], 1e-12)[:, None],
+                                 a.reach)
     np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
-    if box is not None:
-        ratio[at] = beyond_at
-    whole = face if box is None else face | beyond  # where the ratio itself applies
-    # the fade runs from the face's own outline: run from the model's face, it had ended where that outline lies a
-    # feather beyond it (a portrait's cheek), and the skin relit into shadow met the photo's lit edge of the cheek
-    distance = cv2.distanceTransform((~whole).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
-    if person is not None:  # a wall lit up or darkened around a relit face is a halo
-        fade *= np.asarray(person, np.float32)[..., None]
-    gain = np.where(whole[..., None], ratio, np.where(fade > 0, 1.0 + fade * (ratio - 1.0), np.float32(1.0))
-                    ).astype(np.float32)
+    if a.at is not None:
+        ratio[a.at] = beyond_at
+    gain = np.where(a.whole[..., None], ratio,
+                    np.where(a.fade > 0, 1.0 + a.fade * (ratio - 1.0), np.float32(1.0))).astype(np.float32)
     return gain
 
 

@@ -166,10 +166,8 @@ class FaceRelight:
         """The face relit by ``light`` (3,), camera frame, as a layer of the photo."""
         at = self.at
         relit = at.in_layer(np.clip(self.relit(light), 0.0, 1.0))
-        return FaceLayer(at.layer_box, at.layer_face, relit,
-                         outside_gain(at.layer_photo, relit, at.layer_face, self.feather, at.layer_beyond,
-                                      at.layer_person),
-                         self.layer_alpha)
+        gain = outside_gain(at.layer_photo, relit, at.layer_face, self.feather, around=at.surround)
+        return FaceLayer(at.layer_box, at.layer_face, relit, gain, self.layer_alpha)
 
     def live_data(self) -> LiveFace:
         """What the page needs to relight this face live (``live.live_relight_data``), on the layer's box: the face and

@@ -3,17 +3,19 @@ photo over (the face and its feather), and the face's parts there (``Features``)
 
 Two boxes: the face's own (``box``: the face and ``INNER_MARGIN``), where the relit face is made, and the layer's
 (``layer_box``: the face and its feather), where only the face's change of light is carried into the photo around
-it (``compose.outside_gain``).
+it (``compose.outside_gain``; the part of it no light changes, ``surround``, is made once here).
 """
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ..geometry.raster import polygon_mask
 from ..photo.align import Alignment, face_box, mask_to_input, scalar_to_input
+from .compose import Surround, surround
 from .fields import grow
 
 # everything but the feather is computed in the face's own box, grown by this many photo pixels
@@ -49,7 +51,7 @@ class FaceBox:
 
     def __init__(self, photo: np.ndarray, alignment: Alignment, mask: np.ndarray, outline: np.ndarray | None,
                  segment: Callable[[np.ndarray], np.ndarray] | None, feather: float, features: Features | None):
-        self.mask = mask
+        self.mask, self.feather = mask, feather
         ly0, ly1, lx0, lx1 = face_box(mask, alignment, photo.shape[:2], margin=2.5 * feather + 4)
         self.layer_box = (ly0, ly1, lx0, lx1)
         self.layer_photo = np.atleast_3d(photo[ly0:ly1, lx0:lx1])
@@ -76,6 +78,12 @@ class FaceBox:
         self.shape = self.photo.shape[:2]
         self.face = self.layer_face[self.inner]
         self.features = features or Features([], [], [], [])
+
+    @cached_property
+    def surround(self) -> Surround:
+        """What carries the face's change of light into the photo around it whatever the light
+        (``compose.surround``), made once for all of the face's lights."""
+        return surround(self.layer_photo, self.layer_face, self.feather, self.layer_beyond, self.layer_person)
 
     def on_photo(self, grid: np.ndarray) -> np.ndarray:
         """(h, w) bool: a (Hm, Wm) bool map on the model grid (``mask``) brought to the box's pixels."""

@@ -15,7 +15,7 @@ from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method.shadow import shadow_maps
 from shadowflow.nodes.model.canonical import canonical_eyes
 from shadowflow.nodes.photo.align import Alignment
-from shadowflow.nodes.relight.compose import FaceLayer, compose
+from shadowflow.nodes.relight.compose import FaceLayer, compose, outside_gain
 from shadowflow.nodes.relight.face import FaceRelight
 from shadowflow.nodes.relight.fields import distance_to
 from shadowflow.nodes.relight.nodes import PhotoRelightNode
@@ -100,6 +100,25 @@ def test_relit_by_a_new_light_the_face_is_the_render_under_it(rendered):
     whole[y0:y1, x0:x1] = face.layer_face
     far = distance_to(whole) > face.feather
     np.testing.assert_array_equal(out[far], rendered.photo[far])
+
+
+def test_each_light_carries_its_own_change_of_light_around_the_face(rendered):
+    """The part of the gain around the face no light changes is made once for all of a face's lights; each layer's
+    gain is still its own light's: equal to the gain made from nothing for that relit face, the photo's own light
+    leaving the surround untouched (1 within a thousandth) and the new light changing it by over 5 % on average."""
+    face = rendered.face
+    at = face.at
+    gains = []
+    for light in (NEW_LIGHT, PHOTO_LIGHT):
+        layer = face.layer(light)
+        fresh = outside_gain(at.layer_photo, layer.relit, at.layer_face, face.feather, at.layer_beyond,
+                             at.layer_person)
+        np.testing.assert_array_equal(layer.gain, fresh)
+        gains.append(layer.gain)
+    around = ~at.layer_face & np.any(gains[0] != 1.0, axis=-1)
+    assert around.sum() > 500
+    assert np.abs(gains[1][around] - 1.0).max() < 1e-3
+    assert np.abs(gains[0][around] - 1.0).mean() > 0.05
 
 
 def test_the_node_flags_a_face_mostly_painted_and_gives_back_an_evenly_lit_face_it_would_harm(rendered):
