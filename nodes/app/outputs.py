@@ -430,7 +430,8 @@ FACE_FIELDS = ("quality", "light", "light_source", "alignment", "iterations", "c
 
 
 # summary.json's "harm" of a face, from the relighting's report: its name there -> its name in the report
-HARM_FIELDS = {"h": "harm", "added_edges": "added_edges", "colour_blotches": "colour_blotches"}
+HARM_FIELDS = {"h": "harm", "added_edges": "added_edges", "colour_blotches": "colour_blotches",
+               "flattened": "flattened"}
 
 
 def face_status(face: Frame) -> str:

@@ -23,6 +23,8 @@ takes edges away (a shadow's rim) and adds none but the new light's own, and a w
 the skin's colour at a fine scale. ``added_edges`` is the share of the face where the relit photo has an edge the input
 has not (a pasted patch's rim, a painted slab's outline); ``colour_blotches`` the RMS of the high-passed
 change of chromaticity (orange or green blotches, coloured speckle in a beard, a grey-blue patch).
+``flattened`` is the share of the face the file holds at its top that the relit face darkens: the file says only
+that it was at least that bright, so darkened it comes back as one flat tone (a grey plateau over a clipped forehead).
 
 Arrays are (H, W) linear luminance or (H, W, 3) linear RGB on the photo's grid; eyes are (2, 2) photo
 pixels ``[[x, y], [x, y]]`` (either order).
@@ -51,6 +53,10 @@ EDGE_STEP = 2.0
 # ``colour_blotches``: a pixel of the input darker than this (linear luminance, a few levels of an 8-bit sRGB file)
 # has no colour to keep: black, or the file's noise
 COLOUR_FLOOR = 0.002
+# ``flattened``: a pixel with a channel at or over this (linear) is at its file's top (255 of an 8-bit sRGB file), and
+# one relit this share darker or more is darkened
+FILE_TOP = 0.995
+DARKENED = 0.1
 
 
 @dataclass(frozen=True)
@@ -188,3 +194,14 @@ def colour_shift(before: np.ndarray, after: np.ndarray, eyes: np.ndarray) -> flo
     m = ellipse.mask
     d = (chromaticity(after, ellipse.box) - chromaticity(before, ellipse.box))[m]
     return 100.0 * float(np.sqrt(np.mean(np.sum(d.astype(np.float64) ** 2, axis=-1)))) if d.size else 0.0
+
+
+def flattened(before: np.ndarray, after: np.ndarray, within: np.ndarray) -> float:
+    """The share (%) of ``within`` (H, W) bool where ``before`` (H, W[, C]) is at its file's top (``FILE_TOP``, any
+    channel) and ``after`` (same shape) is darker by ``DARKENED`` or more (linear luminance): a region the file cut
+    at its top, relit darker, is one flat tone (its texture is what the file cut)."""
+    if not within.any():
+        return 0.0
+    top = np.any(np.atleast_3d(before) >= FILE_TOP, axis=-1)
+    darker = luminance(after) <= (1.0 - DARKENED) * luminance(before)
+    return 100.0 * float(np.count_nonzero(top & darker & within)) / float(np.count_nonzero(within))

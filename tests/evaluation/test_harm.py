@@ -4,7 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from shadowflow.nodes.evaluation.people import contact_sheet, format_table, summarise
-from shadowflow.nodes.relight.harm import added_edges, colour_blotches, colour_shift, face_ellipse, harm, light_move
+from shadowflow.nodes.relight.harm import (
+    added_edges,
+    colour_blotches,
+    colour_shift,
+    face_ellipse,
+    flattened,
+    harm,
+    light_move,
+)
 
 EYES = np.array([[150.0, 160.0], [250.0, 160.0]])  # 100 px apart
 
@@ -199,3 +207,21 @@ def test_a_black_shadow_lifted_to_the_skins_colour_has_no_colour_of_its_own_to_l
     black[_disc((230, 230), 40)] = 0.0
     assert colour_blotches(black, photo, EYES) < 1.0
     assert colour_blotches(black * 0.5, photo, EYES) < 1.0  # a change of level alone, the black still black
+
+
+def test_what_the_file_clipped_relit_darker_is_flattened():
+    """``flattened``: the share of the face at its file's top (a channel at 255) that the relit face darkens by a
+    tenth or more. A clipped disc darkened by the exposure counts whole; darkened by 5 %, brightened, or darkened
+    where the file is not at its top (a hair under it), it does not."""
+    photo = _skin()
+    face = _disc((200, 220), 150)
+    disc = _disc((200, 150), 40)  # 5,000 px of the face's 70,000
+    photo[disc] = [1.0, 0.97, 0.9]  # its red channel at the file's top
+    share = 100.0 * disc.sum() / face.sum()
+    assert flattened(photo, photo * 0.8, face) == pytest.approx(share, rel=1e-6)
+    assert flattened(photo, photo * 0.95, face) == 0.0
+    assert flattened(photo, photo * 1.2, face) == 0.0
+    below = photo.copy()
+    below[disc] = [0.99, 0.97, 0.9]
+    assert flattened(below, below * 0.8, face) == 0.0
+    assert flattened(photo, photo * 0.8, face & ~disc) == 0.0

@@ -54,7 +54,8 @@ def rendered():
     face = FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
                        mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan), depth=depth,
                        light=PHOTO_LIGHT, iod_px=float(eyes[1, 0] - eyes[0, 0]))
-    return SimpleNamespace(face=face, photo=photo, truth=truth, new_cast=new_cast, eyes=eyes + [LEFT, TOP])
+    return SimpleNamespace(face=face, photo=photo, truth=truth, new_cast=new_cast, eyes=eyes + [LEFT, TOP],
+                           normals=normals, lit=shadows.lit)
 
 
 def _box(values, face):
@@ -190,6 +191,35 @@ def test_under_any_light_a_relit_face_with_pasted_patches_comes_back_as_it_was(r
     assert quality["flags"][0].startswith("relit it would add edges") and quality["flags"][0].endswith("as it was")
     np.testing.assert_array_equal(compose(rendered.photo, [layers[0][1]]), rendered.photo)
     assert frame.data["photo_layers_relit"][0][1] is harmful
+
+
+def test_a_face_whose_relit_face_would_darken_what_its_file_clipped_comes_back_as_it_was(rendered):
+    """A cheek the file cut at its top says only that it was at least that bright: relit toward the other side,
+    which darkens that cheek, it would be one flat tone. The face comes back as the photo, bit for bit, ``doubtful``
+    with why (``harm.flattened`` over 5 % of the face); the same face unclipped is relit, nothing flattened."""
+    face = rendered.face
+    frame = Frame(0, "rendered", data={"placement": SimpleNamespace(eyes=rendered.eyes)})
+    report = {"painted": 0.0}
+    PhotoRelightNode._honest(frame, face, [(NEW_LIGHT, face.layer(NEW_LIGHT))], report, {"score": 0.8, "flags": []})
+    assert report["flattened"] == 0.0
+    photo = rendered.photo.copy()
+    y0, y1, x0, x1 = face.box
+    cheek = np.zeros(FRAME, bool)  # the lit (image-right) cheek, below the eyes
+    cheek[y0:y1, x0:x1] = face.face
+    cx, cy = rendered.eyes.mean(axis=0)
+    cheek[:int(cy) + 8] = False
+    cheek[:, :int(cx) + 12] = False
+    photo[cheek] = 1.0
+    clipped = FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                          mask=face.mask,
+                          normals=rendered.normals, lit=rendered.lit, albedo=np.where(face.mask, 0.6, np.nan),
+                          depth=face.depth, light=PHOTO_LIGHT, iod_px=face.iod)
+    layer = clipped.layer(NEW_LIGHT)
+    quality, report = {"score": 0.8, "flags": []}, {"painted": 0.0}
+    layers = PhotoRelightNode._honest(frame, clipped, [(NEW_LIGHT, layer)], report, quality)
+    assert report["flattened"] > 5.0 and quality["score"] == pytest.approx(0.4)
+    assert quality["flags"][0].startswith("relit it would darken") and quality["flags"][0].endswith("as it was")
+    np.testing.assert_array_equal(compose(photo, [layers[0][1]]), photo)
 
 
 def test_a_fit_that_explains_little_is_no_doubt_when_the_relit_face_shows_no_harm(rendered):
