@@ -136,7 +136,8 @@ def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, pair: tupl
     if damage(report) > 1.0:
         return (f"relit it would add edges over {edges:.0f} % of the face and change its colour at a fine scale by "
                 f"{blotches:.0f} % (patches, outlines, blotches): {LEFT}")
-    flat = report["flattened"] = round(flattened(before, after, layer.inside), 2)
+    # the file's own values (``before`` may have the shadows from elsewhere lifted out of it)
+    flat = report["flattened"] = round(flattened(face.layer_photo, after, layer.inside), 2)
     if flat > FLATTENED:
         return (f"relit it would darken {flat:.0f} % of the face where the photo is at its brightest into one flat "
                 f"tone (the file does not hold how bright it was): {LEFT}")
