@@ -107,12 +107,11 @@ def beyond_ratio(ratio: np.ndarray, photo: np.ndarray, level: np.ndarray, reach:
 @dataclass(frozen=True)
 class Surround:
     """What carries a face's change of light into the photo around it whatever the light (``surround``), so each
-    light's ``outside_gain`` pays only for its own relit face: the photo ``img`` (H, W, C); the rim's weights ``w``
+    light pays only for its own relit face (``gain``): the rim's weights ``w``
     (H, W, 1), their blur ``support`` (H, W) over ``sigma`` pixels and the photo's ``photo_rim`` (H, W, C), floored;
     the face's own skin past the model's face (``at`` its pixels, ``reach`` (n, 1) and ``img_at`` (n, C) there, or
     None); ``whole`` (H, W) bool where the ratio itself applies and ``fade`` (H, W, 1) how far it reaches beyond."""
 
-    img: np.ndarray
     w: np.ndarray
     sigma: float
     support: np.ndarray
@@ -122,6 +121,20 @@ class Surround:
     img_at: np.ndarray | None
     whole: np.ndarray
     fade: np.ndarray
+
+    def gain(self, face_image: np.ndarray) -> np.ndarray:
+        """(H, W, C) ``outside_gain`` for the relit face ``face_image`` (H, W, C): the only part a light changes."""
+        relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
+        num = blur(relit * self.w, self.sigma)
+        ratio = num / self.photo_rim
+        if self.at is not None:
+            level = num[self.at] / np.maximum(self.support[self.at], 1e-12)[:, None]
+            beyond_at = beyond_ratio(ratio[self.at], self.img_at, level, self.reach)
+        np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
+        if self.at is not None:
+            ratio[self.at] = beyond_at
+        return np.where(self.whole[..., None], ratio,
+                        np.where(self.fade > 0, 1.0 + self.fade * (ratio - 1.0), np.float32(1.0))).astype(np.float32)
 
 
 def surround(photo: np.ndarray, face: np.ndarray, feather_px: float, beyond: np.ndarray | None = None,
@@ -148,12 +161,11 @@ def surround(photo: np.ndarray, face: np.ndarray, feather_px: float, beyond: np.
     fade = (1.0 - smoothstep(distance, 0.0, feather_px))[..., None] * (support[..., None] > 1e-3)
     if person is not None:  # a wall lit up or darkened around a relit face is a halo
         fade *= np.asarray(person, np.float32)[..., None]
-    return Surround(img, w, sigma, support, photo_rim, at, reach, img_at, whole, fade)
+    return Surround(w, sigma, support, photo_rim, at, reach, img_at, whole, fade)
 
 
 def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, feather_px: float,
-                 beyond: np.ndarray | None = None, person: np.ndarray | None = None,
-                 around: Surround | None = None) -> np.ndarray:
+                 beyond: np.ndarray | None = None, person: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) the factor that carries a face's change of light into the photo around it: the
     face's relighting ratio (relit / photo, averaged over the face's rim, ``RIM_SHARE`` of the feather
     wide, within ``RATIO_OUTSIDE``) fading to exactly 1 over ``feather_px`` from the face, so the change runs on
@@ -164,20 +176,9 @@ def outside_gain(photo: np.ndarray, face_image: np.ndarray, face: np.ndarray, fe
     edge; person (H, W) float in [0, 1]
     or None: how sure a segmentation is that each pixel is the person, not the background: the change of light
     around the face reaches only as far (hair and neck follow the face, the wall behind it keeps its light).
-    around: ``surround`` of these arguments when the caller keeps it for several lights (then they are not read)."""
-    a = surround(photo, face, feather_px, beyond, person) if around is None else around
-    relit = np.nan_to_num(np.atleast_3d(np.asarray(face_image, np.float32)))
-    num = blur(relit * a.w, a.sigma)
-    ratio = num / a.photo_rim
-    if a.at is not None:
-        beyond_at = beyond_ratio(ratio[a.at], a.img_at, num[a.at] / np.maximum(a.support[a.at], 1e-12)[:, None],
-                                 a.reach)
-    np.clip(ratio, *RATIO_OUTSIDE, out=ratio)
-    if a.at is not None:
-        ratio[a.at] = beyond_at
-    gain = np.where(a.whole[..., None], ratio,
-                    np.where(a.fade > 0, 1.0 + a.fade * (ratio - 1.0), np.float32(1.0))).astype(np.float32)
-    return gain
+    A caller relighting one face under several lights keeps its ``surround`` and asks it for each light's
+    (``Surround.gain``)."""
+    return surround(photo, face, feather_px, beyond, person).gain(face_image)
 
 
 def compose(photo: np.ndarray, layers: list[FaceLayer]) -> np.ndarray:

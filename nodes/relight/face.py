@@ -15,7 +15,7 @@ import numpy as np
 from ..method.shadow import cast_margin, soft_cast
 from ..photo.align import Alignment, scalar_to_input
 from .albedo import LIFT_AXIS, LIFT_SIGMA, axis_distance, lifted, mirror_raise
-from .compose import FaceLayer, inner_alpha, outside_gain
+from .compose import FaceLayer, inner_alpha
 from .eyes import CONTRAST as EYE_CONTRAST
 from .face_box import FaceBox, Features
 from .fields import brightness, distance_inside, smoothstep
@@ -166,8 +166,7 @@ class FaceRelight:
         """The face relit by ``light`` (3,), camera frame, as a layer of the photo."""
         at = self.at
         relit = at.in_layer(np.clip(self.relit(light), 0.0, 1.0))
-        gain = outside_gain(at.layer_photo, relit, at.layer_face, self.feather, around=at.surround)
-        return FaceLayer(at.layer_box, at.layer_face, relit, gain, self.layer_alpha)
+        return FaceLayer(at.layer_box, at.layer_face, relit, at.surround.gain(relit), self.layer_alpha)
 
     def live_data(self) -> LiveFace:
         """What the page needs to relight this face live (``live.live_relight_data``), on the layer's box: the face and
