@@ -216,10 +216,13 @@ def test_watch_stops_with_one_line_when_its_folder_is_removed(tmp_path, demo_run
 @pytest.mark.parametrize("given, says", [
     (["{tmp}/nothing/*.png"], "nothing/*.png: no file matches"),
     (["{tmp}/empty"], "empty holds no image file"),
+    (["{tmp}/data"], "data holds no image file (folders inside are not read: name them, e.g. photos/)"),
 ])
 def test_inputs_that_name_no_image_are_refused_and_nothing_is_written(tmp_path, capsys, given, says):
     (tmp_path / "empty").mkdir()
     (tmp_path / "empty" / "notes.txt").write_text("not an image")
+    (tmp_path / "data" / "photos").mkdir(parents=True)  # a data folder whose photos are a folder further in
+    (tmp_path / "data" / "photos" / "face.png").write_bytes(b"")
     out = tmp_path / "out"
     code = main(["run", *[g.format(tmp=tmp_path) for g in given], "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()

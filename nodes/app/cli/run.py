@@ -128,7 +128,13 @@ def _no_input(args: argparse.Namespace) -> str | None:
     if expand_inputs(inputs, notes.append):
         return None
     unmatched = [n for n in notes if n.endswith("no file matches")]
-    return unmatched[0] if len(inputs) == 1 and unmatched else f"{' '.join(inputs)} holds no image file"
+    if len(inputs) == 1 and unmatched:
+        return unmatched[0]
+    # a folder's folders are not read (a newcomer's first try: the data folder above photos/ and clips/)
+    inner = [f"{f.name}/" for i in inputs if Path(i).is_dir() for f in sorted(Path(i).iterdir())
+             if f.is_dir() and not f.name.startswith(".")]
+    hint = f" (folders inside are not read: name them, e.g. {', '.join(inner[:3])})" if inner else ""
+    return f"{' '.join(inputs)} holds no image file{hint}"
 
 
 def _input_stream(args: argparse.Namespace, inputs: list[str],
