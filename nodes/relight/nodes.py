@@ -61,7 +61,7 @@ PAINTED_EDGES = 0.5
 # a face, under any light, whose relit face would darken more than this share (%) of it where the file is at its top
 # (``harm.flattened``: one flat tone where the file cut the photo's texture) comes back as it was. On the people set
 # relit frontally, a high-contrast black-and-white portrait's clipped forehead and cheek (``mmpose_indoor_020``, seen
-# a grey wash) reads 13.8 %, every other face at most 1.2 %; Yale B's photos from 0 to +-70 degrees at most 1.0 %
+# a grey wash) reads 13.8 %, every other face at most 1.4 %; Yale B's photos from 0 to +-70 degrees at most 1.0 %
 FLATTENED = 5.0
 # a face whose fit explains little (``quality.UNEXPLAINED``) but whose relit face reads at most this by
 # ``ADDED_EDGES`` and ``COLOUR_BLOTCHES``'s sum (and, turned at most ``EVEN_YAW``, changes at a fine scale by at most
