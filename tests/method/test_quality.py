@@ -282,10 +282,24 @@ def test_a_face_cut_by_the_frame_is_doubtful_for_it_not_none():
 
     cut = "the face is cut by the frame (19 % of its eyes, brows and lips outside)"
     half = dict(eyes="detected", explained=0.3, downweighted=0.3, clipped=0.0, inside=0.8, presence=1.0)
-    q = assess(**half, detection=0.6, doubts=(cut,))
+    q = assess(**half, detection=0.5, doubts=(cut,))
     assert not q.no_face and q.flags[0] == cut and "explains 30 %" in q.flags[1]
     little = {**half, "explained": 0.2}
-    assert not assess(**little, detection=0.6, doubts=(cut,)).no_face
-    assert assess(**little, detection=0.6).no_face  # not cut: the detector must be sure
-    assert assess(**half, detection=0.6, doubts=(cut, "the face is small")).no_face
-    assert assess(**{**little, "presence": 0.7}, detection=0.6, doubts=(cut,)).no_face  # the mesh unsure
+    assert not assess(**little, detection=0.5, doubts=(cut,)).no_face
+    assert assess(**little, detection=0.5).no_face  # not cut: the detector must be sure
+    assert assess(**half, detection=0.5, doubts=(cut, "the face is small")).no_face
+    assert assess(**{**little, "presence": 0.7}, detection=0.5, doubts=(cut,)).no_face  # the mesh unsure
+
+
+def test_a_face_under_leaves_both_nets_are_fairly_sure_of_is_a_face_not_none():
+    """Dappled leaves' shadow over a frontally lit face: its fit explains 12-24 % of the photo's shading (the dapples
+    are no shape's), the detector is 0.69-0.75 sure of it and the mesh 1.0 (Yale B subjects under laid-over leaves,
+    ``shadowflow eval shadows``: they were "no face found"). Doubtful, with outputs; the rings, a graffiti, eigenfaces
+    (detector 0.43-0.51) stay none."""
+    from shadowflow.nodes.method.quality import assess
+
+    leaves = dict(eyes="detected", explained=0.13, downweighted=0.29, clipped=0.0, inside=1.0, presence=1.0)
+    q = assess(**leaves, detection=0.69)
+    assert not q.no_face and "explains 13 %" in q.flags[0]
+    for not_a_face in (0.43, 0.50, 0.51):
+        assert assess(**leaves, detection=not_a_face).no_face
