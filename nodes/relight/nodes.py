@@ -26,6 +26,7 @@ from ..method.turned import ViewChoiceNode
 from ..model.shape_model import ShapeModel
 from ..photo.align import Alignment
 from ..photo.encoding import linear_to_srgb
+from ..photo.evenness import evenly_lit
 from ..photo.mediapipe import person_share
 from ..photo.placement import MAX_YAW, FacePlacement
 from .compose import FaceLayer, compose
@@ -142,6 +143,16 @@ def harm_flag(face: FaceRelight, light: np.ndarray, layer: FaceLayer, pair: tupl
         return (f"relit it would darken {flat:.0f} % of the face where the photo is at its brightest into one flat "
                 f"tone (the file does not hold how bright it was): {LEFT}")
     return None
+
+
+def lit_evenly(face: FaceRelight, layer: FaceLayer, pair: tuple[np.ndarray, np.ndarray], eyes: np.ndarray,
+               quality: dict) -> bool:
+    """Whether the face is lit evenly (``quality["even"]``), judged, when shadows the face does not cast were lifted
+    out of it, on the photo without them (``layer_pair``'s before; ``eyes`` (2, 2) photo pixels): a hand's shadow over
+    the lit half of a face lit from 25 deg evens its halves, and the change of light that asks for is no harm."""
+    if face.foreign_lift() is None:
+        return bool(quality.get("even"))
+    return evenly_lit(pair[0], eyes - [layer.box[2], layer.box[0]])
 
 
 def _unharmed_fit(layer: FaceLayer, pair: tuple[np.ndarray, np.ndarray], eyes: np.ndarray, report: dict,
@@ -262,7 +273,8 @@ class PhotoRelightNode:
         if eyes is not None:
             light, layer = layers[0]
             pair = layer_pair(face, layer)  # (the photo and the relit face, once for both judgements)
-            why = harm_flag(face, light, layer, pair, eyes, report, bool(quality.get("even")) and frontal)
+            why = harm_flag(face, light, layer, pair, eyes, report, lit_evenly(face, layer, pair, eyes, quality)
+                            and frontal)
             if why is None and abs(face_yaw(frame)) <= MAX_YAW:
                 _unharmed_fit(layer, pair, eyes, report, quality, frontal)
         if why is not None:
