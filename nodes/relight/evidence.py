@@ -66,6 +66,13 @@ FEATURE_REACH = 0.3
 # over this many interocular distances
 EDGE_RING = 0.05
 EDGE_SIGMA = 0.1
+# a pixel of a shadow from elsewhere's region that shows less than this share of the way from the lit light down to
+# the shade is lit itself (a gap between leaves, a lid lit between them), where the shade is at most this share of the
+# lit light (where the shape turns from the light, its light is no brighter than the shade's and says nothing), in
+# gaps at least this many interocular distances a side (a lit pore is the skin's texture)
+LIT_ITSELF = 0.25
+LIT_ITSELF_TOLD = 0.6
+LIT_GAP_SIDE = 0.04
 # the widths a shadow from elsewhere's penumbra may have, interocular distances (a brim's edge near the face is sharp,
 # leaves' far from it soft)
 PENUMBRAS = (0.004, 0.01, 0.02, 0.035, 0.05, 0.075)
@@ -190,11 +197,15 @@ def shadow_evidence(photo: np.ndarray, albedo: np.ndarray, lighting: np.ndarray,
         # their edge first, with the light their skin shows on average; then their light read across that edge
         # (twice: the light their skin shows on average is no edge's, and puts the edge off)
         clear_of_own = read & ~grow(own, PENUMBRA * iod_px)  # the lit skin beside them is out of the photo's own
+        # the light each face pixel would show with the skin's typical albedo (what is not skin is told lit by it)
+        typical = np.float32(np.median(brightness(rho)[read]))
+        plain = np.where(face, cv2.medianBlur(np.ascontiguousarray(brightness(img) / typical, np.float32), 3),
+                         np.float32(np.nan))
         for _ in range(2):
-            half = _half_in(level, read, elsewhere, near, shade, lit, iod_px)
+            half = _half_in(level, read, elsewhere, near, shade, lit, iod_px, plain)
             sigma = _penumbra(half, level, read, lit, brightness(shade), iod_px)
             shade = np.where(near[..., None], _foreign_shade(img, clear_of_own, half, lit, sigma, iod_px), shade)
-        half = _half_in(level, read, elsewhere, near, shade, lit, iod_px)
+        half = _half_in(level, read, elsewhere, near, shade, lit, iod_px, plain)
         membership = np.where(near, blur(half.astype(np.float32), sigma), membership)
     theirs = np.where(near & ~(own & ~elsewhere), membership, np.float32(0.0)).astype(np.float32)
     return ShadowEvidence(read, fade, correction, np.maximum(membership, attached).astype(np.float32), shade, theirs)
@@ -233,18 +244,24 @@ def _foreign_shade(photo: np.ndarray, read: np.ndarray, region: np.ndarray, lit:
 
 
 def _half_in(level: np.ndarray, read: np.ndarray, region: np.ndarray, near: np.ndarray, shade: np.ndarray,
-             lit: np.ndarray, iod_px: float) -> np.ndarray:
+             lit: np.ndarray, iod_px: float, plain: np.ndarray) -> np.ndarray:
     """(h, w) bool the shadows ``region`` (h, w) bool to the middle of their penumbra: within ``near`` (h, w) bool,
     where their skin (``read``) shows less than half-way between the ``lit`` (h, w) light and the ``shade`` (h, w, C)
     (``level`` (h, w) the light its skin shows, 3 x 3 median), gaps closed. What is not skin (an eye, a brow, a
-    beard) is in as far as the skin around it is: a shadow covers all alike. Blurred by the penumbra it is how far
-    each pixel is in them, smooth, so the skin's own texture (pores, freckles) stays its own and is lifted with it."""
+    beard) is in as far as the skin around it is: a shadow covers all alike. But a pixel that shows the lit light
+    itself is out, skin or not (``LIT_ITSELF``; what is not skin by ``plain`` (h, w), the light it would show with the
+    skin's typical albedo, NaN off the face). Blurred by the penumbra it is how far each pixel is in them, smooth, so
+    the skin's own texture (pores, freckles) stays its own and is lifted with it."""
     dark = brightness(shade)
     partial = np.clip((lit - level) / np.maximum(lit - dark, 1e-4), 0.0, 1.0)
     around = local_average(np.where(read, partial, 0.0), read.astype(np.float32), ACROSS * iod_px,
                            region.astype(np.float32))
     half = np.where(read, partial, around) > 0.5
-    return closed(half & near, CLOSE * iod_px) | region
+    # lit itself, whatever encloses it: leaves' gaps; a lid lit between them, taken in by the skin around it, was
+    # lifted white. What is not skin by ``plain``: its own expected albedo may hold its darkness (a brow's)
+    shows = np.clip((lit - np.where(read, level, plain)) / np.maximum(lit - dark, 1e-4), 0.0, 1.0)
+    lit_itself = without_specks((shows < LIT_ITSELF) & (dark < LIT_ITSELF_TOLD * lit), (LIT_GAP_SIDE * iod_px) ** 2)
+    return (closed(half & near, CLOSE * iod_px) | region) & ~lit_itself
 
 
 def _penumbra(half: np.ndarray, level: np.ndarray, read: np.ndarray, lit: np.ndarray, dark: np.ndarray,

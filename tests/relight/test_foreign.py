@@ -17,7 +17,9 @@ from shadowflow.nodes.geometry.reflectance import light_from_angles
 from shadowflow.nodes.method.shadow import shadow_maps
 from shadowflow.nodes.model.canonical import canonical_eyes
 from shadowflow.nodes.photo.align import Alignment
+from shadowflow.nodes.photo.evenness import face_ellipse, halves_ratio
 from shadowflow.nodes.relight.face import FaceRelight
+from shadowflow.nodes.relight.face_box import Features
 from shadowflow.nodes.relight.foreign import found as shadows_found
 
 GRID = (256, 256)  # the eyes 72 px apart: a face large enough to tell skin from a beard (``SKIN_MIN_IOD``)
@@ -61,8 +63,26 @@ def scene():
                            mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan),
                            depth=depth, light=LIGHT, iod_px=iod, model_normals=normals if looked_for else None)
 
+    def relight_photo(photo: np.ndarray, features: Features | None = None) -> FaceRelight:
+        return FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                           mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan),
+                           depth=depth, light=LIGHT, iod_px=iod, model_normals=normals, features=features)
+
+    # a shadow over the lit half of the face from a line beside its midline, as far out as evens the halves
+    ellipse = face_ellipse(eyes, FRAME)
+    toward = 1.0 if np.mean(clean.mean(axis=-1)[TOP:, :int(eyes[:, 0].mean())]) > np.mean(
+        clean.mean(axis=-1)[TOP:, int(eyes[:, 0].mean()):]) else -1.0  # image-left lit: +1
+    columns = np.broadcast_to(np.arange(FRAME[1], dtype=float), FRAME)
+    evened = []
+    for d in np.arange(0.0, 0.8, 0.02) * iod:
+        half = toward * (eyes[:, 0].mean() - columns) > d
+        laid = (np.round(lay_shadow(image, half, LEFT_IN_SHADE, 2.0) * 255) / 255).astype(np.float32)
+        evened.append((halves_ratio(laid, ellipse), d, half, laid))
+    _, _, lit_half, half_shaded = min(evened, key=lambda e: e[0])
     return SimpleNamespace(photo=photo, clean=clean.astype(np.float32), blocked=blocked, face=face_px, eyes=eyes,
-                           iod=iod, patch=patch, relit=relight(True), plain=relight(False))
+                           iod=iod, patch=patch, relit=relight(True), plain=relight(False), lit_half=lit_half,
+                           half_shaded_photo=half_shaded, half_shaded=relight_photo(half_shaded), image=image,
+                           relight_photo=relight_photo)
 
 
 def _box(values, face: FaceRelight):
@@ -145,3 +165,47 @@ def test_occluders_keep_their_share_of_the_light_in_their_core_and_all_of_it_out
         assert np.all((laid[edge].mean(axis=-1) > 0.16) & (laid[edge].mean(axis=-1) < 0.49))
     with pytest.raises(ValueError, match="unknown shadow kind 'cloud'"):
         occluder("cloud", (10, 10), eyes, np.random.default_rng(0))
+
+
+def test_a_shadow_that_evens_a_side_lit_face_is_judged_on_the_face_without_it(scene):
+    """A shadow from elsewhere over the lit half of a face lit from the side (a hand's at 25 deg on Yale B) can even
+    its halves: the photo reads lit evenly, and relit frontally the light's change read as harm (Yale B's hands at
+    +-25 deg were given back, 28 % of them removed; judged without them, 56 %). Judged on the photo without the
+    shadows it lifts, the face is lit from the side, as it is; without such shadows, the photo's own reading
+    stands."""
+    from shadowflow.nodes.relight.nodes import layer_pair, lit_evenly
+
+    eyes, lit_half = scene.eyes, scene.lit_half
+    ellipse = face_ellipse(eyes, FRAME)
+    assert halves_ratio(scene.clean, ellipse) > 1.3  # lit from the side
+    assert halves_ratio(scene.half_shaded_photo, ellipse) < 1.15  # yet the shadow evens its halves
+    face = scene.half_shaded
+    assert face.foreign_lift() is not None and lit_half[face.at.box[0]:face.at.box[1]].any()
+    layer = face.layer(LIGHT)
+    pair = layer_pair(face, layer)
+    assert not lit_evenly(face, layer, pair, eyes, {"even": True})
+    assert lit_evenly(scene.plain, scene.plain.layer(LIGHT), layer_pair(scene.plain, scene.plain.layer(LIGHT)), eyes,
+                      {"even": True})
+
+
+def test_a_lit_gap_in_a_shadow_over_an_eye_is_not_lifted(scene):
+    """Leaves' shadow over the eyes with a gap of light on one of them: the eye and the lid around it are not skin
+    (the face mesh's outline), and are in the shadow as far as the skin around them is, but not where they show the
+    lit light themselves: lifted with the shadow, the gap came out white (a Yale B subject under laid-over leaves;
+    1 / 0.35 of its light). The rest of the eyes in the shadow are lifted as it is."""
+    iod, eyes = scene.iod, scene.eyes
+    t = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    outline = [e + np.column_stack([0.25 * iod * np.cos(t), 0.1 * iod * np.sin(t)]) for e in eyes]
+    rows, cols = np.mgrid[0:FRAME[0], 0:FRAME[1]]
+    gap = np.hypot(cols - eyes[0, 0], rows - eyes[0, 1] - 0.05 * iod) < 0.15 * iod
+    shaded = (rows < eyes[0, 1] + 0.6 * iod) & ~gap
+    photo = (np.round(lay_shadow(scene.image, shaded, LEFT_IN_SHADE, 1.0) * 255) / 255).astype(np.float32)
+    face = scene.relight_photo(photo, Features(eyes=outline, brows=[], lips=[]))
+    lift = face.foreign_lift()
+    assert lift is not None
+    y0, y1, x0, x1 = face.layer_box
+    in_box = (slice(y0, y1), slice(x0, x1))
+    core = ndimage.binary_erosion(gap, iterations=2)[in_box] & face.layer_face
+    other_eye = (np.hypot(cols - eyes[1, 0], rows - eyes[1, 1]) < 0.1 * iod)[in_box] & face.layer_face
+    assert np.median(lift[core].mean(axis=-1)) < 1.2
+    assert np.median(lift[other_eye].mean(axis=-1)) == pytest.approx(1.0 / LEFT_IN_SHADE, rel=0.2)
