@@ -50,9 +50,9 @@ NO_FACE_EXPLAINED = 0.75  # without eyes found, the fit must explain this much t
 LEAST_EXPLAINED = 0.25
 # ... unless the face detector and the face mesh are this sure of it and its landmarks have a face's proportions:
 # then it is a face the fit does not explain (a portrait in soft light, whose brightness is mostly its albedo),
-# doubtful, not none (the rings: detector 0.50, a graffiti 0.51; real faces in soft light 0.83-0.97, under a leaves'
-# dappled shadow 0.69: between them; docs/tuning.md)
-CONFIDENT_DETECTION = 0.6
+# doubtful, not none (the rings: detector 0.50-0.60, a graffiti 0.51; real faces in soft light 0.83-0.97, under a
+# leaves' dappled shadow 0.69: between them; docs/tuning.md)
+CONFIDENT_DETECTION = 0.65
 CONFIDENT_PRESENCE = 0.9
 MAX_DOWNWEIGHTED = 0.7  # of the seen face's pixels the fit may give a weight under 0.5
 MAX_CLIPPED = 0.4  # over-exposure the ratio scale handles

@@ -295,11 +295,11 @@ def test_a_face_under_leaves_both_nets_are_fairly_sure_of_is_a_face_not_none():
     """Dappled leaves' shadow over a frontally lit face: its fit explains 12-24 % of the photo's shading (the dapples
     are no shape's), the detector is 0.69-0.75 sure of it and the mesh 1.0 (Yale B subjects under laid-over leaves,
     ``shadowflow eval shadows``: they were "no face found"). Doubtful, with outputs; the rings, a graffiti, eigenfaces
-    (detector 0.43-0.51) stay none."""
+    (detector 0.43-0.60) stay none."""
     from shadowflow.nodes.method.quality import assess
 
     leaves = dict(eyes="detected", explained=0.13, downweighted=0.29, clipped=0.0, inside=1.0, presence=1.0)
     q = assess(**leaves, detection=0.69)
     assert not q.no_face and "explains 13 %" in q.flags[0]
-    for not_a_face in (0.43, 0.50, 0.51):
+    for not_a_face in (0.43, 0.50, 0.51, 0.60):
         assert assess(**leaves, detection=not_a_face).no_face
