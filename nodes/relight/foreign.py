@@ -38,11 +38,12 @@ MIN_SKIN = 200
 
 
 def foreign_shadows(photo: np.ndarray, lighting: np.ndarray, skin: np.ndarray, gate: np.ndarray, face: np.ndarray,
-                    iod_px: float) -> np.ndarray:
+                    iod_px: float, own: np.ndarray | None = None) -> np.ndarray:
     """(h, w) bool: the shadows on a face's skin the fitted shape does not cast. photo (h, w, C) linear; lighting
     (h, w) the fitted shading with the room's light; skin (h, w) bool the pixels whose light is read; gate (h, w)
     bool where the fitted shape lets its own shadows fall (``evidence.shadow_gate``): seeds are out of it, a region
-    may run on into it; face (h, w) bool; iod_px: the face's interocular distance in pixels."""
+    runs on into it over skin as dark, but not into ``own`` (h, w) bool (the shape's own shadows, the face's rim; None:
+    nowhere kept out); face (h, w) bool; iod_px: the face's interocular distance in pixels."""
     img = np.atleast_3d(np.asarray(photo, np.float32))
     read = np.asarray(skin, bool) & face
     open_skin = read & ~np.asarray(gate, bool)
@@ -52,7 +53,13 @@ def foreign_shadows(photo: np.ndarray, lighting: np.ndarray, skin: np.ndarray, g
     log_q = np.log(np.maximum(brightness(img), np.float32(1e-5)) / fitted)
     level, support = weighted_blur(np.where(read, log_q, 0.0), read.astype(np.float32), max(DENOISE * iod_px, 1.0))
     lit = float(np.percentile(log_q[open_skin], LIT_QUANTILE))
-    dark = open_skin & (support > 0.05) & (level < lit + np.log(FOREIGN_DARK))
+    dark = read & (support > 0.05) & (level < lit + np.log(FOREIGN_DARK))
+    # seeded out of the gate, a region runs on into it over skin as dark: leaves' and a brim's shade across the side
+    # the light reaches less were found only to the gate's edge (at 25 deg, half of them)
+    seeds = dark & open_skin
+    if own is not None:
+        dark &= ~np.asarray(own, bool)
+    dark = ndimage.binary_propagation(seeds, structure=np.ones((3, 3), bool), mask=dark | seeds)
     region = without_specks(closed(dark, FOREIGN_CLOSE * iod_px) & face, (FOREIGN_MIN_SIDE * iod_px) ** 2)
     if img.shape[-1] == 3 and region.any():
         region = _of_skin_colour(img, region, read, level > lit + np.log(0.8))

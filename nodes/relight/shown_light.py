@@ -56,6 +56,8 @@ GLINT_FEATURE_MARGIN = 0.05
 GLINT_EDGE = 0.1
 # the model's normals take over where a shadow from elsewhere falls, fading out over this many interocular distances
 FOREIGN_NORMALS = 0.03
+# ... and are not followed within this many interocular distances of the face's rim, out of the fitted shape's gate
+FOREIGN_RIM = 0.15
 
 
 class ShownLight:
@@ -163,8 +165,11 @@ class ShownLight:
         # shape is off, and its shading with it)
         gate = shadow_gate(fit_shadow, direct, at.face, self.iod)
         lighting = Shading(normals, ambient, self.light).lighting()
+        # a region runs on into the gate, but not into the shape's own shadows nor along the face's rim, where the
+        # fitted normals graze the view and the photo mixes in what is beyond
+        rim = distance_inside(at.face) < FOREIGN_RIM * self.iod
         return foreign_shadows(at.photo, lighting, self.skin | self.covered_smooth, gate, at.face,
-                               self.iod)
+                               self.iod, own=fit_shadow | rim)
 
     def _shadows(self, coarse: np.ndarray, lighting: np.ndarray, direct: np.ndarray, gate: np.ndarray,
                  foreign: np.ndarray) -> tuple[np.ndarray, ShadowEvidence]:

@@ -209,3 +209,22 @@ def test_a_lit_gap_in_a_shadow_over_an_eye_is_not_lifted(scene):
     other_eye = (np.hypot(cols - eyes[1, 0], rows - eyes[1, 1]) < 0.1 * iod)[in_box] & face.layer_face
     assert np.median(lift[core].mean(axis=-1)) < 1.2
     assert np.median(lift[other_eye].mean(axis=-1)) == pytest.approx(1.0 / LEFT_IN_SHADE, rel=0.2)
+
+
+def test_a_shadow_across_the_side_the_light_reaches_less_is_found_all_across(scene):
+    """A band of shade across the lower face runs from skin the fitted shape lights into the band where it turns
+    from the light (its own shadows' margin, where no shadow from elsewhere is seeded): found from the lit side, it
+    is found all across, over skin as dark, short of the face's rim (it stopped at that margin: half of the shade of
+    leaves and brims at 25 deg on Yale B was left)."""
+    eyes, iod = scene.eyes, scene.iod
+    rows = np.mgrid[0:FRAME[0], 0:FRAME[1]][0]
+    band = (rows > eyes[0, 1] + 0.45 * iod) & (rows < eyes[0, 1] + 0.95 * iod)
+    photo = (np.round(lay_shadow(scene.image, band, LEFT_IN_SHADE, 2.0) * 255) / 255).astype(np.float32)
+    face = scene.relight_photo(photo)
+    evidence = face.shown_light.evidence
+    inside = ndimage.distance_transform_edt(face.at.face) > 0.2 * iod  # (not followed along the rim)
+    core = _box(ndimage.binary_erosion(band, iterations=3), face) & inside & face.shown_light.skin
+    margin = core & (evidence.gate > 0.01)
+    assert margin.sum() > 0.5 * core.sum()  # most of it is in the margin
+    assert np.mean(evidence.foreign[margin] > 0.5) > 0.9
+    assert np.mean(evidence.foreign[core] > 0.5) > 0.9
