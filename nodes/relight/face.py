@@ -22,7 +22,7 @@ from .fields import brightness, distance_inside, smoothstep
 from .lift import (
     LIT_SHADING,
     brightened,
-    exposure,
+    exposure_gain,
     fill_weight,
     held_to_skin,
     relit_face,
@@ -101,8 +101,7 @@ class FaceRelight:
 
     def _foreign_lift(self) -> np.ndarray | None:
         """(h, w, C) float32 on the face's box: the light the photo would show without its foreign shadows over it."""
-        sl = self.shown_light
-        return sl.evidence.without_foreign(sl.fitted) / sl.photo_lighting if sl.evidence.foreign.any() else None
+        return self.shown_light.foreign_lift
 
     def new_lighting(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(S', L'_u, k')`` (h, w) each for ``light`` (3,): the direct light less its cast shadow traced on the fit's
@@ -138,10 +137,10 @@ class FaceRelight:
         keep = shine_kept(brightness(shown), brightness(new) * cast_share, shine_lobe(sl.normals, sl.light, s))
         no_fill = np.zeros(at.shape, np.float32)
         unexposed = relit_face(at.photo, g, g, no_fill, sl.shine, keep)
-        # the exposure is met on skin the new light lights and the photo shows well enough to lift (a painted shadow's
-        # side is no level the photo measured)
+        # the exposure (the photo's lit skin's, ``ShownLight.want``) is met on skin the new light lights and the photo
+        # shows well enough to lift (a painted shadow's side is no level the photo measured)
         shown_well = usable(sl.relative, brightness(g), sl.encoding) > 0.9
-        gain = exposure(at.photo, unexposed, sl.lit_skin, sl.skin & (direct >= LIT_SHADING) & shown_well)
+        gain = exposure_gain(sl.want, unexposed, sl.skin & (direct >= LIT_SHADING) & shown_well)
         g = np.float32(gain) * g
         held = held_to_skin(brightness(g), at.photo, sl.skin, HELD_SIGMA * self.iod)
         g = g * held[..., None]

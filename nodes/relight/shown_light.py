@@ -18,7 +18,7 @@ from .evidence import ShadowEvidence, shadow_evidence, shadow_gate
 from .face_box import FaceBox
 from .fields import blur, brightness, distance_inside, grow
 from .foreign import foreign_shadows
-from .lift import LIT_SHADING, exposure_target, photo_light, precision, signal
+from .lift import LIT_SHADING, exposure_target, photo_light, precision, signal, usable
 from .shading import AMBIENT_RIM, AMBIENT_SIGMA, Shading, fit_ambient
 from .shine import SHEEN_SCALE, glints, sheen
 
@@ -114,7 +114,8 @@ class ShownLight:
         self.relative = precision(blur(_file_values(at.photo, encoding), max(REGION_SIGMA * iod_px, 1.0)), encoding)
         self.usable = signal(self.relative)
         self.lit_skin = self.skin & (direct >= LIT_SHADING) & (self.evidence.membership < SHADOW_MEMBERSHIP)
-        self.want = exposure_target(at.photo, self.lit_skin)
+        self.foreign_lift = foreign_lift(self.evidence, lighting, self.photo_lighting)
+        self.want = exposure_wanted(self, direct)
         self.shine = self._shine(iod_px)
         # the photo's shadows: the fitted shape's own under the photo's light (attached and cast: geometry, never a
         # beard's darkness) and those the photo shows beyond them (``evidence``)
@@ -227,6 +228,28 @@ def _roughness(photo: np.ndarray, smooth_guess: np.ndarray, iod_px: float) -> np
     texture = strands(photo, iod_px, STRAND_FLOOR * lit_level)
     typical = float(np.median(texture[smooth_guess])) if smooth_guess.sum() > 50 else ROUGH_FLOOR
     return (texture / np.float32(max(typical, ROUGH_FLOOR))).astype(np.float32)
+
+
+def foreign_lift(evidence: ShadowEvidence, lighting: np.ndarray, shown: np.ndarray) -> np.ndarray | None:
+    """(h, w, C) float32: the light the photo would show without the shadows the face does not cast over the light it
+    shows (``shown`` (h, w, C); ``lighting`` (h, w) the fitted shading); None without such shadows."""
+    return evidence.without_foreign(lighting) / shown if evidence.foreign.any() else None
+
+
+def exposure_wanted(shown: ShownLight, direct: np.ndarray) -> float | None:
+    """The exposure a relit face takes (``lift.exposure_target``): the level of the photo's lit skin (``shown``'s
+    ``lit_skin``); with shadows from elsewhere lifted (its ``foreign_lift``), at least that of the photo without them
+    on the skin the light reaches (``direct`` (h, w) its direct light) lifted no further than the photo shows well
+    (``lift.usable``), as a relit face's is met (``FaceRelight.relit``). A shade left unfound pulls the lit skin's
+    level down with it (a face under leaves at 25 deg came back a fifth darker than the same photo without them), and
+    darkens only: of the two, the brighter."""
+    photo, lift = shown.at.photo, shown.foreign_lift
+    want = exposure_target(photo, shown.lit_skin)
+    if lift is None:
+        return want
+    shown_well = usable(shown.relative, brightness(lift), shown.encoding) > 0.9
+    without = exposure_target(photo * lift, shown.skin & (direct >= LIT_SHADING) & shown_well)
+    return without if want is None else max(want, without) if without is not None else want
 
 
 def _file_values(photo: np.ndarray, encoding: str) -> np.ndarray:

@@ -228,3 +228,24 @@ def test_a_shadow_across_the_side_the_light_reaches_less_is_found_all_across(sce
     assert margin.sum() > 0.5 * core.sum()  # most of it is in the margin
     assert np.mean(evidence.foreign[margin] > 0.5) > 0.9
     assert np.mean(evidence.foreign[core] > 0.5) > 0.9
+
+
+def test_a_face_with_shade_left_unfound_takes_the_exposure_of_its_skin_without_the_shade_found():
+    """The relit face's exposure is the photo's lit skin's level; a shade left unfound pulls it down (a face under
+    leaves at 25 deg came back a fifth darker than without them). With the shadows found lifted, the level is read on
+    the photo without them as well, and the brighter taken: here 0.5, the skin's, where the lit skin alone (more of
+    it in the unfound shade than out) reads 0.175."""
+    from shadowflow.nodes.relight.lift import exposure_target, precision
+    from shadowflow.nodes.relight.shown_light import exposure_wanted
+
+    rows = np.arange(100)[:, None] * np.ones((1, 80))
+    found, unfound = rows < 40, (rows >= 40) & (rows < 75)
+    photo = np.where(found | unfound, 0.5 * 0.35, 0.5).astype(np.float32)[..., None] * np.ones(3, np.float32)
+    lift = np.where(found, 1.0 / 0.35, 1.0).astype(np.float32)[..., None] * np.ones(3, np.float32)
+    skin = np.ones(rows.shape, bool)
+    shown = SimpleNamespace(at=SimpleNamespace(photo=photo), lit_skin=skin & ~found, foreign_lift=lift, skin=skin,
+                            relative=precision(photo.mean(axis=-1)), encoding="linear")
+    assert exposure_target(photo, shown.lit_skin) == pytest.approx(0.175, rel=1e-3)
+    assert exposure_wanted(shown, np.ones(rows.shape, np.float32)) == pytest.approx(0.5, rel=1e-3)
+    shown.foreign_lift = None  # none found: the lit skin's
+    assert exposure_wanted(shown, np.ones(rows.shape, np.float32)) == pytest.approx(0.175, rel=1e-3)
