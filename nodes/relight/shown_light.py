@@ -56,7 +56,8 @@ GLINT_FEATURE_MARGIN = 0.05
 GLINT_EDGE = 0.1
 # the model's normals take over where a shadow from elsewhere falls, fading out over this many interocular distances
 FOREIGN_NORMALS = 0.03
-# ... and are not followed within this many interocular distances of the face's rim, out of the fitted shape's gate
+# a shadow from elsewhere is followed into the fitted shape's gate no nearer the face's rim than this many
+# interocular distances (``_foreign``)
 FOREIGN_RIM = 0.15
 
 
