@@ -253,13 +253,14 @@ def _half_in(level: np.ndarray, read: np.ndarray, region: np.ndarray, near: np.n
     skin's typical albedo, NaN off the face). Blurred by the penumbra it is how far each pixel is in them, smooth, so
     the skin's own texture (pores, freckles) stays its own and is lifted with it."""
     dark = brightness(shade)
-    partial = np.clip((lit - level) / np.maximum(lit - dark, 1e-4), 0.0, 1.0)
-    around = local_average(np.where(read, partial, 0.0), read.astype(np.float32), ACROSS * iod_px,
-                           region.astype(np.float32))
-    half = np.where(read, partial, around) > 0.5
-    # lit itself, whatever encloses it: leaves' gaps; a lid lit between them, taken in by the skin around it, was
-    # lifted white. What is not skin by ``plain``: its own expected albedo may hold its darkness (a brow's)
+    # how far down from the lit light to the shade each pixel shows: skin by its own light, what is not skin by
+    # ``plain`` (its own expected albedo may hold its darkness, a brow's)
     shows = np.clip((lit - np.where(read, level, plain)) / np.maximum(lit - dark, 1e-4), 0.0, 1.0)
+    around = local_average(np.where(read, shows, 0.0), read.astype(np.float32), ACROSS * iod_px,
+                           region.astype(np.float32))
+    half = np.where(read, shows, around) > 0.5
+    # lit itself, whatever encloses it: leaves' gaps; a lid lit between them, taken in by the skin around it, was
+    # lifted white
     lit_itself = without_specks((shows < LIT_ITSELF) & (dark < LIT_ITSELF_TOLD * lit), (LIT_GAP_SIDE * iod_px) ** 2)
     return (closed(half & near, CLOSE * iod_px) | region) & ~lit_itself
 

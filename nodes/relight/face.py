@@ -18,7 +18,7 @@ from .albedo import LIFT_AXIS, LIFT_SIGMA, axis_distance, lifted, mirror_raise
 from .compose import FaceLayer, inner_alpha
 from .eyes import CONTRAST as EYE_CONTRAST
 from .face_box import FaceBox, Features
-from .fields import brightness, distance_inside, smoothstep
+from .fields import brightness, smoothstep
 from .lift import (
     LIT_SHADING,
     brightened,
@@ -87,21 +87,17 @@ class FaceRelight:
         # (ratio, strength): how far the side lit less may be raised toward its mirror
         self.mirror_raise = _mirror_raise(at, sl, midline, mirror_lift, iod_px)
         self.shadow, self.seen, self.albedo = sl.shadow, self.paint.seen, self.paint.albedo
-        self.alpha = inner_alpha(at.face, self.feather, distance_inside(at.face))
+        self.alpha = inner_alpha(at.face, self.feather, at.inside_distance)
         self.layer_alpha = at.in_layer(self.alpha)
         self.report: dict[str, float] = {}
 
     def foreign_lift(self) -> np.ndarray | None:
         """(h, w, C) float32 on the layer's box: how much the shadows the face does not cast are lifted under any
-        light (``_foreign_lift``), 1 elsewhere; None without such shadows."""
-        lift = self._foreign_lift()
+        light (``ShownLight.foreign_lift``), 1 elsewhere; None without such shadows."""
+        lift = self.shown_light.foreign_lift
         if lift is None:
             return None
         return self.at.in_layer(np.where(self.at.face[..., None], lift, np.float32(1.0)) - 1.0) + np.float32(1.0)
-
-    def _foreign_lift(self) -> np.ndarray | None:
-        """(h, w, C) float32 on the face's box: the light the photo would show without its foreign shadows over it."""
-        return self.shown_light.foreign_lift
 
     def new_lighting(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(S', L'_u, k')`` (h, w) each for ``light`` (3,): the direct light less its cast shadow traced on the fit's
@@ -131,8 +127,7 @@ class FaceRelight:
         change = smooth_change(new / smooth, at.face, CHANGE_SIGMA * self.iod) * (smooth / shown)
         same = np.float32(shadows_kept(sl.light, s))
         # kept as it is under the photo's own light but for the shadows the face does not cast, lifted under any
-        kept = self._foreign_lift()
-        kept = np.float32(1.0) if kept is None else kept
+        kept = np.float32(1.0) if sl.foreign_lift is None else sl.foreign_lift
         g = same * kept + (np.float32(1.0) - same) * change * cast_share[..., None] * self._lifted(new)
         keep = shine_kept(brightness(shown), brightness(new) * cast_share, shine_lobe(sl.normals, sl.light, s))
         no_fill = np.zeros(at.shape, np.float32)

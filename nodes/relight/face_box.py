@@ -16,7 +16,7 @@ import numpy as np
 from ..geometry.raster import polygon_mask
 from ..photo.align import Alignment, face_box, mask_to_input, scalar_to_input
 from .compose import Surround, surround
-from .fields import grow
+from .fields import distance_inside, grow
 
 # everything but the feather is computed in the face's own box, grown by this many photo pixels
 INNER_MARGIN = 4
@@ -78,6 +78,12 @@ class FaceBox:
         self.shape = self.photo.shape[:2]
         self.face = self.layer_face[self.inner]
         self.features = features or Features([], [], [], [])
+
+    @cached_property
+    def inside_distance(self) -> np.ndarray:
+        """(h, w) float32 each face pixel's distance inside ``face`` to its border, pixels (0 off it): its rim is
+        read by the fade, the room's light, the glints and the shadows from elsewhere alike."""
+        return distance_inside(self.face)
 
     @cached_property
     def surround(self) -> Surround:

@@ -150,7 +150,7 @@ def lit_evenly(face: FaceRelight, layer: FaceLayer, pair: tuple[np.ndarray, np.n
     """Whether the face is lit evenly (``quality["even"]``), judged, when shadows the face does not cast were lifted
     out of it, on the photo without them (``layer_pair``'s before; ``eyes`` (2, 2) photo pixels): a hand's shadow over
     the lit half of a face lit from 25 deg evens its halves, and the change of light that asks for is no harm."""
-    if face.foreign_lift() is None:
+    if face.shown_light.foreign_lift is None:
         return bool(quality.get("even"))
     return evenly_lit(pair[0], eyes - [layer.box[2], layer.box[0]])
 

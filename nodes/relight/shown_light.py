@@ -16,7 +16,7 @@ from ..photo.skin import MAX_CHROMA_DISTANCE, skin_distance, strands
 from .albedo import expected_albedo, smooth_coarse
 from .evidence import ShadowEvidence, shadow_evidence, shadow_gate
 from .face_box import FaceBox
-from .fields import blur, brightness, distance_inside, grow
+from .fields import blur, brightness, grow
 from .foreign import foreign_shadows
 from .lift import LIT_SHADING, exposure_target, photo_light, precision, signal, usable
 from .shading import AMBIENT_RIM, AMBIENT_SIGMA, Shading, fit_ambient
@@ -169,7 +169,7 @@ class ShownLight:
         lighting = Shading(normals, ambient, self.light).lighting()
         # a region runs on into the gate, but not into the shape's own shadows nor along the face's rim, where the
         # fitted normals graze the view and the photo mixes in what is beyond
-        rim = distance_inside(at.face) < FOREIGN_RIM * self.iod
+        rim = at.inside_distance < FOREIGN_RIM * self.iod
         return foreign_shadows(at.photo, lighting, self.skin | self.covered_smooth, gate, at.face,
                                self.iod, own=fit_shadow | rim)
 
@@ -197,7 +197,7 @@ class ShownLight:
     def _ambient(self, direct: np.ndarray) -> float:
         """The room's share of the light (``shading.fit_ambient``), on the skin more than ``AMBIENT_RIM`` inside the
         face (at its rim the fitted normals graze the view and the photo mixes in what is beyond)."""
-        core = self.skin & (distance_inside(self.at.face) > AMBIENT_RIM * self.iod)
+        core = self.skin & (self.at.inside_distance > AMBIENT_RIM * self.iod)
         return fit_ambient(self.at.photo, direct, core, AMBIENT_SIGMA * self.iod)
 
     def _shine(self, iod_px: float) -> np.ndarray:
@@ -206,7 +206,7 @@ class ShownLight:
         albedo = at.photo / self.photo_lighting
         white = np.zeros(at.shape, bool)
         if at.features.all:
-            inside = distance_inside(at.face) > GLINT_EDGE * iod_px
+            inside = at.inside_distance > GLINT_EDGE * iod_px
             white = glints(at.photo, self.skin, at.face & inside, SHEEN_SCALE * iod_px,
                            at.outlined(at.features.all, GLINT_FEATURE_MARGIN * iod_px), GLINT_REACH * iod_px)
         excess = sheen(albedo, self.skin | white, self.usable > 0.5, SHEEN_SCALE * iod_px)
@@ -250,7 +250,7 @@ def exposure_wanted(shown: ShownLight, direct: np.ndarray) -> float | None:
         return want
     shown_well = usable(shown.relative, brightness(lift), shown.encoding) > 0.9
     without = exposure_target(photo * lift, shown.skin & (direct >= LIT_SHADING) & shown_well)
-    return without if want is None else max(want, without) if without is not None else want
+    return max((v for v in (want, without) if v is not None), default=None)
 
 
 def _file_values(photo: np.ndarray, encoding: str) -> np.ndarray:
