@@ -410,3 +410,21 @@ def test_eval_yaleb_lights_are_the_tuned_eight_the_held_out_set_or_pairs_given()
     for bad in ("", "25", "25,0;x,1", "25,0,3"):
         with pytest.raises(ValueError, match="--lights"):
             yaleb_lights(bad)
+
+
+@pytest.mark.parametrize("flag", [[], ["--foreign-shadows"]])
+def test_eval_yaleb_relights_with_the_shadows_from_elsewhere_looked_for_when_asked(monkeypatch, tmp_path, flag):
+    from shadowflow.nodes.app.cli import evaluate as cli_evaluate
+    from shadowflow.nodes.app.cli import main
+
+    seen = {}
+
+    def fake_evaluate_yaleb(data, model, options, **kwargs):
+        seen["options"] = options
+        return {"rows": []}
+
+    monkeypatch.setattr(cli_evaluate, "evaluate_yaleb", fake_evaluate_yaleb)
+    monkeypatch.setattr(cli_evaluate, "summarise", lambda rows: {})
+    monkeypatch.setattr(cli_evaluate, "format_report", lambda report, summary: "")
+    assert main(["eval", "yaleb", "--data", str(tmp_path), *flag]) == 0
+    assert seen["options"].foreign_shadows is bool(flag) and seen["options"].light == "yaleb"

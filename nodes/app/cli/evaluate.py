@@ -90,10 +90,11 @@ def cmd_eval_yaleb(args: argparse.Namespace) -> int:
     options = MethodOptions(fit=fit_config(args.fit, args.modes, albedo_rounds=args.albedo_rounds,
                                             cone_trust=args.cone_trust), light="yaleb",
                             integrator=args.integrator, shadows=args.shadows, **fit_variant(args, args.fit),
-                            face_length=face_length(args.face_length))
+                            face_length=face_length(args.face_length), foreign_shadows=args.foreign_shadows)
     t0 = time.perf_counter()
     print(one_line(f"model: {args.model or 'built-in ict'}, K={args.modes or model.n_modes}; light: Yale B names; "
-                   "ground truth: photometric stereo of each subject's exposures"))
+                   "ground truth: photometric stereo of each subject's exposures"
+                   + ("; shadows from elsewhere looked for" if args.foreign_shadows else "")))
     lights = yaleb_lights(args.lights)
     with _mapper(args.dask) as mapper:
         # the lights the method was tuned on must all be found; others include photos the finder misses
@@ -305,7 +306,8 @@ def add_parser(sub) -> None:
     e.add_argument("--clip-frames", type=int, default=3, metavar="N",
                    help="eval people: frames taken from each clip (default 3; 0: none)")
     e.add_argument("--foreign-shadows", action="store_true",
-                   help="eval people: relight as run --foreign-shadows does (shadows the face does not cast lifted)")
+                   help="eval people, eval yaleb: relight as run --foreign-shadows does (shadows the face does not "
+                        "cast looked for and lifted)")
     e.add_argument("--sheet", metavar="PNG", help="eval people: write a contact sheet of the worst faces here")
     e.add_argument("--worst", type=int, default=24, metavar="N", help="eval people: faces on the sheet (default 24)")
     e.add_argument("--source", default="procedural", help="test faces: procedural | eos:PATH | meshes:DIR")
