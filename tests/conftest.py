@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from shadowflow.nodes.geometry.reflectance import light_from_angles
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("SHADOWFLOW_SHARED", REPO.parent / "shared"))
@@ -64,6 +66,59 @@ def brimmed_face(folder: Path) -> tuple[Path, np.ndarray]:
     blocked = brim(image.shape, eyes, np.random.default_rng(1))
     cv2.imwrite(str(photo), np.round(np.clip(lay_shadow(image, blocked, 0.35, 2.0), 0, 1) * 255).astype(np.uint8))
     return photo, cv2.GaussianBlur(blocked, (0, 0), 2.0)
+
+
+# ``side_lit_face``: the rendered face's grid, its corner in the photo, the photo's size, its skin, the room's share
+GRID = (128, 128)
+TOP, LEFT = 40, 50  # the model grid's corner in the photo
+FRAME = (210, 230)
+SKIN = np.array([0.75, 0.55, 0.42], np.float32)
+AMBIENT = 0.2
+PHOTO_LIGHT = light_from_angles(-40.0)  # from the image's right
+NEW_LIGHT = light_from_angles(40.0)  # from its left
+# a warm lamp in a room lit blue (a sunlit face's shade under the sky), linear RGB
+LAMP, ROOM = (1.1, 1.0, 0.85), (0.75, 0.95, 1.3)
+
+
+def side_lit_face(direct_colour=(1.0, 1.0, 1.0), room_colour=(1.0, 1.0, 1.0)) -> SimpleNamespace:
+    """An ICT-FaceKit identity, skin-coloured, lit from ``PHOTO_LIGHT`` by a lamp of ``direct_colour`` with a room's
+    light (``AMBIENT``) of ``room_colour`` (RGB, linear), its cast and attached shadows traced, in a coloured frame (a
+    linear 8-bit file); its ``FaceRelight`` with the fit taken as exact (the render's normals, depth and shadows), and
+    its truth under ``NEW_LIGHT``."""
+    from shadowflow.nodes.evaluation.scenes import draw_face
+    from shadowflow.nodes.geometry.integrate import fill_holes
+    from shadowflow.nodes.geometry.normals import normals_from_depth
+    from shadowflow.nodes.method.shadow import shadow_maps
+    from shadowflow.nodes.model.canonical import canonical_eyes
+    from shadowflow.nodes.photo.align import Alignment
+    from shadowflow.nodes.relight.face import FaceRelight
+
+    depth, mask, _ = draw_face(np.random.default_rng(3), GRID, "ict")
+    depth = fill_holes(depth, mask)
+    normals = normals_from_depth(depth)
+    lamp, room = np.asarray(direct_colour, np.float32), np.asarray(room_colour, np.float32)
+
+    def render(light):
+        """(H, W, 3) the face under ``light`` with the room's light, in the frame (as a linear 8-bit file holds it);
+        its shadows (``ShadowMaps``) on the grid."""
+        shadows = shadow_maps(depth, normals, light)
+        direct = np.clip(np.nan_to_num(normals) @ light, 0.0, None) * shadows.lit
+        yy, xx = np.mgrid[0:FRAME[0], 0:FRAME[1]] / 200.0
+        image = np.dstack([0.2 + 0.2 * xx, 0.3 - 0.1 * yy, np.full_like(xx, 0.25)])
+        region = image[TOP:TOP + GRID[0], LEFT:LEFT + GRID[1]]
+        region[mask] = SKIN * (AMBIENT * room + (1 - AMBIENT) * direct[mask][:, None] * lamp)
+        return (np.round(np.clip(image, 0.0, 1.0) * 255) / 255).astype(np.float32), shadows
+
+    photo, shadows = render(PHOTO_LIGHT)
+    truth, new_shadows = render(NEW_LIGHT)
+    new_cast = np.zeros(FRAME, bool)  # where the new light's cast shadow (the nose's) falls, in the photo
+    new_cast[TOP:TOP + GRID[0], LEFT:LEFT + GRID[1]] = new_shadows.cast
+    eyes = canonical_eyes(GRID)
+    face = FaceRelight(photo=photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                       mask=mask, normals=normals, lit=shadows.lit, albedo=np.where(mask, 0.6, np.nan), depth=depth,
+                       light=PHOTO_LIGHT, iod_px=float(eyes[1, 0] - eyes[0, 0]))
+    return SimpleNamespace(face=face, photo=photo, truth=truth, new_cast=new_cast, eyes=eyes + [LEFT, TOP],
+                           normals=normals, lit=shadows.lit)
 
 
 def random_unit(n: int, rng: np.random.Generator, min_z: float = 0.05) -> np.ndarray:

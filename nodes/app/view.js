@@ -191,8 +191,12 @@ function liveGain(f, s, cast) {
       lift[i] = m / C;
     }
     weight[i] = face[i] * (1 - usable(f.relative[i], lift[i], f.encoding)) * f.paint8[i] / 255;
-    for (let c = 0; c < C; c++)
-      painted[C * i + c] = gain * f.fill[C * i + c] * neu[C * i + c] * (same + (1 - same) * castShare[i]);
+    for (let c = 0; c < C; c++) {
+      const j = C * i + c;
+      painted[j] = gain * f.fill[j] * neu[j] * (same + (1 - same) * castShare[i]);
+      // light_colour.tinted: the light added or taken away is the lamp's colour
+      if (f.tint && face[i]) g[j] = Math.max(1 + (g[j] - 1) * f.tint[j], K.DARKEN_FLOOR * g[j]);
+    }
   }
   return [g, painted, weight, keep];
 }
@@ -307,7 +311,8 @@ async function prepare() {
       raise_ratio: A.raise_ratio ? await unpack(A.raise_ratio, Float32Array) : null,
       raise8: A.raise8 ? await unpack(A.raise8, Uint8Array) : null,
       shine: A.shine ? await unpack(A.shine, Float32Array) : null,
-      kept: A.kept ? await unpack(A.kept, Float32Array) : null });
+      kept: A.kept ? await unpack(A.kept, Float32Array) : null,
+      tint: A.tint ? await unpack(A.tint, Float32Array) : null });
     f.linear = Float32Array.from(f.photo8, v => f.encoding === 'srgb' ? srgbToLinear(v / 255) : v / 255);
     const make = (part) => {
       const canvas = document.createElement('canvas');

@@ -19,6 +19,7 @@ from .compose import FaceLayer, inner_alpha
 from .eyes import CONTRAST as EYE_CONTRAST
 from .face_box import FaceBox, Features
 from .fields import brightness, smoothstep
+from .light_colour import TINT_SIGMA, light_tint, tinted
 from .lift import (
     LIT_SHADING,
     brightened,
@@ -87,6 +88,9 @@ class FaceRelight:
         # (ratio, strength): how far the side lit less may be raised toward its mirror
         self.mirror_raise = _mirror_raise(at, sl, midline, mirror_lift, iod_px)
         self.shadow, self.seen, self.albedo = sl.shadow, self.paint.seen, self.paint.albedo
+        # the colour of the light the photo shows against the lamp's (the room's in the shade): a change of light adds
+        # or takes away the lamp's
+        self.tint = light_tint(at.photo, sl.skin & at.face, sl.photo_lighting, TINT_SIGMA * iod_px)
         self.alpha = inner_alpha(at.face, self.feather, at.inside_distance)
         self.layer_alpha = at.in_layer(self.alpha)
         self.report: dict[str, float] = {}
@@ -146,7 +150,7 @@ class FaceRelight:
         painted = np.float32(gain) * fill * new * (same + (np.float32(1.0) - same) * cast_share[..., None])
         self.report = {"exposure": gain, "painted": float(weight[at.face].mean()) if at.face.any() else 0.0,
                        "lift_p95": float(np.percentile(lift[at.face], 95)) if at.face.any() else 1.0}
-        return relit_face(at.photo, g, painted, weight, sl.shine, keep, fill)
+        return relit_face(at.photo, tinted(g, self.tint), painted, weight, sl.shine, keep, fill)
 
     def _lifted(self, new: np.ndarray) -> np.ndarray | float:
         """(h, w, C) how much the side of the face the photo's light reaches less is raised toward its mirror's
@@ -176,7 +180,8 @@ class FaceRelight:
             alpha=self.layer_alpha, beyond=at.layer_beyond, person=at.layer_person,
             raise_ratio=None if self.mirror_raise is None else in_layer(self.mirror_raise[0] - 1.0) + 1.0,
             raise_strength=None if self.mirror_raise is None else in_layer(self.mirror_raise[1]),
-            shine=in_layer(sl.shine) if sl.shine.any() else None, foreign_lift=self.foreign_lift())
+            shine=in_layer(sl.shine) if sl.shine.any() else None, foreign_lift=self.foreign_lift(),
+            tint=None if self.tint is None else in_layer(self.tint - 1.0) + 1.0)
         y0, _, x0, _ = at.box
         ly0, _, lx0, _ = at.layer_box
         to_box = at.al.cropped(lx0 - x0, ly0 - y0).matrix

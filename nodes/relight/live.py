@@ -30,6 +30,7 @@ from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .albedo import lifted
 from .compose import RIM_SHARE, beyond_ratio, beyond_reach, face_rim
 from .fields import brightness, smoothstep
+from .light_colour import tinted
 from .lift import LIT_SHADING, MAX_GAIN, exposure_gain, shadows_kept, usable
 from .shine import shine_kept, shine_lobe
 
@@ -60,7 +61,8 @@ class LiveFace:
     raise8 (h, w) uint8, or None: how far the side lit less may be raised toward its mirror (``albedo.mirror_raise``'s
     ratio and strength); shine (h, w, C) float32 or None: the photo's shine, in light (``shine.sheen``), which a new
     light keeps as far as ``shine.shine_kept`` says; kept (h, w, C) float32 or None: how much the shadows the face does
-    not cast are lifted under any light (``FaceRelight.foreign_lift``; None: none looked for)."""
+    not cast are lifted under any light (``FaceRelight.foreign_lift``; None: none looked for); tint (h, w, 3) float32 or
+    None: the lamp's colour over the light's each pixel shows (``light_colour.light_tint``; None: a grey photo)."""
 
     box: tuple[int, int, int, int]
     photo8: np.ndarray
@@ -87,6 +89,7 @@ class LiveFace:
     raise8: np.ndarray | None = None
     shine: np.ndarray | None = None
     kept: np.ndarray | None = None
+    tint: np.ndarray | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -99,7 +102,7 @@ class LiveArrays:
     (h, w, 3); relative, paint (h, w) float; face, skin (h, w) bool; alpha (h, w); beyond (h, w) bool or None, the
     face's own skin past the face; person (h, w) float or None (``compose.outside_gain``); raise_ratio (h, w, C),
     raise_strength (h, w), or None (``albedo.mirror_raise``); foreign_lift (h, w, C) or None
-    (``FaceRelight.foreign_lift``)."""
+    (``FaceRelight.foreign_lift``); tint (h, w, 3) or None (``light_colour.light_tint``)."""
 
     photo: np.ndarray
     shown: np.ndarray
@@ -117,6 +120,7 @@ class LiveArrays:
     raise_strength: np.ndarray | None = None
     shine: np.ndarray | None = None
     foreign_lift: np.ndarray | None = None
+    tint: np.ndarray | None = None
 
 
 def live_relight_data(box: tuple[int, int, int, int], arrays: LiveArrays, want: float | None, ambient: float,
@@ -177,7 +181,8 @@ def live_relight_data(box: tuple[int, int, int, int], arrays: LiveArrays, want: 
                     np.round(np.where(f, area(arrays.raise_strength), 0.0) * 255.0).astype(np.uint8),
                     shine=None if arrays.shine is None else
                     np.where(f[..., None], area(np.atleast_3d(arrays.shine)), 0.0).astype(np.float32),
-                    kept=None if arrays.foreign_lift is None else inside(arrays.foreign_lift))
+                    kept=None if arrays.foreign_lift is None else inside(arrays.foreign_lift),
+                    tint=None if arrays.tint is None else inside(arrays.tint))
 
 
 def blur_radius(sigma: float) -> int:
@@ -260,6 +265,7 @@ def live_gain(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None
     g = g * held[..., None]
     weight = (np.float32(1.0) - usable(live.relative, brightness(g), live.encoding)) * (live.paint8 / np.float32(255.0))
     painted = gain * live.fill * new * (same + (np.float32(1.0) - same) * cast_share[..., None])
+    g = np.where(face[..., None], tinted(g, live.tint), g)  # the light added or taken away is the lamp's colour
     return g.astype(np.float32), painted.astype(np.float32), (weight * face).astype(np.float32), keep
 
 

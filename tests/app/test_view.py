@@ -11,12 +11,14 @@ import zlib
 import cv2
 import numpy as np
 import pytest
-from conftest import brimmed_face
+from conftest import LAMP, NEW_LIGHT, ROOM, brimmed_face, side_lit_face
+from shadowflow.flow.frame import Frame
 from shadowflow.nodes.app.cli import main
+from shadowflow.nodes.app.view import view_html
 from shadowflow.nodes.geometry.reflectance import light_from_angles
+from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.live import BEYOND, FACE, render_live
 from shadowflow.nodes.relight.nodes import live_face
-from shadowflow.nodes.method.options import MethodOptions
 from shadowflow.nodes.relight.products import relit_photos
 
 LIGHTS = {"frontal": np.array([0.0, 0.0, 1.0]), "30,10": light_from_angles(30, 10),
@@ -180,6 +182,30 @@ def test_the_page_lifts_a_brims_shadow_as_the_product_does_in_chromium(brimmed_p
     assert main(["run", str(brimmed_png), "--out", str(out), "--quiet", "--record", "none", "--model", "procedural",
                  "--foreign-shadows", "--relight=20,0"]) == 0
     _page_against_product(out / "face" / "view.html", {"frontal": "relit.png", "20,0": "relit_A+020E+00.png"})
+
+
+@pytest.mark.slow
+def test_the_page_gives_the_light_it_adds_the_lamps_colour_in_chromium(tmp_path):
+    """A face lit by a warm lamp in a blue room (``conftest.side_lit_face``): the page opened in headless Chromium
+    relights it toward the side turned from the lamp and from the front within one grey level (mean, inside the face)
+    of ``render_live``, which gives the light it adds the lamp's colour (measured 0.4; the page without the colour,
+    4.0 and 4.5)."""
+    scene = side_lit_face(LAMP, ROOM)
+    live = scene.face.live_data()
+    assert live.tint is not None
+    frame = Frame(0, "blue_room.png", data={"rgb8": np.round(scene.photo * 255).astype(np.uint8)},
+                  meta={"stem": "blue_room", "encoding": "linear"})
+    view = tmp_path / "view.html"
+    view.write_bytes(view_html(frame, [({"status": "ok", "box": list(live.box)}, live)]))
+    inside = (live.alpha8 == 255) & ((live.flags & FACE) > 0)
+    for name, light in (("40,0", NEW_LIGHT), ("0,0,1", np.array([0.0, 0.0, 1.0]))):
+        proc = _chromium("--dump-dom", f"{view.as_uri()}#light={name}&dump")
+        dump = re.search(r'<pre id="dump">(.*?)</pre>', proc.stdout, re.S)
+        assert dump, proc.stderr[-2000:]
+        drawn = json.loads(dump.group(1).replace("&quot;", '"'))[0]["png"]
+        canvas = cv2.imdecode(np.frombuffer(base64.b64decode(drawn.split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)
+        levels = np.abs(canvas[..., ::-1].astype(np.float32) - 255 * render_live(live, light)).max(axis=-1)
+        assert levels[inside].mean() < 1.0, (name, levels[inside].mean())
 
 
 def test_the_live_blur_is_a_gaussian_of_its_width():
