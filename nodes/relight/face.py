@@ -19,7 +19,6 @@ from .compose import FaceLayer, inner_alpha
 from .eyes import CONTRAST as EYE_CONTRAST
 from .face_box import FaceBox, Features
 from .fields import brightness, smoothstep
-from .light_colour import TINT_SIGMA, light_tint, tinted
 from .lift import (
     LIT_SHADING,
     brightened,
@@ -31,6 +30,7 @@ from .lift import (
     smooth_change,
     usable,
 )
+from .light_colour import TINT_SIGMA, light_tint, tinted
 from .live import LiveArrays, LiveFace, live_relight_data
 from .paint import FILL_DETAIL, Paint
 from .shine import shine_kept, shine_lobe

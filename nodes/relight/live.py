@@ -30,8 +30,8 @@ from ..photo.encoding import linear_to_srgb, srgb_to_linear
 from .albedo import lifted
 from .compose import RIM_SHARE, beyond_ratio, beyond_reach, face_rim
 from .fields import brightness, smoothstep
-from .light_colour import tinted
 from .lift import LIT_SHADING, MAX_GAIN, exposure_gain, shadows_kept, usable
+from .light_colour import tinted
 from .shine import shine_kept, shine_lobe
 
 LIVE_SIDE = 384  # pixels, the preview's longer side: a drag redraws it in a few milliseconds

@@ -9,8 +9,8 @@ ROOM = np.array([0.8, 0.95, 1.25], np.float32)
 
 
 def _half_in_shade(room=ROOM, shade=0.3, size=(80, 120)):
-    """(h, w, 3) skin lit by the room's light of colour ``room`` (``shade`` of a white lamp's level) and on its left half
-    by the lamp too; the lighting (h, w) each half shows; the skin (h, w) bool; the right half (h, w) bool."""
+    """(h, w, 3) skin lit by the room's light of colour ``room`` (``shade`` of a white lamp's level) and on its left
+    half by the lamp too; the lighting (h, w) each half shows; the skin (h, w) bool; the right half (h, w) bool."""
     h, w = size
     right = np.zeros(size, bool)
     right[:, w // 2:] = True
@@ -22,7 +22,8 @@ def test_shade_lit_by_the_room_lifted_to_the_lamps_level_takes_the_lit_skins_col
     """Skin lit by a white lamp on its left half and by a blue room everywhere: its tint is 1 on the lit half and the
     lit skin's colour over the shade's on the shaded half (within 2 %, away from the border, across which the colour
     is averaged); the shade lifted to the lit half's level by ``tinted`` is the lit skin (within 7 %: the light added
-    is the lit skin's, a quarter of which is the room's), where one gain in every channel leaves it blue (by over 15 %)."""
+    is the lit skin's, a quarter of which is the room's), where one gain in every channel leaves it blue (by over
+    15 %)."""
     photo, lighting, skin, right = _half_in_shade()
     tint = light_tint(photo, skin, lighting, sigma_px=3.0)
     assert tint.shape == photo.shape
