@@ -115,10 +115,10 @@ def runtime() -> str:
     return "litert"
 
 
-def _load(path: Path):
+def _load(path: Path, litert_only: bool = False):
     if not path.is_file():
         raise RuntimeError(f"{path}: MediaPipe model missing from the package (reinstall shadowflow)")
-    return _LiteRtNet(path, _litert()) if runtime() == "litert" else _OpenCvNet(path)
+    return _LiteRtNet(path, _litert()) if litert_only or runtime() == "litert" else _OpenCvNet(path)
 
 
 class NetPool:
@@ -126,8 +126,8 @@ class NetPool:
     threads, and loading one takes milliseconds, so the nets outlive the threads that use them (a
     time-limited step runs each frame in a new thread)."""
 
-    def __init__(self, path: Path):
-        self.path = path
+    def __init__(self, path: Path, litert_only: bool = False):
+        self.path, self.litert_only = path, litert_only  # litert_only: a model OpenCV's dnn gets wrong
         self._free: list = []
         self._lock = threading.Lock()
 
@@ -136,7 +136,7 @@ class NetPool:
         with self._lock:
             net = self._free.pop() if self._free else None
         if net is None:
-            net = _load(self.path)
+            net = _load(self.path, self.litert_only)
         try:
             return net(x, outputs)
         finally:

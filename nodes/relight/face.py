@@ -58,9 +58,9 @@ class FaceRelight:
     at all); fill_detail: how far a fill takes what is seen so (0: none). features: the face's parts
     (``Features``), or None. segment: (h, w, C) linear photo -> (h, w) how sure a segmentation is that each pixel
     is the person, or None (the whole feather). hair: (Hm, Wm) bool, what the fit left out as covering the face's
-    upper part, or None. hair_matte: (h, w, C) linear photo -> (h, w) how sure a hair segmentation is that each
-    pixel is hair, or None (no such model here). model_normals: (Hm, Wm, 3) the fitted model's own normals, or None
-    (``shown_light.ShownLight``: they tell the shadows the face does not cast).
+    upper part, or None. hair_matte: the face's box ``(y0, y1, x0, x1)`` of the photo -> (h, w) how sure a hair
+    segmentation is that each pixel there is hair, or None (no such model here). model_normals: (Hm, Wm, 3) the
+    fitted model's own normals, or None (``shown_light.ShownLight``: they tell the shadows the face does not cast).
 
     Measured once: where the face is (``at``, a ``FaceBox``: ``box``, ``face``, ``layer_box``, ``layer_face``,
     ``layer_photo`` are its), the light the photo shows there (``shown_light``, a ``ShownLight``: ``shadow`` is its)
@@ -74,7 +74,7 @@ class FaceRelight:
                  fill_detail: float = FILL_DETAIL, mirror_lift: float = 1.0, mirror: np.ndarray | None = None,
                  features: Features | None = None,
                  segment: Callable[[np.ndarray], np.ndarray] | None = None, hair: np.ndarray | None = None,
-                 hair_matte: Callable[[np.ndarray], np.ndarray] | None = None,
+                 hair_matte: Callable[[tuple], np.ndarray] | None = None,
                  model_normals: np.ndarray | None = None):
         self.mask, self.depth, self.iod = mask, depth, iod_px
         self.feather = FEATHER * iod_px

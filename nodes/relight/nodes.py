@@ -24,6 +24,7 @@ from ..method.quality import EVEN_EXPLAINED, UNEXPLAINED
 from ..method.relight import novel_view, resample_surface
 from ..method.turned import ViewChoiceNode
 from ..model.shape_model import ShapeModel
+from ..photo import hair_matte
 from ..photo.align import Alignment
 from ..photo.encoding import linear_to_srgb
 from ..photo.evenness import evenly_lit
@@ -314,13 +315,15 @@ class PhotoRelightNode:
             features = Features(eyes=list(outlines.get("eyes", [])), brows=list(outlines.get("brows", [])),
                                 lips=[*outlines.get("lips", []), *outlines.get("mouth", [])],
                                 nostrils=list(outlines.get("nostrils", [])))
+        photo = photo_channels(frame)
         return FaceRelight(
-            photo=photo_channels(frame), alignment=al, mask=m.mask, normals=shading_normals(frame),
+            photo=photo, alignment=al, mask=m.mask, normals=shading_normals(frame),
             lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"], light=d["light"], iod_px=iod * al.scale,
             encoding=encoding, outline=placement.outlines["oval"][0] if meshed else None, eyes=eyes,
             eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
             mirror_lift=self.options.mirror_lift, mirror=None if m.mirrors_by_column else m.mirror,
             features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m),
+            hair_matte=hair_segmenter(photo, encoding),
             model_normals=foreign_cue(frame) if self.options.foreign_shadows else None)
 
 
@@ -339,6 +342,16 @@ def foreign_cue(frame: Frame) -> np.ndarray | None:
     does not cast are found (``shown_light.ShownLight``); None without a fit."""
     fit = frame.data.get("fit")
     return None if fit is None else frame.data["model"].to_image(fit.model_normals.astype(np.float32))
+
+
+def hair_segmenter(photo: np.ndarray, encoding: str) -> Callable[[tuple], np.ndarray] | None:
+    """A face's box ``(y0, y1, x0, x1)`` of ``photo`` ((H, W, C) linear) -> (h, w) how sure MediaPipe's hair
+    segmentation is that each pixel there is hair (``hair_matte.hair_in_box``: the head around the box shown to it as
+    its file holds it); None where it cannot run (no LiteRT)."""
+    if not hair_matte.available():
+        return None
+    to_display = linear_to_srgb if encoding == "srgb" else None
+    return lambda box: hair_matte.hair_in_box(photo, box, to_display)
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

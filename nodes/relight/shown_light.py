@@ -67,10 +67,10 @@ class ShownLight:
     in the fit's shadows; albedo: (Hm, Wm) the fit's albedo map; light: (3,) the photo's light, camera frame;
     iod_px: the face's interocular distance in photo pixels; encoding: the photo's file's ("srgb" or "linear"): its
     noise floor is read in it; hair: (Hm, Wm) bool, what the fit left out as covering the face's upper part, or
-    None; hair_matte: (h, w, C) linear photo -> (h, w) how sure a hair segmentation is that each pixel is hair, or
-    None; model_normals: (Hm, Wm, 3) the fitted model's own normals (model camera frame), or None: given, the
-    shadows the face does not cast are looked for against their shading, and they take the place of ``normals`` in
-    them (None: none are looked for).
+    None; hair_matte: the face's box ``(y0, y1, x0, x1)`` of the photo -> (h, w) how sure a hair segmentation is that
+    each pixel there is hair, or None; model_normals: (Hm, Wm, 3) the fitted model's own normals (model camera
+    frame), or None: given, the shadows the face does not cast are looked for against their shading, and they take
+    the place of ``normals`` in them (None: none are looked for).
 
     ``normals`` (h, w, 3), ``light`` (3,) unit, ``direct`` (h, w) its direct light; ``skin`` and ``dark_by_make``
     (h, w) bool; ``shading`` (``Shading``), ``fitted`` (h, w) its lighting; ``expected`` (h, w, C) the skin's
@@ -81,7 +81,7 @@ class ShownLight:
 
     def __init__(self, at: FaceBox, normals: np.ndarray, lit: np.ndarray, albedo: np.ndarray, light: np.ndarray,
                  iod_px: float, encoding: str, hair: np.ndarray | None,
-                 hair_matte: Callable[[np.ndarray], np.ndarray] | None, model_normals: np.ndarray | None = None):
+                 hair_matte: Callable[[tuple], np.ndarray] | None, model_normals: np.ndarray | None = None):
         self.at, self.iod = at, iod_px
         self.normals = np.nan_to_num(normals_to_input(normals, at.mask, at.al, at.shape)).astype(np.float32)
         s = np.asarray(light, np.float64)
@@ -122,7 +122,7 @@ class ShownLight:
         # beard's darkness) and those the photo shows beyond them (``evidence``)
         self.shadow = at.face & ((self.evidence.membership >= SHADOW_MEMBERSHIP) | fit_shadow)
 
-    def _skin(self, hair: np.ndarray | None, hair_matte: Callable[[np.ndarray], np.ndarray] | None,
+    def _skin(self, hair: np.ndarray | None, hair_matte: Callable[[tuple], np.ndarray] | None,
               direct: np.ndarray, iod_px: float) -> np.ndarray:
         """(h, w) bool: the face's pixels whose darkness may be a shadow's: off the eyes, brows, lips and mouth, off
         hair (the fit's cover, the hair matte), smooth as skin is, of the skin's colour (in its shade too)."""
@@ -138,7 +138,7 @@ class ShownLight:
             covered = grow(at.on_photo(hair), max(at.al.scale, 1.0)) & out
             out &= ~covered
         if hair_matte is not None:
-            out &= hair_matte(at.photo) < 0.5
+            out &= hair_matte(at.box) < 0.5
         if iod_px < SKIN_MIN_IOD:
             return out
         texture = _roughness(at.photo, out, iod_px)

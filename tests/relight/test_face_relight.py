@@ -114,6 +114,30 @@ def test_the_live_face_takes_the_lamps_colour_as_the_product_does(blue_room):
         assert levels.mean() < 3.0, (light, levels.mean())
 
 
+def test_what_the_hair_matte_calls_hair_is_not_skin(rendered):
+    """A hair matte (``hair_matte``: the face's box -> how sure it is of hair) over the face's upper third takes that
+    third out of the skin whose darkness may be a shadow's; the rest of the skin stays as it was without a matte."""
+    face = rendered.face
+    y0, y1, x0, x1 = face.box
+    third = y0 + (y1 - y0) // 3
+    asked = []
+
+    def matte(box):
+        asked.append(tuple(box))
+        share = np.zeros((box[1] - box[0], box[3] - box[2]), np.float32)
+        share[:third - box[0]] = 1.0
+        return share
+
+    haired = FaceRelight(photo=rendered.photo, alignment=Alignment(np.array([[1.0, 0, LEFT], [0, 1.0, TOP]]), "test"),
+                         mask=face.mask, normals=rendered.normals,
+                         lit=rendered.lit, albedo=np.where(face.mask, 0.6, np.nan), depth=face.depth,
+                         light=PHOTO_LIGHT, iod_px=face.iod, hair_matte=matte)
+    assert asked == [tuple(face.box)]
+    before, after = face.shown_light.skin, haired.shown_light.skin
+    assert before[:third - y0].sum() > 500 and not after[:third - y0].any()
+    np.testing.assert_array_equal(after[third - y0:], before[third - y0:])
+
+
 def test_each_light_carries_its_own_change_of_light_around_the_face(rendered):
     """The part of the gain around the face no light changes is made once for all of a face's lights; each layer's
     gain is still its own light's: equal to the gain made from nothing for that relit face, the photo's own light
