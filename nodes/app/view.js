@@ -194,8 +194,8 @@ function liveGain(f, s, cast) {
     for (let c = 0; c < C; c++) {
       const j = C * i + c;
       painted[j] = gain * f.fill[j] * neu[j] * (same + (1 - same) * castShare[i]);
-      // light_colour.tinted: the light added or taken away is the lamp's colour
-      if (f.tint && face[i]) g[j] = Math.max(1 + (g[j] - 1) * f.tint[j], K.DARKEN_FLOOR * g[j]);
+      // light_colour.tinted: the light added is the lamp's colour
+      if (f.tint && face[i] && g[j] > 1) g[j] = 1 + (g[j] - 1) * f.tint[j];
     }
   }
   return [g, painted, weight, keep];

@@ -28,7 +28,7 @@ from ...flow.replay import printable
 from ..method.shadow import SOFT_CAST_REACH
 from ..photo.align import FIELD_REACH, Alignment
 from ..photo.encoding import linear_to_srgb, swapped_rb
-from ..relight import lift, light_colour
+from ..relight import lift
 from ..relight.albedo import LIFT_AMPLIFICATION
 from ..relight.compose import RATIO_BEYOND, RATIO_OUTSIDE
 from ..relight.live import BEYOND, FACE, HELD_MARGIN, RIM, SKIN, LiveFace
@@ -121,7 +121,6 @@ def view_html(frame: Frame, faces: list[tuple[dict, LiveFace | None]], relit_fil
                  "ELEVATION_WEIGHT": lift.ELEVATION_WEIGHT, "FILE_NOISE": lift.FILE_NOISE,
                  "NOISE_SHOWN": list(lift.NOISE_SHOWN), "RELATIVE_NOISE": list(lift.RELATIVE_NOISE),
                  "LIFTED": list(lift.LIFTED), "MAX_GAIN": lift.MAX_GAIN, "HELD_MARGIN": HELD_MARGIN,
-                 "DARKEN_FLOOR": light_colour.DARKEN_FLOOR,
                  "LIFT_AMPLIFICATION": list(LIFT_AMPLIFICATION), "SHINE_LOBE": SHINE_LOBE}
     page = _PAGE.format(
         title=html.escape(f"{stem} · shadowflow"), stem=html.escape(stem), source=html.escape(printable(frame.source)),

@@ -88,8 +88,8 @@ class FaceRelight:
         # (ratio, strength): how far the side lit less may be raised toward its mirror
         self.mirror_raise = _mirror_raise(at, sl, midline, mirror_lift, iod_px)
         self.shadow, self.seen, self.albedo = sl.shadow, self.paint.seen, self.paint.albedo
-        # the colour of the light the photo shows against the lamp's (the room's in the shade): a change of light adds
-        # or takes away the lamp's
+        # the colour of the light the photo shows against the lamp's (the room's in the shade): the light a change adds
+        # is the lamp's
         self.tint = light_tint(at.photo, sl.skin & at.face, sl.photo_lighting, TINT_SIGMA * iod_px)
         self.alpha = inner_alpha(at.face, self.feather, at.inside_distance)
         self.layer_alpha = at.in_layer(self.alpha)

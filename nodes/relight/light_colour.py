@@ -3,7 +3,7 @@
 A face's shade is lit by the room (a wall, the sky, a green screen behind the head), not by the lamp, and its skin
 takes that light's colour: a shadow dims and cools skin, or greens it. A relighting that lifts the shade by one gain
 in every channel keeps the room's colour in it, and the lifted half of the face comes back grey-green beside the pink
-lit half. The light a relighting adds is the lamp's, the lit skin's colour; the light it takes away too.
+lit half. The light a relighting adds is the lamp's, the lit skin's colour.
 
 With ``P`` a pixel (per channel), ``c`` the skin's colour around it and ``r`` the lit skin's (chromaticities,
 brightness 1): the skin's albedo's colour is ``r`` under the lamp's light, so the room's light gives it ``c``. A
@@ -11,6 +11,12 @@ change of light by ``g`` (its brightness) adds ``(g - 1) Y`` of the lamp's light
 ``P' = P (1 + (g - 1) r / c)`` per channel (``tinted``), exact when the skin's albedo has one colour, and the photo's
 own detail (a freckle's colour, stubble) kept as the ratio. Where the skin is lit, ``r / c`` is 1 and nothing
 changes; under the photo's own light ``g`` is 1 and nothing changes.
+
+Only light added is coloured so. Light taken away (``g < 1``) would be the lamp's too, but what is left of a pixel
+darkened to a third is the difference of two near quantities, and the skin's own colour read as the light's (a
+blush, the redder skin beside a nose) came out of it threefold: the astronaut relit from 60 degrees took orange and
+blue blotches over her darkened half. A darkened pixel keeps its colour (the room's colour in the new shade is not
+known where the photo shows the skin lit).
 
 Arrays are on the face's box at the photo's resolution (h, w[, 3]), linear.
 """
@@ -28,9 +34,6 @@ LIT_PERCENTILE = 70
 # the change of colour a channel takes is bounded so (a coloured make-up or a blush read as the light's colour is
 # not taken for more)
 TINT_RANGE = (0.75, 1.35)
-# a channel darkened (the new light takes the lamp's light away) keeps at least this share of its gain without the
-# colour (the lamp's colour taken from a pixel the room lit little would leave it black)
-DARKEN_FLOOR = 0.5
 
 
 def light_tint(photo: np.ndarray, skin: np.ndarray, lighting: np.ndarray, sigma_px: float) -> np.ndarray | None:
@@ -52,9 +55,10 @@ def light_tint(photo: np.ndarray, skin: np.ndarray, lighting: np.ndarray, sigma_
 
 
 def tinted(gain: np.ndarray, tint: np.ndarray | None) -> np.ndarray:
-    """(h, w, C) float32 ``gain`` (h, w, C), a change of light per channel, with the light it adds or takes away of the
-    lamp's colour: ``1 + (g - 1) t``, at least ``DARKEN_FLOOR g``; ``gain`` itself without a ``tint`` (h, w, 3)."""
+    """(h, w, C) float32 ``gain`` (h, w, C), a change of light per channel, with the light it adds of the lamp's
+    colour: ``1 + (g - 1) t`` where ``g > 1``, ``g`` where it darkens (module docstring); ``gain`` itself without a
+    ``tint`` (h, w, 3)."""
     g = np.asarray(gain, np.float32)
     if tint is None or g.shape[-1] != 3:
         return g
-    return np.maximum(np.float32(1.0) + (g - np.float32(1.0)) * tint, np.float32(DARKEN_FLOOR) * g).astype(np.float32)
+    return np.where(g > 1.0, np.float32(1.0) + (g - np.float32(1.0)) * tint, g).astype(np.float32)

@@ -265,7 +265,7 @@ def live_gain(live: LiveFace, light: np.ndarray, cast: np.ndarray | None = None
     g = g * held[..., None]
     weight = (np.float32(1.0) - usable(live.relative, brightness(g), live.encoding)) * (live.paint8 / np.float32(255.0))
     painted = gain * live.fill * new * (same + (np.float32(1.0) - same) * cast_share[..., None])
-    g = np.where(face[..., None], tinted(g, live.tint), g)  # the light added or taken away is the lamp's colour
+    g = np.where(face[..., None], tinted(g, live.tint), g)  # the light added is the lamp's colour
     return g.astype(np.float32), painted.astype(np.float32), (weight * face).astype(np.float32), keep
 
 

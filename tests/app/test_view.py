@@ -189,7 +189,7 @@ def test_the_page_gives_the_light_it_adds_the_lamps_colour_in_chromium(tmp_path)
     """A face lit by a warm lamp in a blue room (``conftest.side_lit_face``): the page opened in headless Chromium
     relights it toward the side turned from the lamp and from the front within one grey level (mean, inside the face)
     of ``render_live``, which gives the light it adds the lamp's colour (measured 0.4; the page without the colour,
-    4.0 and 4.5)."""
+    3.9 and 4.5)."""
     scene = side_lit_face(LAMP, ROOM)
     live = scene.face.live_data()
     assert live.tint is not None
