@@ -347,8 +347,9 @@ def foreign_cue(frame: Frame) -> np.ndarray | None:
 def hair_segmenter(photo: np.ndarray, encoding: str) -> Callable[[tuple], np.ndarray] | None:
     """A face's box ``(y0, y1, x0, x1)`` of ``photo`` ((H, W, C) linear) -> (h, w) how sure MediaPipe's hair
     segmentation is that each pixel there is hair (``hair_matte.hair_in_box``: the head around the box shown to it as
-    its file holds it); None where it cannot run (no LiteRT)."""
-    if not hair_matte.available():
+    its file holds it); None where it cannot run (no LiteRT) or for a grey photo: without colour it takes a side
+    light's deep shadows for hair (a cast shadow across a Yale B cheek, the shade beside a nose)."""
+    if not hair_matte.available() or np.shape(photo)[-1] != 3:
         return None
     to_display = linear_to_srgb if encoding == "srgb" else None
     return lambda box: hair_matte.hair_in_box(photo, box, to_display)

@@ -46,9 +46,13 @@ def test_a_box_at_the_photos_edge_is_shown_black_beyond_it(astronaut):
     assert share.shape == (100, 90) and np.all((share >= 0.0) & (share <= 1.0))
 
 
-def test_without_litert_there_is_no_matte(monkeypatch):
-    """OpenCV's dnn gets the model wrong (its custom operators): without LiteRT the relighting gets no matte."""
+def test_without_litert_or_colour_there_is_no_matte(monkeypatch):
+    """OpenCV's dnn gets the model wrong (its custom operators): without LiteRT the relighting gets no matte; nor for
+    a grey photo, where the model takes a side light's deep shadows for hair (a Yale B cheek's cast shadow)."""
     from shadowflow.nodes.relight.nodes import hair_segmenter
 
+    pytest.importorskip("ai_edge_litert")
+    assert hair_segmenter(np.zeros((64, 64, 3), np.float32), "srgb") is not None
+    assert hair_segmenter(np.zeros((64, 64, 1), np.float32), "linear") is None
     monkeypatch.setattr(HM, "available", lambda: False)
     assert hair_segmenter(np.zeros((64, 64, 3), np.float32), "srgb") is None
