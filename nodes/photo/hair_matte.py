@@ -52,7 +52,8 @@ def hair_in_box(photo: np.ndarray, box: tuple[int, int, int, int],
                 to_display: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """(y1 - y0, x1 - x0) float32 in [0, 1]: ``hair_share`` over ``box`` ``(y0, y1, x0, x1)`` of ``photo`` ((H, W, C)
     float in [0, 1]), the model shown the square ``HEAD_REACH`` times the box around it (black past the photo's
-    edge). ``to_display``: applied to that square first (``linear_to_srgb`` for a linear colour photo)."""
+    edge). ``to_display``: applied to that square first (``linear_to_srgb`` for an sRGB file's photo, held linear:
+    the model was trained on photos as cameras save them)."""
     y0, y1, x0, x1 = (int(v) for v in box)
     H, W = photo.shape[:2]
     half = 0.5 * HEAD_REACH * max(y1 - y0, x1 - x0, 1)
