@@ -12,8 +12,6 @@ Everything here is in photo pixels: x = column, y = row (down).
 """
 from __future__ import annotations
 
-from typing import Callable
-
 import cv2
 import numpy as np
 
@@ -48,12 +46,10 @@ def hair_share(rgb: np.ndarray) -> np.ndarray:
     return cv2.resize(share.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def hair_in_box(photo: np.ndarray, box: tuple[int, int, int, int],
-                to_display: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+def hair_in_box(photo: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     """(y1 - y0, x1 - x0) float32 in [0, 1]: ``hair_share`` over ``box`` ``(y0, y1, x0, x1)`` of ``photo`` ((H, W, C)
-    float in [0, 1]), the model shown the square ``HEAD_REACH`` times the box around it (black past the photo's
-    edge). ``to_display``: applied to that square first (``linear_to_srgb`` for an sRGB file's photo, held linear:
-    the model was trained on photos as cameras save them)."""
+    as a camera saves it: uint8, or float in [0, 1]), the model shown the square ``HEAD_REACH`` times the box around
+    it (black past the photo's edge); only that square is read."""
     y0, y1, x0, x1 = (int(v) for v in box)
     H, W = photo.shape[:2]
     half = 0.5 * HEAD_REACH * max(y1 - y0, x1 - x0, 1)
@@ -62,7 +58,7 @@ def hair_in_box(photo: np.ndarray, box: tuple[int, int, int, int],
     square = np.zeros((sy1 - sy0, sx1 - sx0, photo.shape[-1] if photo.ndim == 3 else 1), np.float32)
     py0, py1, px0, px1 = max(sy0, 0), min(sy1, H), max(sx0, 0), min(sx1, W)
     square[py0 - sy0:py1 - sy0, px0 - sx0:px1 - sx0] = np.atleast_3d(photo)[py0:py1, px0:px1]
-    if to_display is not None:
-        square = to_display(square)
+    if np.asarray(photo).dtype == np.uint8:
+        square /= np.float32(255.0)
     share = hair_share(square)
     return share[y0 - sy0:y1 - sy0, x0 - sx0:x1 - sx0]

@@ -19,7 +19,7 @@ from ..method.nodes import (
     shading_normals,
 )
 from ..method.options import MethodOptions
-from ..method.products import photo_channels
+from ..method.products import photo_channels, photo_rgb8
 from ..method.quality import EVEN_EXPLAINED, UNEXPLAINED
 from ..method.relight import novel_view, resample_surface
 from ..method.turned import ViewChoiceNode
@@ -315,15 +315,14 @@ class PhotoRelightNode:
             features = Features(eyes=list(outlines.get("eyes", [])), brows=list(outlines.get("brows", [])),
                                 lips=[*outlines.get("lips", []), *outlines.get("mouth", [])],
                                 nostrils=list(outlines.get("nostrils", [])))
-        photo = photo_channels(frame)
         return FaceRelight(
-            photo=photo, alignment=al, mask=m.mask, normals=shading_normals(frame),
+            photo=photo_channels(frame), alignment=al, mask=m.mask, normals=shading_normals(frame),
             lit=d["shadow"].lit, albedo=d["albedo"], depth=d["depth"], light=d["light"], iod_px=iod * al.scale,
             encoding=encoding, outline=placement.outlines["oval"][0] if meshed else None, eyes=eyes,
             eye_contrast=self.options.eye_contrast, midline=midline, fill_detail=self.options.fill_detail,
             mirror_lift=self.options.mirror_lift, mirror=None if m.mirrors_by_column else m.mirror,
             features=features, segment=person_segmenter(encoding), hair=covered_above_eyes(frame, m),
-            hair_matte=hair_segmenter(photo, encoding),
+            hair_matte=hair_segmenter(frame),
             model_normals=foreign_cue(frame) if self.options.foreign_shadows else None)
 
 
@@ -344,15 +343,15 @@ def foreign_cue(frame: Frame) -> np.ndarray | None:
     return None if fit is None else frame.data["model"].to_image(fit.model_normals.astype(np.float32))
 
 
-def hair_segmenter(photo: np.ndarray, encoding: str) -> Callable[[tuple], np.ndarray] | None:
-    """A face's box ``(y0, y1, x0, x1)`` of ``photo`` ((H, W, C) linear) -> (h, w) how sure MediaPipe's hair
-    segmentation is that each pixel there is hair (``hair_matte.hair_in_box``: the head around the box shown to it as
-    its file holds it); None where it cannot run (no LiteRT) or for a grey photo: without colour it takes a side
-    light's deep shadows for hair (a cast shadow across a Yale B cheek, the shade beside a nose)."""
-    if not hair_matte.available() or np.shape(photo)[-1] != 3:
+def hair_segmenter(frame: Frame) -> Callable[[tuple], np.ndarray] | None:
+    """A face's box ``(y0, y1, x0, x1)`` of ``frame``'s photo -> (h, w) how sure MediaPipe's hair segmentation is that
+    each pixel there is hair (``hair_matte.hair_in_box``: the head around the box shown to it as the face finder's
+    nets see the photo, ``photo_rgb8``); None where it cannot run (no LiteRT) or for a grey photo: without colour it
+    takes a side light's deep shadows for hair (a cast shadow across a Yale B cheek, the shade beside a nose)."""
+    if not hair_matte.available() or np.shape(photo_channels(frame))[-1] != 3:
         return None
-    to_display = linear_to_srgb if encoding == "srgb" else None
-    return lambda box: hair_matte.hair_in_box(photo, box, to_display)
+    rgb8 = photo_rgb8(frame)
+    return lambda box: hair_matte.hair_in_box(rgb8, box)
 
 
 def person_segmenter(encoding: str) -> Callable[[np.ndarray], np.ndarray]:

@@ -49,10 +49,13 @@ def test_a_box_at_the_photos_edge_is_shown_black_beyond_it(astronaut):
 def test_without_litert_or_colour_there_is_no_matte(monkeypatch):
     """OpenCV's dnn gets the model wrong (its custom operators): without LiteRT the relighting gets no matte; nor for
     a grey photo, where the model takes a side light's deep shadows for hair (a Yale B cheek's cast shadow)."""
+    from shadowflow.flow.frame import Frame
     from shadowflow.nodes.relight.nodes import hair_segmenter
 
     pytest.importorskip("ai_edge_litert")
-    assert hair_segmenter(np.zeros((64, 64, 3), np.float32), "srgb") is not None
-    assert hair_segmenter(np.zeros((64, 64, 1), np.float32), "linear") is None
+    colour = Frame(0, "colour", data={"colour": np.zeros((64, 64, 3), np.float32)}, meta={"encoding": "srgb"})
+    grey = Frame(0, "grey", data={"image": np.zeros((64, 64), np.float32)}, meta={"encoding": "linear"})
+    assert hair_segmenter(colour) is not None
+    assert hair_segmenter(grey) is None
     monkeypatch.setattr(HM, "available", lambda: False)
-    assert hair_segmenter(np.zeros((64, 64, 3), np.float32), "srgb") is None
+    assert hair_segmenter(colour) is None
